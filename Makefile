@@ -1,0 +1,30 @@
+# pppbot: the README's two commands are `make run` and `make test`.
+# Each sets the environment up on first use (./pppbot does it).
+
+PYTEST_ARGS ?=
+
+.PHONY: setup run test check lock clean
+
+setup:
+	./pppbot setup
+
+run:
+	./pppbot launch_sim
+
+test: check
+	./pppbot env python -m pytest $(PYTEST_ARGS)
+
+# Static checks: types across the packages, tools and tests.
+check:
+	./pppbot env python -m mypy
+
+# Regenerate requirements.txt (the pinned lock) from requirements.in.
+lock:
+	rm -rf build/lock-venv
+	python3 -m venv build/lock-venv
+	build/lock-venv/bin/pip install --disable-pip-version-check -q -r requirements.in
+	build/lock-venv/bin/python tools/freeze_lock.py > requirements.txt
+	rm -rf build/lock-venv
+
+clean:
+	rm -rf build install log .venv

@@ -1,0 +1,173 @@
+"""Start and stop child processes so that none is ever left behind.
+
+Children run in their own session (process group), so a signal reaches the node
+and anything it started. Stopping escalates as ``ros2 launch`` does: SIGINT,
+then SIGTERM after a timeout, then SIGKILL.
+"""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import threading
+import time
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+from pppbot_common.errors import TimeoutExpired
+
+
+@dataclass(frozen=True)
+class StopTimeouts:
+    """Seconds to wait after SIGINT and after SIGTERM before escalating."""
+
+    sigint_s: float = 5.0
+    sigterm_s: float = 5.0
+
+
+def _signal_group(proc: subprocess.Popen[bytes] | subprocess.Popen[str], sig: int) -> None:
+    try:
+        os.killpg(proc.pid, sig)
+    except ProcessLookupError:
+        pass
+    except PermissionError:
+        proc.send_signal(sig)
+
+
+def stop_process_group(
+    proc: subprocess.Popen[bytes] | subprocess.Popen[str],
+    timeouts: StopTimeouts = StopTimeouts(),
+) -> int:
+    """Stop ``proc`` and its process group; return its exit code.
+
+    ``proc`` must have been started with ``start_new_session=True``. Whatever the
+    leader's fate, the rest of its group is killed at the end, so no grandchild
+    survives.
+    """
+    try:
+        if proc.poll() is None:
+            for sig, wait_s in ((signal.SIGINT, timeouts.sigint_s), (signal.SIGTERM, timeouts.sigterm_s)):
+                _signal_group(proc, sig)
+                try:
+                    proc.wait(timeout=wait_s)
+                    break
+                except subprocess.TimeoutExpired:
+                    continue
+            else:
+                _signal_group(proc, signal.SIGKILL)
+                proc.wait()
+    finally:
+        _signal_group(proc, signal.SIGKILL)
+    return proc.returncode
+
+
+class ChildProcess:
+    """A child in its own process group whose merged output is kept and can be waited on.
+
+    ``stop()`` (also on ``with`` exit) escalates SIGINT → SIGTERM → SIGKILL and
+    kills the whole group, so nothing the child started survives it.
+    """
+
+    def __init__(self, cmd: Sequence[str], name: str | None = None,
+                 env: Mapping[str, str] | None = None, cwd: str | os.PathLike[str] | None = None,
+                 timeouts: StopTimeouts = StopTimeouts()) -> None:
+        self.name = name or os.path.basename(cmd[0])
+        self.cmd = list(cmd)
+        self.timeouts = timeouts
+        self._lines: list[str] = []
+        self._changed = threading.Condition()
+        self.proc = subprocess.Popen(
+            self.cmd, env=None if env is None else dict(env), cwd=cwd,
+            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+            start_new_session=True, text=True, errors="replace", bufsize=1,
+        )
+        self._reader = threading.Thread(target=self._read, name=f"{self.name}-output", daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        stdout = self.proc.stdout
+        if stdout is None:  # only for the type checker: Popen was given PIPE
+            return
+        for line in stdout:
+            with self._changed:
+                self._lines.append(line.rstrip("\n"))
+                self._changed.notify_all()
+        with self._changed:
+            self._changed.notify_all()
+
+    @property
+    def pid(self) -> int:
+        return self.proc.pid
+
+    @property
+    def output(self) -> str:
+        """Everything the child printed so far (stdout and stderr)."""
+        with self._changed:
+            return "\n".join(self._lines)
+
+    def running(self) -> bool:
+        return self.proc.poll() is None
+
+    def wait_for_output(self, pattern: str | re.Pattern[str], timeout_s: float) -> re.Match[str]:
+        """Wait until a line matches ``pattern`` (a regex); return the first match.
+
+        Raises:
+            TimeoutExpired: no such line in time, or the child ended first.
+        """
+        return self.wait_for_lines(pattern, 1, timeout_s)[0]
+
+    def wait_for_lines(self, pattern: str | re.Pattern[str], count: int,
+                       timeout_s: float) -> list[re.Match[str]]:
+        """Wait until ``count`` lines match ``pattern``; return those matches in order.
+
+        Raises:
+            TimeoutExpired: fewer lines matched in time, or the child ended first.
+        """
+        regex = re.compile(pattern)
+        deadline = time.monotonic() + timeout_s
+        matches: list[re.Match[str]] = []
+        seen = 0
+        with self._changed:
+            while True:
+                for line in self._lines[seen:]:
+                    match = regex.search(line)
+                    if match:
+                        matches.append(match)
+                seen = len(self._lines)
+                if len(matches) >= count:
+                    return matches[:count]
+                remaining = deadline - time.monotonic()
+                ended = self.proc.poll() is not None and not self._reader.is_alive()
+                if remaining <= 0 or ended:
+                    why = f"it exited with {self.proc.returncode}" if ended else f"{timeout_s:.1f} s passed"
+                    raise TimeoutExpired(
+                        f"{self.name}: {len(matches)} of {count} output lines matched {regex.pattern!r} "
+                        f"({why}); output was:\n" + "\n".join(self._lines[-40:])
+                    )
+                self._changed.wait(timeout=min(remaining, 0.5))
+
+    def wait(self, timeout_s: float) -> int:
+        """Wait for the child to exit on its own; return its exit code.
+
+        Raises:
+            TimeoutExpired: still running after ``timeout_s``.
+        """
+        try:
+            code = self.proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            raise TimeoutExpired(f"{self.name} still running after {timeout_s:.1f} s") from None
+        self._reader.join(timeout=5.0)
+        return code
+
+    def stop(self) -> int:
+        """Stop the child and its group (see :func:`stop_process_group`); return the exit code."""
+        code = stop_process_group(self.proc, self.timeouts)
+        self._reader.join(timeout=5.0)
+        return code
+
+    def __enter__(self) -> "ChildProcess":
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()

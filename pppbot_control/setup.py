@@ -1,0 +1,22 @@
+from setuptools import find_packages, setup
+
+package_name = 'pppbot_control'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='pppbot developers',
+    maintainer_email='dev@pppbot.dev',
+    description='Differential-drive controller, twist_mux and keyboard teleop for ppp_bot, with a ROS-free kinematics and odometry core.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [],
+    },
+)

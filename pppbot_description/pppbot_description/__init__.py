@@ -1,0 +1,1 @@
+"""ppp_bot robot description (modular xacro) and a robot_state_publisher node."""

@@ -1,0 +1,113 @@
+"""pytest harness for pppbot.
+
+- The whole session gets its own ROS_DOMAIN_ID (held with a lock file, so parallel
+  test runs on one machine never share one) and ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST;
+  both are set before any test, so in-process rclpy and child processes inherit them.
+- ``spawn`` starts children in their own process groups and stops every one of them
+  after the test (SIGINT → SIGTERM → SIGKILL); the session fails if one survives.
+- ``ros_node`` gives a test an rclpy node in a context of its own.
+"""
+from __future__ import annotations
+
+import fcntl
+import os
+import sys
+import tempfile
+from pathlib import Path
+from typing import IO, Any, Callable, Iterator
+
+import pytest
+
+from pppbot_common.process import ChildProcess, StopTimeouts
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+SCRIPTS = Path(__file__).resolve().parent / "scripts"
+
+# Linux domain IDs that map to valid DDS ports: 0-101 and 215-232. 0 is the default
+# every ROS user runs in, so tests avoid it.
+_DOMAIN_IDS = [*range(1, 102), *range(215, 233)]
+_domain_lock: IO[str] | None = None
+
+
+def _claim_domain_id() -> int:
+    """A domain ID no other pppbot test session on this machine holds."""
+    global _domain_lock
+    start = os.getpid() % len(_DOMAIN_IDS)
+    for i in range(len(_DOMAIN_IDS)):
+        domain = _DOMAIN_IDS[(start + i) % len(_DOMAIN_IDS)]
+        lock = open(Path(tempfile.gettempdir()) / f"pppbot-ros-domain-{domain}.lock", "w")
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            lock.close()
+            continue
+        _domain_lock = lock
+        return domain
+    raise RuntimeError("every ROS domain ID is held by another pppbot test session")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    os.environ["ROS_DOMAIN_ID"] = str(_claim_domain_id())
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ.pop("ROS_STATIC_PEERS", None)
+    os.environ.pop("ROS_LOCALHOST_ONLY", None)
+    os.environ["PYTHONUNBUFFERED"] = "1"
+
+
+def pytest_report_header(config: pytest.Config) -> str:
+    return (f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID')} "
+            f"ROS_AUTOMATIC_DISCOVERY_RANGE={os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE')}")
+
+
+_started: list[ChildProcess] = []
+
+
+@pytest.fixture
+def spawn() -> Iterator[Callable[..., ChildProcess]]:
+    """Start a child: ``spawn(cmd, name=..., timeouts=...)``; stopped after the test."""
+    mine: list[ChildProcess] = []
+
+    def start(cmd: list[str], name: str | None = None, timeouts: StopTimeouts = StopTimeouts(3.0, 3.0),
+              **kwargs: object) -> ChildProcess:
+        child = ChildProcess(cmd, name=name, timeouts=timeouts, **kwargs)  # type: ignore[arg-type]
+        mine.append(child)
+        _started.append(child)
+        return child
+
+    yield start
+    for child in reversed(mine):
+        child.stop()
+
+
+@pytest.fixture
+def python_script() -> Callable[[str], list[str]]:
+    """The command line that runs ``tests/scripts/<name>`` with this interpreter."""
+    def command(name: str, *args: str) -> list[str]:
+        return [sys.executable, str(SCRIPTS / name), *args]
+    return command
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    survivors = [c for c in _started if c.running()]
+    for child in survivors:
+        child.stop()
+    if survivors:
+        names = ", ".join(f"{c.name} (pid {c.pid})" for c in survivors)
+        print(f"\nERROR: test children still running at the end of the session were killed: {names}",
+              file=sys.stderr)
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+@pytest.fixture
+def ros_node(request: pytest.FixtureRequest) -> Iterator[Any]:
+    """An rclpy node (default context, initialised for this test only)."""
+    import rclpy
+
+    rclpy.init()
+    name = "pytest_" + "".join(ch if ch.isalnum() else "_" for ch in request.node.name)[:50]
+    node = rclpy.create_node(name)
+    try:
+        yield node
+    finally:
+        node.destroy_node()
+        rclpy.shutdown()

@@ -1,0 +1,117 @@
+"""`./pppbot` dispatch, `run` and `topic list/info/echo/hz` against live publishers."""
+from __future__ import annotations
+
+import re
+import subprocess
+from pathlib import Path
+
+import pytest
+import yaml
+
+pytestmark = pytest.mark.ros
+
+PPPBOT = str(Path(__file__).resolve().parents[2] / "pppbot")
+
+
+def pppbot(*args: str, timeout_s: float = 60) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([PPPBOT, *args], capture_output=True, text=True, timeout=timeout_s)
+
+
+@pytest.fixture
+def talker(spawn, python_script):
+    child = spawn(python_script("publish_tf_and_particles.py", "20"), name="talker")
+    child.wait_for_output(r"^ready$", timeout_s=20)
+    return child
+
+
+def test_help_lists_verbs():
+    result = pppbot("--help")
+    assert result.returncode == 0
+    for verb in ("run", "topic", "setup", "env"):
+        assert re.search(rf"^\s+{verb}\s", result.stdout, re.M), verb
+
+
+def test_unknown_verb_fails_with_choices():
+    result = pppbot("flyaway")
+    assert result.returncode == 2
+    assert "invalid choice: 'flyaway'" in result.stderr
+
+
+def test_env_runs_a_command_in_the_environment():
+    result = pppbot("env", "python", "-c", "import tf2_msgs.msg, nav2_msgs.action, rclpy, mujoco; print('ok')")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "ok"
+
+
+def test_run_reports_missing_package_and_executable():
+    result = pppbot("run", "no_such_pkg", "x")
+    assert result.returncode == 1 and "package 'no_such_pkg' not found" in result.stderr
+    result = pppbot("run", "pppbot_bringup", "nope")
+    assert result.returncode == 1
+    assert "no executable 'nope' in package 'pppbot_bringup' (it has: pppbot)" in result.stderr
+
+
+def test_run_executes_a_package_executable():
+    result = pppbot("run", "pppbot_bringup", "pppbot", "topic", "--help")
+    assert result.returncode == 0, result.stderr
+    assert "usage: pppbot topic" in result.stdout
+
+
+def test_topic_list_shows_a_live_topic(talker):
+    result = pppbot("topic", "list", "-t")
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert "/tf [tf2_msgs/msg/TFMessage]" in lines
+    assert "/particle_cloud [nav2_msgs/msg/ParticleCloud]" in lines
+
+
+def test_topic_list_without_publishers_lacks_the_topic():
+    result = pppbot("topic", "list")
+    assert result.returncode == 0
+    assert "/particle_cloud" not in result.stdout.splitlines()
+
+
+def test_topic_info_counts_publishers(talker):
+    result = pppbot("topic", "info", "/particle_cloud", "-v")
+    assert result.returncode == 0, result.stderr
+    assert "Type: nav2_msgs/msg/ParticleCloud" in result.stdout
+    assert "Publisher count: 1" in result.stdout
+    assert "Node name: tf_particle_talker" in result.stdout
+
+
+def test_topic_echo_once_prints_yaml(talker):
+    result = pppbot("topic", "echo", "/tf", "--once")
+    assert result.returncode == 0, result.stderr
+    body, sep, _ = result.stdout.partition("---\n")
+    assert sep
+    data = yaml.safe_load(body)
+    (transform,) = data["transforms"]
+    assert transform["header"]["frame_id"] == "odom"
+    assert transform["child_frame_id"] == "base_link"
+    assert transform["transform"]["translation"]["x"] == pytest.approx(0.01 * transform["header"]["stamp"]["nanosec"])
+
+
+def test_topic_echo_field(talker):
+    result = pppbot("topic", "echo", "/particle_cloud", "--once", "--field", "header.frame_id")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == "map\n---\n"
+
+
+def test_topic_echo_unknown_topic_without_type_says_how(talker):
+    result = pppbot("topic", "echo", "/nobody", "--spin-time", "1")
+    assert result.returncode == 1
+    assert "give it: pppbot topic echo /nobody <package/msg/Type>" in result.stderr
+
+
+def test_topic_hz_measures_the_rate(spawn, talker):
+    hz = spawn([PPPBOT, "topic", "hz", "/tf"], name="hz")
+    reports = hz.wait_for_lines(r"average rate: ([\d.]+)", count=3, timeout_s=30)
+    # The talker publishes at 20 Hz; the first report may cover a partial second.
+    assert 15.0 < float(reports[-1].group(1)) < 25.0
+    assert re.search(r"min: [\d.]+s max: [\d.]+s std dev: [\d.]+s window: \d+", hz.output)
+
+
+def test_a_design_verb_not_built_yet_says_so_instead_of_pretending():
+    result = pppbot("launch_sim", "world:=maze")
+    assert result.returncode == 2
+    assert "not built yet" in result.stderr and result.stdout == ""

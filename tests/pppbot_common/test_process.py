@@ -1,0 +1,97 @@
+"""ChildProcess / stop_process_group: escalation and no survivors."""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import textwrap
+
+import pytest
+
+from pppbot_common.errors import TimeoutExpired
+from pppbot_common.process import ChildProcess, StopTimeouts
+
+
+def python(code: str) -> list[str]:
+    return [sys.executable, "-c", textwrap.dedent(code)]
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # A zombie is dead for our purposes.
+    with open(f"/proc/{pid}/stat") as f:
+        return f.read().split(")")[-1].split()[0] != "Z"
+
+
+def test_sigint_is_enough_for_a_well_behaved_child():
+    child = ChildProcess(python("""
+        import time
+        print('up', flush=True)
+        try:
+            time.sleep(60)
+        except KeyboardInterrupt:
+            print('interrupted', flush=True)
+    """))
+    child.wait_for_output("^up$", 10)
+    code = child.stop()
+    assert code == 0
+    assert "interrupted" in child.output
+
+
+def test_child_ignoring_sigint_gets_sigterm():
+    child = ChildProcess(python("""
+        import signal, time
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        print('up', flush=True)
+        time.sleep(60)
+    """), timeouts=StopTimeouts(0.5, 5.0))
+    child.wait_for_output("^up$", 10)
+    assert child.stop() == -signal.SIGTERM
+
+
+def test_child_ignoring_sigint_and_sigterm_gets_sigkill():
+    child = ChildProcess(python("""
+        import signal, time
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        print('up', flush=True)
+        time.sleep(60)
+    """), timeouts=StopTimeouts(0.3, 0.3))
+    child.wait_for_output("^up$", 10)
+    assert child.stop() == -signal.SIGKILL
+
+
+def test_grandchildren_do_not_survive():
+    child = ChildProcess(python("""
+        import subprocess, sys, signal, time
+        grand = subprocess.Popen([sys.executable, '-c',
+            'import signal, time; signal.signal(signal.SIGINT, signal.SIG_IGN); time.sleep(60)'])
+        print('grandchild', grand.pid, flush=True)
+        time.sleep(60)
+    """), timeouts=StopTimeouts(0.5, 0.5))
+    grand_pid = int(child.wait_for_output(r"^grandchild (\d+)$", 10).group(1))
+    assert alive(grand_pid)
+    child.stop()
+    # The group is SIGKILLed at the end; give the kernel a moment to reap.
+    import time
+    deadline = time.monotonic() + 5
+    while alive(grand_pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not alive(grand_pid)
+
+
+def test_wait_for_output_reports_early_exit():
+    child = ChildProcess(python("print('only line'); raise SystemExit(3)"))
+    with pytest.raises(TimeoutExpired, match=r"exited with 3\)(?s:.*)only line"):
+        child.wait_for_output("never printed", 10)
+    assert child.wait(5) == 3
+
+
+def test_wait_times_out_on_a_running_child():
+    with ChildProcess(python("import time; time.sleep(60)")) as child:
+        with pytest.raises(TimeoutExpired, match="still running"):
+            child.wait(0.2)
+    assert not child.running()
