@@ -1,0 +1,101 @@
+"""Joint transforms of a URDF tree: what robot_state_publisher publishes on /tf and /tf_static.
+
+A joint's transform takes child-frame coordinates to parent-frame coordinates:
+``T = T_origin · T_motion(q)``, with ``T_motion`` a rotation of ``q`` rad about
+the joint axis (revolute, continuous) or a shift of ``q`` m along it (prismatic).
+Rotations are quaternions ``(x, y, z, w)``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Iterable, Mapping
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from pppbot_description.urdf_model import Joint, JointType, Origin, RobotModel
+
+Quaternion = tuple[float, float, float, float]
+Vector3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class FrameTransform:
+    parent: str
+    child: str
+    translation: Vector3
+    rotation: Quaternion
+
+
+def origin_rotation(origin: Origin) -> Rotation:
+    """URDF rpy: roll about x, then pitch about y, then yaw about z, all fixed axes."""
+    return Rotation.from_euler("xyz", origin.rpy)
+
+
+def _as_tuple3(v: np.ndarray) -> Vector3:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def _as_quaternion(r: Rotation) -> Quaternion:
+    x, y, z, w = r.as_quat()
+    return (float(x), float(y), float(z), float(w))
+
+
+def joint_transform(joint: Joint, position: float = 0.0, frame_prefix: str = "") -> FrameTransform:
+    """The parent ← child transform of ``joint`` at ``position`` (rad or m)."""
+    rotation = origin_rotation(joint.origin)
+    translation = np.asarray(joint.origin.xyz, dtype=float)
+    axis = np.asarray(joint.axis, dtype=float)
+    if joint.type in (JointType.REVOLUTE, JointType.CONTINUOUS):
+        rotation = rotation * Rotation.from_rotvec(axis * position)
+    elif joint.type is JointType.PRISMATIC:
+        translation = translation + rotation.apply(axis * position)
+    return FrameTransform(frame_prefix + joint.parent, frame_prefix + joint.child,
+                          _as_tuple3(translation), _as_quaternion(rotation))
+
+
+class KinematicTree:
+    """The fixed and moving joints of a robot model, ready to turn positions into transforms."""
+
+    def __init__(self, model: RobotModel, frame_prefix: str = "") -> None:
+        self.model = model
+        self.frame_prefix = frame_prefix
+        self.fixed_joints = [j for j in model.walk() if j.type is JointType.FIXED]
+        self.moving_joints = {j.name: j for j in model.walk() if j.type.moves}
+        self.ignored_joints = {j.name for j in model.walk() if not j.type.moves and j.type is not JointType.FIXED}
+
+    def fixed_transforms(self) -> list[FrameTransform]:
+        """Every fixed joint's transform (for /tf_static)."""
+        return [joint_transform(j, 0.0, self.frame_prefix) for j in self.fixed_joints]
+
+    def unknown_names(self, names: Iterable[str]) -> list[str]:
+        """Names that are no joint of the model."""
+        return [n for n in names if n not in self.model.joints]
+
+    def moving_transforms(self, positions: Mapping[str, float]) -> list[FrameTransform]:
+        """Transforms of the moving joints that ``positions`` determines (directly or by mimic).
+
+        Names that are not moving joints and non-finite positions are skipped.
+        """
+        out = []
+        for name, joint in self.moving_joints.items():
+            position = positions.get(name)
+            if position is None and joint.mimic is not None and joint.mimic.joint in positions:
+                position = joint.mimic.multiplier * positions[joint.mimic.joint] + joint.mimic.offset
+            if position is None or not math.isfinite(position):
+                continue
+            out.append(joint_transform(joint, position, self.frame_prefix))
+        return out
+
+    def link_poses(self, positions: Mapping[str, float] | None = None) -> dict[str, tuple[np.ndarray, Rotation]]:
+        """Each link's pose in the root frame (translation, rotation); unset joints at 0."""
+        positions = positions or {}
+        poses: dict[str, tuple[np.ndarray, Rotation]] = {self.model.root: (np.zeros(3), Rotation.identity())}
+        for joint in self.model.walk():
+            q = positions.get(joint.name, 0.0) if joint.type.moves else 0.0
+            t = joint_transform(joint, q)
+            parent_t, parent_r = poses[joint.parent]
+            poses[joint.child] = (parent_t + parent_r.apply(t.translation),
+                                  parent_r * Rotation.from_quat(t.rotation))
+        return poses

@@ -1,0 +1,1 @@
+"""ROS adapters of the robot description (robot_state_publisher)."""
