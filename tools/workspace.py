@@ -264,6 +264,11 @@ def project_packages() -> list[Path]:
     return sorted(p.parent for p in ROOT.glob("*/package.xml") if p.parent.name.startswith("pppbot_"))
 
 
+#: Top-level folders that packages install (their setup.py data_files); a new file there
+#: needs a rebuild to appear in install/.
+SHARED_DATA = ("worlds", "config")
+
+
 def _package_inputs(pkg: Path) -> Iterator[Path]:
     """Files whose change needs a colcon rebuild (not module sources: symlinked)."""
     module_dir = pkg / pkg.name
@@ -281,6 +286,8 @@ def ensure_packages(force: bool, quiet: bool) -> bool:
         venv_digest().encode(),
         (STAMPS / "interfaces").read_bytes() if (STAMPS / "interfaces").is_file() else b"",
         *_files_digest(p for pkg in packages for p in _package_inputs(pkg)),
+        *sorted(str(p.relative_to(ROOT)).encode() for d in SHARED_DATA for p in (ROOT / d).rglob("*")
+                if p.is_file()),
     ])
     if not force and _stamp_current("packages", digest) and all((INSTALL / p.name).is_dir() for p in packages):
         return False

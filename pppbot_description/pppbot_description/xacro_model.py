@@ -100,3 +100,22 @@ def process_xacro(path: str | Path | None = None, mappings: Mapping[str, str] | 
         known = ", ".join(sorted(declared_arguments(included))) or "none"
         raise DescriptionError(f"{top}: unknown xacro argument(s) {', '.join(unknown)} (declared: {known})")
     return str(document.toprettyxml(indent="  "))
+
+
+def read_robot_description(value: str) -> tuple[str, str]:
+    """``(urdf_xml, source)`` from a ``robot_description`` value as pppbot nodes take it:
+    URDF XML itself, the path of a ``.urdf`` or ``.xacro`` file, or empty for ppp_bot.
+
+    Raises:
+        DescriptionError: unreadable file or a xacro error.
+    """
+    text = value.strip()
+    if text.startswith("<"):
+        return text, "the robot_description parameter"
+    path = Path(text).expanduser() if text else default_xacro_path()
+    if path.suffix == ".xacro":
+        return process_xacro(path), str(path)
+    try:
+        return path.read_text(), str(path)
+    except OSError as exc:
+        raise DescriptionError(f"robot_description: cannot read '{path}': {exc.strerror}") from exc

@@ -57,3 +57,12 @@ def test_updated_keeps_other_values_and_validates():
     assert updated(e, {"rate_hz": 5.0}) == Example(rate_hz=5.0, beams=360)
     with pytest.raises(ParameterError):
         updated(e, {"beams": -1})
+
+
+def test_throttle_is_per_key():
+    from pppbot_common.throttle import Throttle
+
+    t = Throttle(5.0)
+    assert t.allow("a", 0.0) and t.allow("b", 1.0)
+    assert not t.allow("a", 4.9)
+    assert t.allow("a", 5.0)

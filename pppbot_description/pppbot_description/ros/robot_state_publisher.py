@@ -14,7 +14,6 @@ import functools
 import math
 import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 import rclpy
 from geometry_msgs.msg import TransformStamped
@@ -32,7 +31,7 @@ from pppbot_common.ros.qos import LATCHED
 from pppbot_description.errors import DescriptionError
 from pppbot_description.kinematics import FrameTransform, KinematicTree
 from pppbot_description.urdf_model import RobotModel, parse_urdf
-from pppbot_description.xacro_model import default_xacro_path, process_xacro
+from pppbot_description.xacro_model import read_robot_description
 
 #: What tf2's StaticTransformBroadcaster uses.
 TF_STATIC_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -49,21 +48,8 @@ def load_description(value: str) -> tuple[str, str, RobotModel]:
     Raises:
         DescriptionError: unreadable file, xacro error, or a malformed URDF.
     """
-    urdf, source = _read_description(value)
+    urdf, source = read_robot_description(value)
     return urdf, source, parse_urdf(urdf, source)
-
-
-def _read_description(value: str) -> tuple[str, str]:
-    text = value.strip()
-    if text.startswith("<"):
-        return text, "the robot_description parameter"
-    path = Path(text) if text else default_xacro_path()
-    if path.suffix == ".xacro":
-        return process_xacro(path), str(path)
-    try:
-        return path.read_text(), str(path)
-    except OSError as exc:
-        raise DescriptionError(f"robot_description: cannot read '{path}': {exc.strerror}") from exc
 
 
 @dataclass(frozen=True)

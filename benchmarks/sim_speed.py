@@ -1,0 +1,123 @@
+"""Achieved real-time factor of the simulator at real_time_factor:=0.
+
+For each world (maze, office): the simulation core alone (MuJoCo stepping, the
+640-beam lidar at 10 Hz, IMU at 100 Hz, wheel and ground-truth readings, no ROS);
+the simulator node publishing everything over DDS with nobody listening; and the
+same while a second process subscribes to /scan and /clock (which also takes CPU
+on this 2-core machine). Prints one JSON object on its last line.
+
+    ./pppbot env python benchmarks/sim_speed.py [--sim-seconds 60] [--worlds maze office]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+SUBSCRIBER = """
+import rclpy, sys
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import LaserScan
+from rosgraph_msgs.msg import Clock
+rclpy.init(); n = rclpy.create_node('bench_subscriber'); count = [0]
+n.create_subscription(LaserScan, '/scan', lambda m: count.__setitem__(0, count[0] + 1), 10)
+n.create_subscription(Clock, '/clock', lambda m: None, 10)
+print('ready', flush=True)
+try:
+    rclpy.spin(n)
+except BaseException:
+    pass
+print('scans', count[0], flush=True)
+"""
+
+
+def isolate_dds() -> None:
+    os.environ.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+
+
+def core_rtf(world: str, sim_seconds: float) -> float:
+    from pppbot_description.urdf_model import parse_urdf
+    from pppbot_description.xacro_model import process_xacro
+    from pppbot_sim.simulation import Simulation, load_world
+    from pppbot_sim.worlds import find_world, model_paths
+
+    path = find_world(world)
+    spec, _ = load_world(path, model_paths(path))
+    sim = Simulation(spec, parse_urdf(process_xacro()))
+    for name, rate in (("clock", 100.0), ("joint_states", 100.0), ("ground_truth", 50.0)):
+        sim.schedule.add(name, rate)
+    sim.set_wheel_velocities({"left_wheel_joint": 3.0, "right_wheel_joint": 2.5})
+    start = time.perf_counter()
+    while sim.time_s < sim_seconds:
+        for event in sim.advance(1000):
+            if event.startswith("lidar"):
+                sim.lidar_scan(int(event[5:]))
+            elif event.startswith("imu"):
+                sim.imu_sample(int(event[3:]))
+            elif event == "joint_states":
+                sim.wheel_state()
+            elif event == "ground_truth":
+                sim.ground_truth()
+    return sim_seconds / (time.perf_counter() - start)
+
+
+def ros_rtf(world: str, sim_seconds: float, with_subscriber: bool) -> tuple[float, int]:
+    import rclpy
+
+    from pppbot_sim.ros.simulator import Simulator
+
+    subscriber = None
+    if with_subscriber:
+        subscriber = subprocess.Popen([sys.executable, "-c", SUBSCRIBER], stdout=subprocess.PIPE, text=True,
+                                      start_new_session=True)
+        if subscriber.stdout is None or subscriber.stdout.readline().strip() != "ready":
+            raise RuntimeError("the subscriber process did not start")
+    try:
+        rclpy.init(args=["--ros-args", "-p", f"world:={world}", "-p", "real_time_factor:=0.0",
+                         "-p", "command_timeout:=0.0", "--log-level", "warn"])
+        node = Simulator()
+        node.runner.command({"left_wheel_joint": 3.0, "right_wheel_joint": 2.5})
+        start = time.perf_counter()
+        node.run(until_s=sim_seconds)
+        rtf = node.published_s / (time.perf_counter() - start)
+        node.destroy_node()
+        rclpy.shutdown()
+    finally:
+        out = ""
+        if subscriber is not None:
+            subscriber.send_signal(2)
+            out, _ = subscriber.communicate(timeout=10)
+    scans = int(out.split()[-1]) if out.strip() else 0
+    return rtf, scans
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sim-seconds", type=float, default=60.0)
+    parser.add_argument("--worlds", nargs="+", default=["maze", "office"])
+    args = parser.parse_args()
+    isolate_dds()
+    results = {"benchmark": "sim_speed", "sim_seconds": args.sim_seconds, "lidar_beams": 640,
+               "lidar_rate_hz": 10, "cpu_count": os.cpu_count()}
+    for world in args.worlds:
+        core = core_rtf(world, args.sim_seconds)
+        ros, _ = ros_rtf(world, args.sim_seconds, with_subscriber=False)
+        ros_sub, scans = ros_rtf(world, args.sim_seconds, with_subscriber=True)
+        results[f"{world}_core_real_time_factor"] = round(core, 1)
+        results[f"{world}_ros_real_time_factor"] = round(ros, 1)
+        results[f"{world}_ros_subscribed_real_time_factor"] = round(ros_sub, 1)
+        results[f"{world}_scans_received"] = scans
+        print(f"{world}: core {core:.1f}x, publishing {ros:.1f}x, publishing to a subscriber {ros_sub:.1f}x "
+              f"({scans} scans received)", file=sys.stderr)
+    results["real_time_factor"] = results.get("maze_ros_real_time_factor")
+    print(json.dumps(results))
+
+
+if __name__ == "__main__":
+    main()

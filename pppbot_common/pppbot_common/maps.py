@@ -1,0 +1,248 @@
+"""Occupancy grids and Nav2 map files (YAML + PGM/PNG), read and written as Nav2 does.
+
+Cell values follow nav_msgs/OccupancyGrid: 0 free, 100 occupied, -1 unknown (and
+1-99 in ``scale`` mode). Row 0 of ``data`` is the map's bottom row (lowest y),
+as in the message; image row 0 is the top, so files are flipped on the way.
+
+Nav2's rules (map_server / map_saver):
+
+* loading: ``p = (255 - v) / 255`` (or ``v / 255`` when ``negate``);
+  ``trinary``: p > occupied_thresh → 100, p < free_thresh → 0, else -1;
+  ``scale``: the same ends, and between them ``round(100·(p - free)/(occ - free))``;
+  ``raw``: the pixel value itself (255 → -1).
+* saving: ``trinary`` writes 0 for occupied, 254 for free, 205 for unknown, and,
+  as Nav2's map_saver does since it fixed this (navigation2 #5278), records the
+  fixed thresholds 0.65 / 0.196 in the YAML so that 205 reads back as unknown (the
+  thresholds given only classify the cells before saving); ``scale`` writes
+  ``round(255·(1 - occ/100))``, unknown 205; ``raw`` the value.
+"""
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from PIL import Image, UnidentifiedImageError
+
+from pppbot_common.errors import PppbotError
+
+FREE, OCCUPIED, UNKNOWN = 0, 100, -1
+#: What a trinary map file records: 0 → p 1.0 occupied, 254 → p 0.004 free, 205 → p 0.196 unknown.
+TRINARY_FILE_THRESHOLDS = (0.65, 0.196)
+
+
+class MapFileError(PppbotError, ValueError):
+    """A map file is missing, malformed or unreadable; the message names file and key."""
+
+
+class MapMode(enum.Enum):
+    TRINARY = "trinary"
+    SCALE = "scale"
+    RAW = "raw"
+
+
+@dataclass
+class OccupancyGrid:
+    """A 2D grid in a frame: ``data[row, col]``, row 0 at ``origin`` y (bottom)."""
+
+    data: np.ndarray  # int8, shape (height, width)
+    resolution: float  # m per cell
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0)  # x, y, yaw of cell (0, 0)'s corner
+    frame_id: str = "map"
+
+    def __post_init__(self) -> None:
+        self.data = np.asarray(self.data, dtype=np.int8)
+        if self.data.ndim != 2:
+            raise ValueError(f"occupancy data must be 2D, not shape {self.data.shape}")
+        if not (math.isfinite(self.resolution) and self.resolution > 0):
+            raise ValueError(f"resolution must be a positive number, not {self.resolution}")
+
+    @property
+    def height(self) -> int:
+        return int(self.data.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.data.shape[1])
+
+    def cell_of(self, x: np.ndarray | float, y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+        """(row, col) indices of world points (origin yaw must be 0); may be out of range."""
+        col = np.floor((np.asarray(x) - self.origin[0]) / self.resolution).astype(int)
+        row = np.floor((np.asarray(y) - self.origin[1]) / self.resolution).astype(int)
+        return row, col
+
+    def cell_centers(self) -> tuple[np.ndarray, np.ndarray]:
+        """x and y of every cell centre, each of shape (height, width)."""
+        cols = self.origin[0] + (np.arange(self.width) + 0.5) * self.resolution
+        rows = self.origin[1] + (np.arange(self.height) + 0.5) * self.resolution
+        return np.meshgrid(cols, rows)
+
+
+@dataclass
+class MapMetadata:
+    """The YAML side of a Nav2 map file."""
+
+    image: str
+    resolution: float
+    origin: tuple[float, float, float]
+    mode: MapMode = MapMode.TRINARY
+    negate: bool = False
+    occupied_thresh: float = 0.65
+    free_thresh: float = 0.25
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+_REQUIRED = ("image", "resolution", "origin")
+
+
+def _number(meta: dict[str, Any], key: str, path: Path, default: float | None = None) -> float:
+    value = meta.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise MapFileError(f"{path}: '{key}' must be a finite number, not {value!r}")
+    return float(value)
+
+
+def read_map_metadata(path: str | Path) -> MapMetadata:
+    """Parse a Nav2 map YAML file.
+
+    Raises:
+        MapFileError: missing file, bad YAML, a missing or invalid key.
+    """
+    path = Path(path)
+    try:
+        meta = yaml.safe_load(path.read_text())
+    except OSError as exc:
+        raise MapFileError(f"{path}: cannot read the map file ({exc.strerror})") from exc
+    except yaml.YAMLError as exc:
+        raise MapFileError(f"{path}: not valid YAML: {exc}") from exc
+    if not isinstance(meta, dict):
+        raise MapFileError(f"{path}: a map file is a YAML mapping with keys {', '.join(_REQUIRED)}")
+    missing = [k for k in _REQUIRED if k not in meta]
+    if missing:
+        raise MapFileError(f"{path}: missing key(s) {', '.join(missing)}")
+    if not isinstance(meta["image"], str) or not meta["image"]:
+        raise MapFileError(f"{path}: 'image' must be a file name, not {meta['image']!r}")
+    resolution = _number(meta, "resolution", path)
+    if resolution <= 0:
+        raise MapFileError(f"{path}: 'resolution' must be positive, not {resolution}")
+    origin = meta["origin"]
+    if (not isinstance(origin, (list, tuple)) or len(origin) != 3
+            or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in origin)):
+        raise MapFileError(f"{path}: 'origin' must be [x, y, yaw], not {origin!r}")
+    mode_text = meta.get("mode", "trinary")
+    try:
+        mode = MapMode(mode_text)
+    except ValueError:
+        raise MapFileError(f"{path}: 'mode' is {mode_text!r}; allowed: trinary, scale, raw") from None
+    negate = meta.get("negate", 0)
+    if negate not in (0, 1, True, False):
+        raise MapFileError(f"{path}: 'negate' must be 0 or 1, not {negate!r}")
+    occupied = _number(meta, "occupied_thresh", path, 0.65)
+    free = _number(meta, "free_thresh", path, 0.25)
+    if not 0.0 <= free <= occupied <= 1.0:
+        raise MapFileError(f"{path}: thresholds need 0 <= free_thresh ({free}) <= occupied_thresh ({occupied}) <= 1")
+    extra = {k: v for k, v in meta.items()
+             if k not in {*_REQUIRED, "mode", "negate", "occupied_thresh", "free_thresh"}}
+    return MapMetadata(meta["image"], resolution, (float(origin[0]), float(origin[1]), float(origin[2])),
+                       mode, bool(negate), occupied, free, extra)
+
+
+def pixels_to_occupancy(pixels: np.ndarray, meta: MapMetadata) -> np.ndarray:
+    """Nav2's loading rule: greyscale pixels (image orientation) → int8 cells (same orientation)."""
+    values = pixels.astype(np.float64)
+    if meta.mode is MapMode.RAW:
+        out = values.copy()
+        out[values == 255] = UNKNOWN
+        return np.clip(out, -1, 100).astype(np.int8)
+    p = values / 255.0 if meta.negate else (255.0 - values) / 255.0
+    out = np.full(values.shape, UNKNOWN, dtype=np.int8)
+    out[p > meta.occupied_thresh] = OCCUPIED
+    out[p < meta.free_thresh] = FREE
+    if meta.mode is MapMode.SCALE:
+        between = (p >= meta.free_thresh) & (p <= meta.occupied_thresh)
+        span = max(meta.occupied_thresh - meta.free_thresh, 1e-9)
+        out[between] = np.rint(100.0 * (p[between] - meta.free_thresh) / span).astype(np.int8)
+    return out
+
+
+def occupancy_to_pixels(data: np.ndarray, mode: MapMode = MapMode.TRINARY,
+                        occupied_thresh: float = 0.65, free_thresh: float = 0.25) -> np.ndarray:
+    """Nav2 map_saver's writing rule: int8 cells → uint8 greyscale pixels."""
+    out = np.full(data.shape, 205, dtype=np.uint8)
+    if mode is MapMode.RAW:
+        out = np.where(data < 0, 255, data).astype(np.uint8)
+        return out
+    occupied = data >= occupied_thresh * 100.0
+    free = (data >= 0) & (data <= free_thresh * 100.0)
+    if mode is MapMode.TRINARY:
+        out[occupied] = 0
+        out[free] = 254
+        return out
+    known = data >= 0
+    out[known] = np.rint(255.0 * (1.0 - data[known] / 100.0)).astype(np.uint8)
+    return out
+
+
+def load_map(path: str | Path) -> tuple[OccupancyGrid, MapMetadata]:
+    """Load a Nav2 map (YAML and its image).
+
+    Raises:
+        MapFileError: any problem with the YAML or the image, naming the file.
+    """
+    path = Path(path)
+    meta = read_map_metadata(path)
+    image_path = Path(meta.image) if Path(meta.image).is_absolute() else path.parent / meta.image
+    try:
+        with Image.open(image_path) as image:
+            pixels = np.asarray(image.convert("L"))
+    except FileNotFoundError:
+        raise MapFileError(f"{path}: image '{meta.image}' not found at {image_path}") from None
+    except (UnidentifiedImageError, OSError) as exc:
+        raise MapFileError(f"{image_path}: not a readable image ({exc})") from exc
+    cells = pixels_to_occupancy(pixels, meta)[::-1]
+    return OccupancyGrid(cells, meta.resolution, meta.origin), meta
+
+
+def save_map(grid: OccupancyGrid, path: str | Path, mode: MapMode = MapMode.TRINARY,
+             occupied_thresh: float = 0.65, free_thresh: float = 0.25, image_format: str = "pgm",
+             overwrite: bool = True) -> Path:
+    """Write ``<path>.yaml`` and ``<path>.<image_format>`` as Nav2's map_saver does.
+
+    ``path`` may end in ``.yaml``; returns the YAML path.
+
+    Raises:
+        MapFileError: bad format, thresholds, or an existing file when not ``overwrite``.
+    """
+    path = Path(path)
+    base = path.with_suffix("") if path.suffix == ".yaml" else path
+    image_format = image_format.lower()
+    if image_format not in ("pgm", "png", "bmp"):
+        raise MapFileError(f"image format '{image_format}' is not supported (pgm, png, bmp)")
+    if not 0.0 <= free_thresh <= occupied_thresh <= 1.0:
+        raise MapFileError(f"thresholds need 0 <= free ({free_thresh}) <= occupied ({occupied_thresh}) <= 1")
+    yaml_path = base.with_suffix(".yaml")
+    image_path = base.with_suffix(f".{image_format}")
+    if not overwrite:
+        for existing in (yaml_path, image_path):
+            if existing.exists():
+                raise MapFileError(f"{existing} exists; refusing to overwrite it")
+    pixels = occupancy_to_pixels(grid.data, mode, occupied_thresh, free_thresh)[::-1]
+    base.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(np.ascontiguousarray(pixels)).save(image_path)
+    if mode is MapMode.TRINARY:
+        occupied_thresh, free_thresh = TRINARY_FILE_THRESHOLDS
+    meta = {
+        "image": image_path.name,
+        "mode": mode.value,
+        "resolution": float(grid.resolution),
+        "origin": [float(v) for v in grid.origin],
+        "negate": 0,
+        "occupied_thresh": float(occupied_thresh),
+        "free_thresh": float(free_thresh),
+    }
+    yaml_path.write_text(yaml.safe_dump(meta, sort_keys=False, default_flow_style=None))
+    return yaml_path

@@ -1,0 +1,270 @@
+"""Build MuJoCo models with MjSpec: a world (from SDF data or an MJCF file) and a URDF robot.
+
+The robot is converted here rather than by MuJoCo's URDF import, which fuses
+fixed links away with their frames and makes the base static. Here the root link
+gets a free joint at the spawn pose; links on fixed joints become child bodies
+that MuJoCo fuses into their parent (``fusestatic``) while each keeps a site
+named after its link, so sensors and TF frames stay addressable; continuous and
+revolute joints become hinges, prismatic ones slides; joints of the
+``<ros2_control>`` block with a velocity command interface get a velocity servo
+limited to its min/max. Robot geoms live in geom group :data:`ROBOT_GROUP`, which
+the lidar and ground-truth maps leave out.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from pppbot_description.urdf_model import Geometry, Joint, JointType, Origin, RobotModel
+from pppbot_sim.errors import SpawnError, WorldError
+from pppbot_sim.meshes import load_mesh
+from pppbot_sim.sdf_world import Shape, World
+
+ROBOT_GROUP = 3
+DEFAULT_FRICTION = 1.0
+_mesh_ids = itertools.count()
+
+
+@dataclass(frozen=True)
+class SpawnPose:
+    """Where the robot's root link starts, in the world frame (m, rad)."""
+
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.05
+    yaw: float = 0.0
+
+    def validate(self) -> None:
+        for name in ("x", "y", "z", "yaw"):
+            value = getattr(self, name)
+            if not math.isfinite(value):
+                raise SpawnError(f"spawn {name} = {value}: must be a finite number")
+
+
+@dataclass(frozen=True)
+class WheelDrive:
+    """How wheel velocity servos behave (MuJoCo actuator and joint settings)."""
+
+    kv: float = 2.0  # N·m per rad/s of velocity error
+    armature: float = 0.001  # kg·m², added rotor inertia: keeps the stiff servo stable
+    damping: float = 0.0
+
+
+@dataclass
+class RobotHandles:
+    """Names in the compiled model that belong to the robot."""
+
+    name: str
+    root_body: str
+    free_joint: str
+    sites: dict[str, str] = field(default_factory=dict)  # link → site
+    wheel_joints: list[str] = field(default_factory=list)  # joint names with a velocity servo
+    actuators: dict[str, str] = field(default_factory=dict)  # joint → actuator
+    velocity_limits: dict[str, tuple[float, float]] = field(default_factory=dict)
+    moving_joints: list[str] = field(default_factory=list)
+
+
+def quat_wxyz(matrix: np.ndarray) -> list[float]:
+    x, y, z, w = Rotation.from_matrix(matrix).as_quat()
+    return [w, x, y, z]
+
+
+# -------------------------------------------------------------------- world
+def _add_shape(spec: mujoco.MjSpec, body: mujoco.MjsBody, shape: Shape, group: int = 0) -> None:
+    pos = shape.pose[:3, 3]
+    quat = quat_wxyz(shape.pose[:3, :3])
+    friction = [shape.friction if shape.friction is not None else DEFAULT_FRICTION, 0.005, 0.0001]
+    if shape.kind == "mesh":
+        if shape.mesh is None:
+            raise WorldError(f"collision '{shape.name}': mesh without a file")
+        vertices, faces = load_mesh(shape.mesh, shape.scale)
+        mesh_name = f"mesh{next(_mesh_ids)}_{shape.mesh.stem}"
+        spec.add_mesh(name=mesh_name, uservert=vertices.ravel().tolist(), userface=faces.ravel().tolist())
+        body.add_geom(name=shape.name, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh_name,
+                      pos=pos, quat=quat, friction=friction, group=group)
+        return
+    geom_type, size = _primitive(shape)
+    body.add_geom(name=shape.name, type=geom_type, size=size, pos=pos, quat=quat, friction=friction, group=group)
+
+
+def _primitive(shape: Shape) -> tuple[mujoco.mjtGeom, list[float]]:
+    """MuJoCo type and size (half extents, half lengths) of a primitive SDF shape."""
+    s = shape.size
+    G = mujoco.mjtGeom
+    if shape.kind == "box":
+        return G.mjGEOM_BOX, [v / 2 for v in s]
+    if shape.kind == "cylinder":
+        return G.mjGEOM_CYLINDER, [s[0], s[1] / 2, 0.0]
+    if shape.kind == "capsule":
+        return G.mjGEOM_CAPSULE, [s[0], s[1] / 2, 0.0]
+    if shape.kind == "sphere":
+        return G.mjGEOM_SPHERE, [s[0], 0.0, 0.0]
+    if shape.kind == "ellipsoid":
+        return G.mjGEOM_ELLIPSOID, list(s)
+    if shape.kind == "plane":
+        return G.mjGEOM_PLANE, [s[0] / 2, s[1] / 2, 1.0]
+    raise WorldError(f"collision '{shape.name}': no MuJoCo primitive for '{shape.kind}'")
+
+
+def world_spec(world: World) -> mujoco.MjSpec:
+    """A MuJoCo spec of an SDF world: static shapes in the world body, free bodies for the rest."""
+    spec = mujoco.MjSpec()
+    spec.modelname = world.name
+    spec.option.timestep = world.step_size_s
+    spec.option.gravity = list(world.gravity)
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    for shape in world.static_shapes:
+        _add_shape(spec, spec.worldbody, shape)
+    for body in world.bodies:
+        b = spec.worldbody.add_body(name=body.name, pos=body.pose[:3, 3], quat=quat_wxyz(body.pose[:3, :3]))
+        b.add_freejoint(name=f"{body.name}::free")
+        for shape in body.shapes:
+            _add_shape(spec, b, shape)
+        if body.mass is not None:
+            # Scale geom densities so the link weighs what the SDF says.
+            volume_mass = sum(1000.0 * _shape_volume(s) for s in body.shapes) or 1.0
+            for geom in b.geoms:
+                geom.density = 1000.0 * body.mass / volume_mass
+    return spec
+
+
+def _shape_volume(shape: Shape) -> float:
+    s = shape.size
+    return {
+        "box": lambda: s[0] * s[1] * s[2],
+        "cylinder": lambda: math.pi * s[0] ** 2 * s[1],
+        "capsule": lambda: math.pi * s[0] ** 2 * (s[1] + 4.0 * s[0] / 3.0),
+        "sphere": lambda: 4.0 / 3.0 * math.pi * s[0] ** 3,
+        "ellipsoid": lambda: 4.0 / 3.0 * math.pi * s[0] * s[1] * s[2],
+    }.get(shape.kind, lambda: 0.001)()
+
+
+def mjcf_world_spec(path: Path) -> mujoco.MjSpec:
+    """A MuJoCo spec from an MJCF file.
+
+    Raises:
+        WorldError: MuJoCo cannot parse it.
+    """
+    try:
+        spec = mujoco.MjSpec.from_file(str(path))
+    except ValueError as exc:
+        raise WorldError(f"{path}: {exc}") from exc
+    return spec
+
+
+# -------------------------------------------------------------------- robot
+def _origin_pose(origin: Origin) -> tuple[list[float], list[float]]:
+    return list(origin.xyz), quat_wxyz(Rotation.from_euler("xyz", origin.rpy).as_matrix())
+
+
+def _add_robot_geom(spec: mujoco.MjSpec, body: mujoco.MjsBody, name: str, geometry: Geometry, origin: Origin,
+                    friction: float | None) -> None:
+    pos, quat = _origin_pose(origin)
+    # MuJoCo takes the larger friction of two touching geoms unless one has a higher
+    # priority: a link's own Gazebo mu (the caster's 0.001) must win over the ground's.
+    common = {"name": name, "pos": pos, "quat": quat, "group": ROBOT_GROUP, "mass": 0.0, "density": 0.0,
+              "friction": [DEFAULT_FRICTION if friction is None else friction, 0.005, 0.0001],
+              "priority": 0 if friction is None else 1}
+    if geometry.kind == "box":
+        body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[v / 2 for v in geometry.size], **common)
+    elif geometry.kind == "cylinder":
+        body.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[geometry.size[0], geometry.size[1] / 2, 0],
+                      **common)
+    elif geometry.kind == "sphere":
+        body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[geometry.size[0], 0, 0], **common)
+    else:
+        path = Path(geometry.filename.removeprefix("file://"))
+        if not path.is_file():
+            raise SpawnError(f"robot mesh '{geometry.filename}' of '{name}' not found (file paths only)")
+        vertices, faces = load_mesh(path, geometry.scale)
+        mesh_name = f"mesh{next(_mesh_ids)}_{path.stem}"
+        spec.add_mesh(name=mesh_name, uservert=vertices.ravel().tolist(), userface=faces.ravel().tolist())
+        body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh_name, **common)
+
+
+def _link_body(spec: mujoco.MjSpec, body: mujoco.MjsBody, model: RobotModel, link_name: str,
+               handles: RobotHandles, prefix: str) -> None:
+    link = model.links[link_name]
+    handles.sites[link_name] = f"{prefix}{link_name}"
+    body.add_site(name=f"{prefix}{link_name}", pos=[0, 0, 0])
+    if link.inertial is not None:
+        body.explicitinertial = True
+        body.mass = link.inertial.mass
+        body.ipos, body.iquat = _origin_pose(link.inertial.origin)
+        ixx, ixy, ixz, iyy, iyz, izz = link.inertial.inertia
+        body.fullinertia = [ixx, iyy, izz, ixy, ixz, iyz]
+    settings = model.gazebo_settings.get(link_name, {})
+    try:
+        friction = float(settings["mu1"]) if "mu1" in settings else None
+    except ValueError:
+        raise SpawnError(f"<gazebo reference='{link_name}'><mu1> must be a number, not {settings['mu1']!r}") from None
+    for i, shape in enumerate(link.collisions):
+        _add_robot_geom(spec, body, f"{prefix}{link_name}::collision{i}", shape.geometry, shape.origin, friction)
+
+
+def _add_joint(body: mujoco.MjsBody, joint: Joint, drive: WheelDrive, prefix: str) -> None:
+    name = f"{prefix}{joint.name}"
+    if joint.type in (JointType.CONTINUOUS, JointType.REVOLUTE):
+        j = body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_HINGE, axis=list(joint.axis),
+                           armature=drive.armature, damping=drive.damping)
+    else:
+        j = body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=list(joint.axis),
+                           armature=drive.armature, damping=drive.damping)
+    if joint.type in (JointType.REVOLUTE, JointType.PRISMATIC) and math.isfinite(joint.lower):
+        j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+        j.range = [joint.lower, joint.upper]
+
+
+def add_robot(spec: mujoco.MjSpec, model: RobotModel, pose: SpawnPose, name: str = "ppp_bot",
+              drive: WheelDrive = WheelDrive()) -> RobotHandles:
+    """Add ``model`` to ``spec`` at ``pose``; return the names it got.
+
+    Raises:
+        SpawnError: a floating or planar joint, or a bad spawn pose.
+    """
+    pose.validate()
+    spec.compiler.fusestatic = True
+    prefix = f"{name}/"
+    root = model.root
+    base = spec.worldbody.add_body(name=f"{prefix}{root}", pos=[pose.x, pose.y, pose.z],
+                                   quat=quat_wxyz(Rotation.from_euler("z", pose.yaw).as_matrix()))
+    handles = RobotHandles(name=name, root_body=f"{prefix}{root}", free_joint=f"{prefix}free")
+    base.add_freejoint(name=handles.free_joint)
+    _link_body(spec, base, model, root, handles, prefix)
+    stack = [(base, j) for j in reversed(model.children_of(root))]
+    while stack:
+        parent_body, joint = stack.pop()
+        if joint.type in (JointType.FLOATING, JointType.PLANAR):
+            raise SpawnError(f"joint '{joint.name}' is {joint.type.value}; the simulator supports fixed, "
+                             "continuous, revolute and prismatic joints")
+        pos, quat = _origin_pose(joint.origin)
+        body = parent_body.add_body(name=f"{prefix}{joint.child}", pos=pos, quat=quat)
+        if joint.type is not JointType.FIXED:
+            _add_joint(body, joint, drive, prefix)
+            handles.moving_joints.append(joint.name)
+        _link_body(spec, body, model, joint.child, handles, prefix)
+        stack.extend((body, j) for j in reversed(model.children_of(joint.child)))
+    for joint_name, control in model.control_joints.items():
+        if "velocity" not in control.command_interfaces or joint_name not in handles.moving_joints:
+            continue
+        low, high = control.command_interfaces["velocity"]
+        actuator = spec.add_actuator(name=f"{prefix}{joint_name}::velocity", target=f"{prefix}{joint_name}",
+                                     trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        actuator.set_to_velocity(kv=drive.kv)
+        if math.isfinite(low) and math.isfinite(high):
+            actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            actuator.ctrlrange = [low, high]
+        effort = model.joints[joint_name].effort_limit
+        if math.isfinite(effort):
+            actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            actuator.forcerange = [-effort, effort]
+        handles.wheel_joints.append(joint_name)
+        handles.actuators[joint_name] = actuator.name
+        handles.velocity_limits[joint_name] = (low, high)
+    return handles

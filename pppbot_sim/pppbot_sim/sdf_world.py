@@ -1,0 +1,361 @@
+"""Read the SDF subset Gazebo worlds use into plain data (shapes with world poses).
+
+Supported: ``<world>`` with ``<physics><max_step_size>`` and ``<gravity>``;
+``<model>`` (static or not, nested) with ``<pose>``, ``<link>`` with ``<pose>``,
+``<inertial><mass>`` and ``<collision>`` (``<pose>``, ``<geometry>`` box, cylinder,
+sphere, capsule, ellipsoid, plane, mesh with ``<uri>`` and ``<scale>``,
+``<surface><friction><ode><mu>``); ``<include>`` of ``model://name`` with
+``<name>``, ``<pose>``, ``<static>``, resolved through ``GZ_SIM_RESOURCE_PATH``,
+``IGN_GAZEBO_RESOURCE_PATH`` and ``worlds/models/``. Poses compose
+world ∘ model ∘ nested model ∘ link ∘ collision, each ``x y z roll pitch yaw``
+(fixed axes, as Gazebo) or ``degrees="true"``.
+
+``<gui>``, ``<plugin>`` and ``<light>`` are skipped and summed up in one info
+line; other elements that carry no collision (visuals, scene, ...) are known and
+ignored; anything else is reported by name and line in ``World.warnings``.
+"""
+from __future__ import annotations
+
+import os
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+from lxml import etree
+from scipy.spatial.transform import Rotation
+
+from pppbot_sim.errors import WorldError
+
+SKIPPED = {"gui", "plugin", "light"}
+# Elements that carry nothing a collision world needs; ignored without a word.
+IGNORED = {
+    "visual", "scene", "audio", "audio_source", "audio_sink", "wind", "atmosphere", "spherical_coordinates",
+    "magnetic_field", "self_collide", "enable_wind", "kinematic", "gravity", "allow_auto_disable", "frame",
+    "must_be_base_link", "velocity_decay", "battery",
+}
+SHAPES = {"box", "cylinder", "sphere", "capsule", "ellipsoid", "plane", "mesh"}
+MESH_SUFFIXES = {".stl", ".obj", ".dae"}
+
+
+@dataclass(frozen=True)
+class Shape:
+    """A collision shape; ``pose`` is 4×4, in the world (static) or in its body's frame."""
+
+    name: str
+    kind: str
+    #: box (x, y, z) full extents; cylinder/capsule (radius, length); sphere (radius,);
+    #: ellipsoid (rx, ry, rz); plane (size_x, size_y); mesh: empty
+    size: tuple[float, ...]
+    pose: np.ndarray = field(compare=False)
+    mesh: Path | None = None
+    scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    friction: float | None = None
+
+
+@dataclass
+class Body:
+    """A link of a model that is not static: a free body in the simulation."""
+
+    name: str
+    pose: np.ndarray
+    shapes: list[Shape]
+    mass: float | None = None
+
+
+@dataclass
+class World:
+    name: str
+    source: Path
+    step_size_s: float = 0.001
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    static_shapes: list[Shape] = field(default_factory=list)
+    bodies: list[Body] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    skipped: Counter[str] = field(default_factory=Counter)
+
+    def skipped_summary(self) -> str:
+        """One line naming what was skipped, e.g. 'skipped gui, light ×2, plugin ×3'."""
+        if not self.skipped:
+            return ""
+        parts = [name if n == 1 else f"{name} ×{n}" for name, n in sorted(self.skipped.items())]
+        return "skipped " + ", ".join(parts)
+
+
+def pose_matrix(xyz: Iterable[float], rpy: Iterable[float]) -> np.ndarray:
+    t = np.eye(4)
+    t[:3, :3] = Rotation.from_euler("xyz", list(rpy)).as_matrix()
+    t[:3, 3] = list(xyz)
+    return t
+
+
+def resource_paths(extra: Iterable[Path] = ()) -> list[Path]:
+    """Where ``model://`` URIs are looked up, in order."""
+    paths = [Path(p) for p in extra]
+    for var in ("GZ_SIM_RESOURCE_PATH", "IGN_GAZEBO_RESOURCE_PATH"):
+        paths += [Path(p) for p in os.environ.get(var, "").split(os.pathsep) if p]
+    return paths
+
+
+class _Reader:
+    def __init__(self, source: Path, search: list[Path]) -> None:
+        self.source = source
+        self.search = search
+        self.world = World(name=source.stem, source=source)
+        self.including: list[str] = []
+
+    # ---------------------------------------------------------------- helpers
+    def fail(self, element: etree._Element | None, message: str, file: Path | None = None) -> WorldError:
+        where = str(file or self.source)
+        if element is not None and element.sourceline:
+            where += f":{element.sourceline}"
+        return WorldError(f"{where}: {message}")
+
+    def warn(self, element: etree._Element, message: str, file: Path) -> None:
+        self.world.warnings.append(f"{file}:{element.sourceline}: {message}")
+
+    def floats(self, element: etree._Element, count: int | tuple[int, ...], file: Path) -> list[float]:
+        counts = (count,) if isinstance(count, int) else count
+        try:
+            values = [float(v) for v in (element.text or "").split()]
+        except ValueError:
+            values = []
+        if len(values) not in counts or not all(np.isfinite(values)):
+            raise self.fail(element, f"<{element.tag}> needs {' or '.join(map(str, counts))} numbers, "
+                                     f"not '{(element.text or '').strip()}'", file)
+        return values
+
+    def number(self, parent: etree._Element, tag: str, default: float | None, file: Path) -> float:
+        element = parent.find(tag)
+        if element is None:
+            if default is None:
+                raise self.fail(parent, f"<{parent.tag}> needs <{tag}>", file)
+            return default
+        return self.floats(element, 1, file)[0]
+
+    def pose(self, parent: etree._Element, file: Path) -> np.ndarray:
+        element = parent.find("pose")
+        if element is None:
+            return np.eye(4)
+        relative = element.get("relative_to")
+        if relative not in (None, "", "__model__"):
+            self.warn(element, f"<pose relative_to='{relative}'> is read as relative to its parent", file)
+        values = self.floats(element, (6, 7), file)
+        if len(values) == 7 or element.get("rotation_format") == "quat_xyzw":
+            t = np.eye(4)
+            t[:3, :3] = Rotation.from_quat(values[3:7]).as_matrix()
+            t[:3, 3] = values[:3]
+            return t
+        rpy = np.radians(values[3:]) if element.get("degrees") == "true" else values[3:]
+        return pose_matrix(values[:3], rpy)
+
+    def note_unknown(self, element: etree._Element, allowed: set[str], file: Path) -> None:
+        for child in element:
+            if not isinstance(child.tag, str):
+                continue
+            if child.tag in SKIPPED:
+                self.world.skipped[child.tag] += 1
+            elif child.tag not in allowed and child.tag not in IGNORED:
+                self.warn(child, f"unsupported element <{child.tag}> in <{element.tag}> ignored", file)
+
+    # --------------------------------------------------------------- resolving
+    def model_directory(self, uri: str, element: etree._Element, file: Path) -> Path:
+        if not uri.startswith("model://"):
+            path = Path(uri.removeprefix("file://"))
+            path = path if path.is_absolute() else file.parent / path
+            if path.is_dir():
+                return path
+            raise self.fail(element, f"<uri>{uri}</uri>: no such model directory {path}", file)
+        name = uri.removeprefix("model://").strip("/")
+        for base in self.search:
+            if (base / name).is_dir():
+                return base / name
+        searched = ", ".join(str(p) for p in self.search) or "nothing"
+        raise self.fail(element, f"unknown model '{name}' ({uri}); searched {searched}", file)
+
+    def mesh_path(self, uri: str, element: etree._Element, file: Path) -> Path:
+        if uri.startswith("model://"):
+            name, _, rest = uri.removeprefix("model://").partition("/")
+            path = self.model_directory(f"model://{name}", element, file) / rest
+        else:
+            path = Path(uri.removeprefix("file://"))
+            path = path if path.is_absolute() else file.parent / path
+        if not path.is_file():
+            raise self.fail(element, f"mesh file not found: {uri} (looked at {path})", file)
+        if path.suffix.lower() not in MESH_SUFFIXES:
+            raise self.fail(element, f"mesh {path.name}: format {path.suffix} not supported (STL, OBJ, DAE)", file)
+        return path
+
+    # ----------------------------------------------------------------- reading
+    def read_world(self, root: etree._Element) -> World:
+        world_el = root.find("world") if root.tag == "sdf" else None
+        if world_el is None:
+            raise self.fail(root, "expected <sdf><world>...</world></sdf>")
+        self.world.name = world_el.get("name") or self.source.stem
+        self.note_unknown(world_el, {"physics", "gravity", "model", "include"}, self.source)
+        physics = world_el.find("physics")
+        if physics is not None:
+            step = self.number(physics, "max_step_size", 0.001, self.source)
+            if not 0 < step <= 0.1:
+                raise self.fail(physics.find("max_step_size"), f"max_step_size {step} s must be in (0, 0.1]")
+            self.world.step_size_s = step
+        gravity = world_el.find("gravity")
+        if gravity is not None:
+            g = self.floats(gravity, 3, self.source)
+            self.world.gravity = (g[0], g[1], g[2])
+        for child in world_el:
+            if child.tag == "model":
+                self.read_model(child, np.eye(4), self.source, prefix="", static=None)
+            elif child.tag == "include":
+                self.read_include(child, np.eye(4), self.source, prefix="")
+        return self.world
+
+    def read_include(self, element: etree._Element, parent: np.ndarray, file: Path, prefix: str) -> None:
+        uri_el = element.find("uri")
+        if uri_el is None or not (uri_el.text or "").strip():
+            raise self.fail(element, "<include> needs a <uri>", file)
+        directory = self.model_directory(uri_el.text.strip(), uri_el, file)
+        model_file = self.model_file(directory, uri_el, file)
+        if str(model_file) in self.including:
+            raise self.fail(element, f"{model_file} includes itself", file)
+        try:
+            root = etree.parse(str(model_file), etree.XMLParser(remove_comments=True)).getroot()
+        except etree.XMLSyntaxError as exc:
+            raise WorldError(f"{model_file}:{exc.lineno}: malformed XML: {exc.msg}") from exc
+        model = root.find("model") if root.tag == "sdf" else (root if root.tag == "model" else None)
+        if model is None:
+            raise self.fail(root, "expected <sdf><model>", model_file)
+        name_el, static_el = element.find("name"), element.find("static")
+        name = (name_el.text or "").strip() if name_el is not None else model.get("name", directory.name)
+        static = None if static_el is None else (static_el.text or "").strip() in ("1", "true")
+        pose = parent @ self.pose(element, file) if element.find("pose") is not None else parent
+        self.including.append(str(model_file))
+        # An <include>'s pose replaces the model's own pose (Gazebo's rule).
+        self.read_model(model, pose, model_file, prefix, static, name=name,
+                        own_pose=element.find("pose") is None)
+        self.including.pop()
+
+    def model_file(self, directory: Path, element: etree._Element, file: Path) -> Path:
+        config = directory / "model.config"
+        if config.is_file():
+            try:
+                sdf = etree.parse(str(config)).getroot().find("sdf")
+            except etree.XMLSyntaxError as exc:
+                raise WorldError(f"{config}:{exc.lineno}: malformed XML: {exc.msg}") from exc
+            if sdf is not None and (sdf.text or "").strip():
+                return directory / sdf.text.strip()
+        if (directory / "model.sdf").is_file():
+            return directory / "model.sdf"
+        raise self.fail(element, f"model directory {directory} has no model.config or model.sdf", file)
+
+    def read_model(self, model: etree._Element, parent: np.ndarray, file: Path, prefix: str,
+                   static: bool | None, name: str | None = None, own_pose: bool = True) -> None:
+        name = name or model.get("name") or "model"
+        full = f"{prefix}{name}"
+        if static is None:
+            static_el = model.find("static")
+            static = static_el is not None and (static_el.text or "").strip() in ("1", "true")
+        pose = parent @ self.pose(model, file) if own_pose else parent
+        self.note_unknown(model, {"link", "model", "include", "joint", "static", "pose"}, file)
+        for joint in model.findall("joint"):
+            self.warn(joint, f"joint '{joint.get('name')}' of model '{full}' ignored: model joints are "
+                             "not simulated (links move independently)", file)
+        for child in model:
+            if child.tag == "model":
+                self.read_model(child, pose, file, f"{full}::", static)
+            elif child.tag == "include":
+                self.read_include(child, pose, file, f"{full}::")
+            elif child.tag == "link":
+                self.read_link(child, pose, file, full, static)
+
+    def read_link(self, link: etree._Element, model_pose: np.ndarray, file: Path, model: str,
+                  static: bool) -> None:
+        name = f"{model}::{link.get('name', 'link')}"
+        pose = model_pose @ self.pose(link, file)
+        self.note_unknown(link, {"collision", "pose", "inertial"}, file)
+        shapes = [self.read_collision(c, file, name) for c in link.findall("collision")]
+        if static:
+            for s in shapes:
+                self.world.static_shapes.append(Shape(s.name, s.kind, s.size, pose @ s.pose, s.mesh,
+                                                      s.scale, s.friction))
+            return
+        mass = None
+        inertial = link.find("inertial")
+        if inertial is not None and inertial.find("mass") is not None:
+            mass = self.number(inertial, "mass", None, file)
+            if mass <= 0:
+                raise self.fail(inertial.find("mass"), f"link '{name}' has mass {mass}; it must be positive", file)
+        if shapes:
+            self.world.bodies.append(Body(name, pose, shapes, mass))
+
+    def read_collision(self, collision: etree._Element, file: Path, link: str) -> Shape:
+        name = f"{link}::{collision.get('name', 'collision')}"
+        geometry = collision.find("geometry")
+        if geometry is None or len(geometry) == 0:
+            raise self.fail(collision, f"collision '{name}' needs a <geometry>", file)
+        g = geometry[0]
+        friction = None
+        mu = collision.find("surface/friction/ode/mu")
+        if mu is not None:
+            friction = self.floats(mu, 1, file)[0]
+        pose = self.pose(collision, file)
+        if g.tag == "box":
+            size = tuple(self.floats(self.child(g, "size", file), 3, file))
+        elif g.tag in ("cylinder", "capsule"):
+            size = (self.number(g, "radius", None, file), self.number(g, "length", None, file))
+        elif g.tag == "sphere":
+            size = (self.number(g, "radius", None, file),)
+        elif g.tag == "ellipsoid":
+            size = tuple(self.floats(self.child(g, "radii", file), 3, file))
+        elif g.tag == "plane":
+            normal_el = g.find("normal")
+            normal = np.array(self.floats(normal_el, 3, file) if normal_el is not None else [0.0, 0.0, 1.0])
+            size_el = g.find("size")
+            size = tuple(self.floats(size_el, 2, file)) if size_el is not None else (100.0, 100.0)
+            # Rotate the plane's +z onto its normal.
+            align, _ = Rotation.align_vectors([normal / np.linalg.norm(normal)], [[0.0, 0.0, 1.0]])
+            turn = np.eye(4)
+            turn[:3, :3] = align.as_matrix()
+            pose = pose @ turn
+        elif g.tag == "mesh":
+            uri = self.child(g, "uri", file)
+            scale_el = g.find("scale")
+            scale = self.floats(scale_el, 3, file) if scale_el is not None else [1.0, 1.0, 1.0]
+            return Shape(name, "mesh", (), pose, self.mesh_path((uri.text or "").strip(), uri, file),
+                         (scale[0], scale[1], scale[2]), friction)
+        else:
+            raise self.fail(g, f"collision '{name}': geometry <{g.tag}> is not supported "
+                               f"(supported: {', '.join(sorted(SHAPES))})", file)
+        if any(v <= 0 for v in size):
+            raise self.fail(g, f"collision '{name}': <{g.tag}> sizes must be positive, not {size}", file)
+        return Shape(name, g.tag, tuple(float(v) for v in size), pose, friction=friction)
+
+    def child(self, parent: etree._Element, tag: str, file: Path) -> etree._Element:
+        element = parent.find(tag)
+        if element is None:
+            raise self.fail(parent, f"<{parent.tag}> needs <{tag}>", file)
+        return element
+
+
+def read_sdf_world(path: str | Path, model_paths: Iterable[Path] = ()) -> World:
+    """Read an SDF world file.
+
+    Args:
+        path: the ``.sdf``/``.world`` file.
+        model_paths: directories with models, searched before the environment's
+            resource paths (pppbot passes ``worlds/models``).
+
+    Raises:
+        WorldError: unreadable or malformed file, unknown model, missing mesh,
+            unsupported geometry; the message names the file, line and element.
+    """
+    source = Path(path)
+    if not source.is_file():
+        raise WorldError(f"{source}: world file not found")
+    try:
+        root = etree.parse(str(source), etree.XMLParser(remove_comments=True)).getroot()
+    except etree.XMLSyntaxError as exc:
+        raise WorldError(f"{source}:{exc.lineno}: malformed XML: {exc.msg}") from exc
+    search = resource_paths([*model_paths, source.parent / "models"])
+    return _Reader(source, search).read_world(root)

@@ -1,0 +1,274 @@
+"""The simulation: a MuJoCo world with one robot, stepped in batches between events.
+
+No ROS here. The node asks :meth:`Simulation.advance` to run physics up to the
+next due event (a sensor reading or a periodic publication) and gets back what
+became due; between events MuJoCo steps in C (``mj_step`` with ``nstep``).
+"""
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping
+
+import mujoco
+import numpy as np
+
+from pppbot_description.urdf_model import RobotModel, Sensor
+from pppbot_sim.errors import SimulationDiverged, SpawnError, WorldError
+from pppbot_sim.mj_build import RobotHandles, SpawnPose, WheelDrive, add_robot, mjcf_world_spec, world_spec
+from pppbot_sim.sdf_world import World, read_sdf_world
+from pppbot_sim.sensors import Imu, ImuReading, ImuSpec, Lidar, LidarSpec, finalize_ranges, sensor_specs
+
+_log = logging.getLogger("pppbot_sim.mujoco")
+
+
+def route_mujoco_warnings() -> None:
+    """Send MuJoCo's warnings to Python logging instead of MUJOCO_LOG.TXT in the working directory."""
+    if mujoco.get_mju_user_warning() is None:
+        mujoco.set_mju_user_warning(lambda text: _log.warning("MuJoCo: %s", text))
+
+
+#: Beyond these the state is garbage, not physics (m and m/s or rad/s).
+DIVERGED_POSITION_M = 1e5
+DIVERGED_VELOCITY = 1e4
+
+
+@dataclass
+class Periodic:
+    """An event every ``period_s`` of simulated time."""
+
+    name: str
+    period_s: float
+    next_due_s: float = 0.0
+
+    def take_if_due(self, time_s: float, dt: float) -> bool:
+        if time_s + 0.5 * dt < self.next_due_s:
+            return False
+        # Missed periods (a long pause, a reset) are skipped, not replayed.
+        self.next_due_s += self.period_s * max(1, math.floor((time_s - self.next_due_s) / self.period_s) + 1)
+        return True
+
+
+@dataclass
+class Schedule:
+    events: list[Periodic] = field(default_factory=list)
+
+    def add(self, name: str, rate_hz: float, start_s: float = 0.0) -> None:
+        if not (math.isfinite(rate_hz) and rate_hz > 0):
+            raise ValueError(f"rate of '{name}' must be a positive number, not {rate_hz}")
+        self.events.append(Periodic(name, 1.0 / rate_hz, start_s))
+
+    def steps_to_next(self, time_s: float, dt: float, max_steps: int) -> int:
+        """Whole steps until the earliest event (at least 1, at most ``max_steps``)."""
+        if not self.events:
+            return max_steps
+        earliest = min(e.next_due_s for e in self.events)
+        return int(min(max_steps, max(1, math.ceil((earliest - time_s) / dt - 1e-9))))
+
+    def due(self, time_s: float, dt: float) -> list[str]:
+        return [e.name for e in self.events if e.take_if_due(time_s, dt)]
+
+
+@dataclass(frozen=True)
+class GroundTruth:
+    """The robot root's true state: pose in the world, velocities in its own frame (REP-105 odom)."""
+
+    position: np.ndarray
+    orientation_xyzw: np.ndarray
+    linear_velocity: np.ndarray
+    angular_velocity: np.ndarray
+
+    @property
+    def yaw(self) -> float:
+        x, y, z, w = self.orientation_xyzw
+        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+@dataclass(frozen=True)
+class LidarScan:
+    spec: LidarSpec
+    stamp_s: float
+    ranges: np.ndarray
+
+
+@dataclass(frozen=True)
+class ImuSample:
+    spec: ImuSpec
+    stamp_s: float
+    reading: ImuReading
+
+
+@dataclass(frozen=True)
+class WheelState:
+    names: list[str]
+    positions: np.ndarray
+    velocities: np.ndarray
+    efforts: np.ndarray
+
+
+def load_world(path: Path, model_paths: list[Path]) -> tuple[mujoco.MjSpec, World | None]:
+    """A MuJoCo spec of a world file: SDF (``.sdf``, ``.world``) or MJCF (``.xml``, ``.mjcf``).
+
+    Raises:
+        WorldError: unknown extension or a bad file.
+    """
+    suffix = path.suffix.lower()
+    if suffix in (".sdf", ".world"):
+        world = read_sdf_world(path, model_paths)
+        return world_spec(world), world
+    if suffix in (".xml", ".mjcf"):
+        if not path.is_file():
+            raise WorldError(f"{path}: world file not found")
+        return mjcf_world_spec(path), None
+    raise WorldError(f"{path}: unknown world format '{suffix}' (use .sdf, .world or MJCF .xml)")
+
+
+class Simulation:
+    """A world, one robot, its wheel servos and sensors."""
+
+    def __init__(self, spec: mujoco.MjSpec, robot: RobotModel, spawn: SpawnPose = SpawnPose(),
+                 name: str = "ppp_bot", seed: int = 0, drive: WheelDrive = WheelDrive()) -> None:
+        route_mujoco_warnings()
+        self.spawn = spawn
+        self.handles: RobotHandles = add_robot(spec, robot, spawn, name, drive)
+        lidar_specs, imu_specs, self.unsimulated_sensors = sensor_specs(list(robot.sensors))
+        for imu_spec in imu_specs:
+            Imu.add_to(spec, self.handles.sites[imu_spec.link], f"{name}/{imu_spec.name}/")
+        try:
+            self.model = spec.compile()
+        except ValueError as exc:
+            raise SpawnError(f"MuJoCo could not compile the world with the robot: {exc}") from exc
+        self.data = mujoco.MjData(self.model)
+        self.rng = np.random.default_rng(seed)
+        self.lidars = [Lidar(s, self.model, self.handles.sites[s.link]) for s in lidar_specs]
+        self.imus = [Imu(s, self.model, f"{name}/{s.name}/") for s in imu_specs]
+        self.schedule = Schedule()
+        for i, lidar in enumerate(self.lidars):
+            self.schedule.add(f"lidar{i}", lidar.spec.rate_hz)
+        for i, imu in enumerate(self.imus):
+            self.schedule.add(f"imu{i}", imu.spec.rate_hz)
+        prefix = f"{name}/"
+        self._root_body = self.model.body(self.handles.root_body).id
+        free = self.model.joint(self.handles.free_joint)
+        self._free_qpos = int(free.qposadr[0])
+        self._free_qvel = int(free.dofadr[0])
+        self.joint_names = list(self.handles.moving_joints)
+        joints = [self.model.joint(f"{prefix}{j}") for j in self.joint_names]
+        self._joint_qpos = np.array([int(j.qposadr[0]) for j in joints], dtype=int)
+        self._joint_qvel = np.array([int(j.dofadr[0]) for j in joints], dtype=int)
+        self._actuator = {j: self.model.actuator(a).id for j, a in self.handles.actuators.items()}
+        # Views into MjData's buffers (each attribute access would build a new one).
+        self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
+        mujoco.mj_forward(self.model, self.data)
+        self._spawn_qpos = self._qpos.copy()
+        self._resume_at_s = 0.0
+
+    # --------------------------------------------------------------- stepping
+    @property
+    def time_s(self) -> float:
+        return float(self.data.time)
+
+    @property
+    def step_s(self) -> float:
+        return float(self.model.opt.timestep)
+
+    def advance(self, max_steps: int) -> list[str]:
+        """Step up to the next due event (or ``max_steps``); return the events now due.
+
+        Raises:
+            SimulationDiverged: the state became non-finite or absurd.
+        """
+        steps = self.schedule.steps_to_next(self.time_s, self.step_s, max_steps)
+        end_s = self.time_s + steps * self.step_s
+        warnings = self._bad_state_warnings()
+        mujoco.mj_step(self.model, self.data, nstep=steps)
+        # MuJoCo resets the data itself (time included) on a bad qpos/qvel/qacc and
+        # counts a warning: that is a divergence too, and time must not go back.
+        if self._bad_state_warnings() != warnings or self.diverged():
+            self._resume_at_s = end_s
+            raise SimulationDiverged(f"simulation diverged at t = {end_s:.3f} s")
+        return self.schedule.due(self.time_s, self.step_s)
+
+    def _bad_state_warnings(self) -> int:
+        w = self.data.warning
+        return int(w[mujoco.mjtWarning.mjWARN_BADQPOS].number + w[mujoco.mjtWarning.mjWARN_BADQVEL].number
+                   + w[mujoco.mjtWarning.mjWARN_BADQACC].number)
+
+    def diverged(self) -> bool:
+        """Non-finite or absurd state (one dot product each: NaN and inf propagate into it)."""
+        speed2 = float(self._qvel @ self._qvel)
+        x, y, z = self._qpos[self._free_qpos:self._free_qpos + 3]
+        return not (speed2 <= DIVERGED_VELOCITY ** 2 and x * x + y * y + z * z <= DIVERGED_POSITION_M ** 2
+                    and math.isfinite(float(self._qpos @ self._qpos)))
+
+    # ------------------------------------------------------------------ wheels
+    def set_wheel_velocities(self, commands: Mapping[str, float]) -> None:
+        """Velocity targets (rad/s) by joint name, clamped to each joint's limits.
+
+        Raises:
+            KeyError: a name that is not a driven joint (nothing is applied).
+            ValueError: a non-finite value (nothing is applied).
+        """
+        unknown = [n for n in commands if n not in self._actuator]
+        if unknown:
+            raise KeyError(f"not a driven joint: {', '.join(unknown)} (driven: {', '.join(self._actuator)})")
+        bad = [f"{n}={v}" for n, v in commands.items() if not math.isfinite(v)]
+        if bad:
+            raise ValueError(f"non-finite velocity command: {', '.join(bad)}")
+        for name, value in commands.items():
+            low, high = self.handles.velocity_limits[name]
+            self._ctrl[self._actuator[name]] = min(max(value, low), high)
+
+    def stop_wheels(self) -> None:
+        for actuator in self._actuator.values():
+            self._ctrl[actuator] = 0.0
+
+    def wheel_state(self) -> WheelState:
+        efforts = np.array([self.data.actuator_force[self._actuator[j]] if j in self._actuator else 0.0
+                            for j in self.joint_names])
+        # Fancy indexing copies: the state is a snapshot.
+        return WheelState(list(self.joint_names), self._qpos[self._joint_qpos], self._qvel[self._joint_qvel],
+                          efforts)
+
+    # --------------------------------------------------------------- readings
+    def ground_truth(self) -> GroundTruth:
+        q = self._qpos[self._free_qpos:self._free_qpos + 7]
+        w, x, y, z = q[3:7]
+        # A free joint's qvel is (world linear velocity, body angular velocity).
+        v = self._qvel[self._free_qvel:self._free_qvel + 6]
+        rotation = self.data.xmat[self._root_body].reshape(3, 3)
+        return GroundTruth(q[:3].copy(), np.array([x, y, z, w]), rotation.T @ v[:3], v[3:6].copy())
+
+    def lidar_scan(self, index: int) -> LidarScan:
+        lidar = self.lidars[index]
+        return LidarScan(lidar.spec, self.time_s, finalize_ranges(lidar.scan(self.data), lidar.spec, self.rng))
+
+    def imu_sample(self, index: int) -> ImuSample:
+        imu = self.imus[index]
+        return ImuSample(imu.spec, self.time_s, imu.read(self.data, self.rng))
+
+    # ------------------------------------------------------------------- reset
+    def reset_robot(self) -> None:
+        """Robot back to its spawn pose at rest, wheels stopped; time goes on."""
+        free = slice(self._free_qpos, self._free_qpos + 7)
+        self.data.qpos[free] = self._spawn_qpos[free]
+        self.data.qpos[self._joint_qpos] = self._spawn_qpos[self._joint_qpos]
+        self.data.qvel[self._free_qvel:self._free_qvel + 6] = 0.0
+        self.data.qvel[self._joint_qvel] = 0.0
+        self.data.qacc_warmstart[:] = 0.0
+        self.stop_wheels()
+        mujoco.mj_forward(self.model, self.data)
+
+    def reset_all(self) -> None:
+        """After divergence: the whole world back to its initial state; time goes on."""
+        time_s = max(self.time_s, self._resume_at_s)
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[:] = self._spawn_qpos
+        self.data.time = time_s
+        mujoco.mj_forward(self.model, self.data)
+
+
+def unsimulated_summary(sensors: list[Sensor]) -> str:
+    return ", ".join(f"{s.name} ({s.type})" for s in sensors)

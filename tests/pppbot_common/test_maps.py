@@ -1,0 +1,111 @@
+"""Nav2 map files: written as map_saver writes them, read as map_server reads them."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from pppbot_common.maps import (
+    FREE,
+    OCCUPIED,
+    UNKNOWN,
+    MapFileError,
+    MapMode,
+    OccupancyGrid,
+    load_map,
+    read_map_metadata,
+    save_map,
+)
+
+
+def sample_grid() -> OccupancyGrid:
+    data = np.full((4, 6), FREE, dtype=np.int8)
+    data[0, :] = OCCUPIED  # bottom row
+    data[3, 5] = UNKNOWN  # top-right cell
+    return OccupancyGrid(data, 0.05, (-1.0, -2.0, 0.0))
+
+
+def test_round_trip_trinary(tmp_path):
+    grid = sample_grid()
+    yaml_path = save_map(grid, tmp_path / "m")
+    loaded, meta = load_map(yaml_path)
+    assert np.array_equal(loaded.data, grid.data)
+    assert (loaded.resolution, loaded.origin) == (0.05, (-1.0, -2.0, 0.0))
+    # Nav2's map_saver records fixed trinary thresholds, so 205 (p = 0.196) reads back unknown.
+    assert (meta.mode, meta.occupied_thresh, meta.free_thresh, meta.negate) == (MapMode.TRINARY, 0.65, 0.196, False)
+
+
+def test_given_thresholds_classify_cells_before_saving(tmp_path):
+    grid = OccupancyGrid(np.array([[10, 30, 70, -1]], dtype=np.int8), 1.0)
+    save_map(grid, tmp_path / "m", occupied_thresh=0.6, free_thresh=0.2)
+    loaded, _ = load_map(tmp_path / "m.yaml")
+    assert loaded.data.tolist() == [[FREE, UNKNOWN, OCCUPIED, UNKNOWN]]
+
+
+def test_pixels_follow_map_saver_conventions(tmp_path):
+    save_map(sample_grid(), tmp_path / "m")
+    pixels = np.asarray(Image.open(tmp_path / "m.pgm"))
+    assert pixels.shape == (4, 6)
+    assert (pixels[-1, :] == 0).all()  # occupied bottom row is the image's last row
+    assert pixels[0, 5] == 205  # unknown, top right
+    assert pixels[1, 1] == 254  # free
+
+
+def test_reads_a_map_made_by_hand_as_nav2_would(tmp_path):
+    """A map_saver-style file written without pppbot: PGM with 0/205/254 and its YAML."""
+    pixels = np.array([[254, 205, 0], [254, 254, 100], [0, 0, 0]], dtype=np.uint8)
+    Image.fromarray(pixels).save(tmp_path / "hand.pgm")
+    (tmp_path / "hand.yaml").write_text(
+        "image: hand.pgm\nmode: trinary\nresolution: 0.1\norigin: [1.0, 2.0, 0.0]\n"
+        "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.25\n")
+    grid, _ = load_map(tmp_path / "hand.yaml")
+    # p = (255 - v) / 255: 254 → 0.004 free, 205 → 0.196 free (< 0.25: Nav2 reads it so too),
+    # 100 → 0.61 unknown, 0 → occupied
+    assert grid.data.tolist() == [[OCCUPIED] * 3, [FREE, FREE, UNKNOWN], [FREE, FREE, OCCUPIED]]
+
+
+def test_scale_and_raw_modes(tmp_path):
+    pixels = np.array([[0, 128, 255]], dtype=np.uint8)
+    Image.fromarray(pixels).save(tmp_path / "s.png")
+    for mode in ("scale", "raw"):
+        (tmp_path / f"{mode}.yaml").write_text(
+            f"image: s.png\nmode: {mode}\nresolution: 1.0\norigin: [0, 0, 0]\n")
+        grid, _ = load_map(tmp_path / f"{mode}.yaml")
+        if mode == "scale":
+            # p(128) = 0.498: 100 * (0.498 - 0.25) / (0.65 - 0.25) = 62
+            assert grid.data[0].tolist() == [OCCUPIED, 62, FREE]
+        else:
+            assert grid.data[0].tolist() == [0, 100, UNKNOWN]
+
+
+@pytest.mark.parametrize("text, message", [
+    ("image: m.pgm\nresolution: 0.05\n", "missing key(s) origin"),
+    ("image: m.pgm\nresolution: -1\norigin: [0, 0, 0]\n", "'resolution' must be positive"),
+    ("image: m.pgm\nresolution: 0.05\norigin: [0, 0]\n", "'origin' must be [x, y, yaw]"),
+    ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nmode: fancy\n", "'mode' is 'fancy'; allowed: trinary, scale, raw"),
+    ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nfree_thresh: 0.9\n", "thresholds need"),
+    ("- just\n- a list\n", "a map file is a YAML mapping"),
+    ("image: [unclosed\n", "not valid YAML"),
+])
+def test_bad_map_yaml_is_named(tmp_path, text, message):
+    (tmp_path / "m.yaml").write_text(text)
+    with pytest.raises(MapFileError) as info:
+        read_map_metadata(tmp_path / "m.yaml")
+    assert message in str(info.value) and "m.yaml" in str(info.value)
+
+
+def test_missing_and_unreadable_images(tmp_path):
+    (tmp_path / "m.yaml").write_text("image: gone.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
+    with pytest.raises(MapFileError, match="image 'gone.pgm' not found"):
+        load_map(tmp_path / "m.yaml")
+    (tmp_path / "gone.pgm").write_text("not an image")
+    with pytest.raises(MapFileError, match="not a readable image"):
+        load_map(tmp_path / "m.yaml")
+    with pytest.raises(MapFileError, match="cannot read the map file"):
+        load_map(tmp_path / "nothing.yaml")
+
+
+def test_refuses_to_overwrite_when_asked(tmp_path):
+    save_map(sample_grid(), tmp_path / "m")
+    with pytest.raises(MapFileError, match="exists; refusing to overwrite"):
+        save_map(sample_grid(), tmp_path / "m", overwrite=False)

@@ -1,0 +1,163 @@
+"""SDF worlds: every supported feature loads, poses compose as Gazebo's, errors name file and element."""
+from __future__ import annotations
+
+import math
+import textwrap
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from pppbot_sim.errors import WorldError
+from pppbot_sim.mj_build import world_spec
+from pppbot_sim.sdf_world import read_sdf_world
+from pppbot_sim.worlds import find_world, known_worlds, model_paths
+
+DATA = Path(__file__).parent / "data"
+FEATURES = DATA / "features.sdf"
+
+
+@pytest.fixture(scope="module")
+def world():
+    return read_sdf_world(FEATURES, model_paths(FEATURES))
+
+
+def shape(world, suffix):
+    (found,) = [s for s in world.static_shapes if s.name.endswith(suffix)]
+    return found
+
+
+def test_world_settings(world):
+    assert (world.name, world.step_size_s, world.gravity) == ("features", 0.002, (0.0, 0.0, -9.81))
+
+
+def test_every_geometry_kind_loads(world):
+    kinds = {s.kind for s in world.static_shapes}
+    assert kinds == {"plane", "box", "cylinder", "sphere", "capsule", "ellipsoid", "mesh"}
+    assert shape(world, "shapes::l::cyl").size == (0.25, 1.0)
+    assert shape(world, "shapes::l::egg").size == (0.2, 0.3, 0.5)
+
+
+def test_nested_pose_composition_matches_gazebo(world):
+    """outer (1, 2, yaw 90°) ∘ inner (1, 0, 0) ∘ link (0, 0, 0.5) ∘ collision (0.5, 0, 0, roll 90°)."""
+    box = shape(world, "outer::inner::link::box")
+    np.testing.assert_allclose(box.pose[:3, 3], [1.0, 3.5, 0.5], atol=1e-12)
+    expected = Rotation.from_euler("z", math.pi / 2) * Rotation.from_euler("x", math.pi / 2)
+    np.testing.assert_allclose(box.pose[:3, :3], expected.as_matrix(), atol=1e-12)
+    # MuJoCo puts the geom there too: roll 90° turns the box's z (its 0.6 m side) onto -y,
+    # then yaw 90° turns -y onto +x, so the long side lies along world x.
+    model = world_spec(world).compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    gid = model.geom("outer::inner::link::box").id
+    np.testing.assert_allclose(data.geom_xpos[gid], [1.0, 3.5, 0.5], atol=1e-9)
+    np.testing.assert_allclose(np.abs(data.geom_xmat[gid].reshape(3, 3) @ [0, 0, 1]), [1, 0, 0], atol=1e-9)
+
+
+def test_degrees_attribute(world):
+    box = shape(world, "deg::l::c")
+    np.testing.assert_allclose(box.pose[:3, :3], Rotation.from_euler("z", 90, degrees=True).as_matrix(), atol=1e-12)
+    turned = shape(world, "shapes::l::turned")
+    np.testing.assert_allclose(turned.pose[:3, :3], Rotation.from_euler("z", 45.0).as_matrix(), atol=1e-12)
+
+
+def test_include_resolves_models_and_its_pose_replaces_the_models_own(world):
+    cone = shape(world, "cone_a::link::collision")
+    assert cone.kind == "mesh" and cone.mesh is not None and cone.mesh.name == "traffic_cone.dae"
+    np.testing.assert_allclose(cone.pose[:3, 3], [4.0, 0.0, 0.0])
+    crate = shape(world, "crate::link::body")  # the model's own pose (100, 100, 100) is replaced
+    np.testing.assert_allclose(crate.pose[:3, 3], [4.0, 3.0, 0.25])
+
+
+def test_collada_mesh_reaches_mujoco_with_its_size(world):
+    model = world_spec(world).compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    gid = model.geom("cone_a::link::collision").id
+    mid = model.geom_dataid[gid]
+    vertices = model.mesh_vert[model.mesh_vertadr[mid]:model.mesh_vertadr[mid] + model.mesh_vertnum[mid]]
+    world_vertices = vertices @ data.geom_xmat[gid].reshape(3, 3).T + data.geom_xpos[gid]
+    np.testing.assert_allclose(world_vertices.min(axis=0), [3.8, -0.2, 0.0], atol=1e-6)
+    np.testing.assert_allclose(world_vertices.max(axis=0)[2], 0.7, atol=1e-6)
+
+
+def test_dynamic_model_becomes_a_free_body_with_its_mass(world):
+    (body,) = world.bodies
+    assert body.name == "loose::box" and body.mass == 2.0
+    model = world_spec(world).compile()
+    assert model.body("loose::box").mass[0] == pytest.approx(2.0)
+    assert model.jnt_type[model.joint("loose::box::free").id] == mujoco.mjtJoint.mjJNT_FREE
+
+
+def test_skipped_and_unsupported_elements_are_reported(world):
+    assert world.skipped_summary() == "skipped gui, light, plugin ×2"
+    assert any("unsupported element <actor> in <world>" in w and "features.sdf:" in w for w in world.warnings)
+    assert any("joint 'fixed_to_world'" in w for w in world.warnings)
+    assert not any("scene" in w for w in world.warnings)
+
+
+@pytest.mark.parametrize("suffix, scale", [(".stl", (1.0, 1.0, 1.0)), (".obj", (2.0, 1.0, 0.5))])
+def test_stl_and_obj_meshes_with_scale(tmp_path, suffix, scale):
+    trimesh.creation.box(extents=[1, 1, 1]).export(tmp_path / f"cube{suffix}")
+    (tmp_path / "w.sdf").write_text(world_text(f"""
+        <model name="m"><static>true</static><link name="l"><collision name="c"><geometry>
+          <mesh><uri>cube{suffix}</uri><scale>{' '.join(map(str, scale))}</scale></mesh>
+        </geometry></collision></link></model>"""))
+    w = read_sdf_world(tmp_path / "w.sdf")
+    model = world_spec(w).compile()
+    mid = model.geom_dataid[model.geom("m::l::c").id]
+    vertices = model.mesh_vert[model.mesh_vertadr[mid]:model.mesh_vertadr[mid] + model.mesh_vertnum[mid]]
+    extents = sorted(np.ptp(vertices, axis=0))
+    np.testing.assert_allclose(extents, sorted(scale), atol=1e-6)
+
+
+def world_text(body: str) -> str:
+    return textwrap.dedent(f"""\
+        <?xml version="1.0"?>
+        <sdf version="1.8"><world name="w">{body}
+        </world></sdf>
+    """)
+
+
+@pytest.mark.parametrize("body, message", [
+    ('<include><uri>model://no_such_model</uri></include>', r"w\.sdf:2: unknown model 'no_such_model'"),
+    ('<model name="m"><static>true</static><link name="l"><collision name="c"><geometry>'
+     '<heightmap><uri>h.png</uri></heightmap></geometry></collision></link></model>',
+     r"geometry <heightmap> is not supported \(supported: box, capsule"),
+    ('<model name="m"><static>true</static><link name="l"><collision name="c"><geometry>'
+     '<mesh><uri>missing.dae</uri></mesh></geometry></collision></link></model>', r"mesh file not found: missing\.dae"),
+    ('<model name="m"><static>true</static><pose>1 2 three 0 0 0</pose></model>',
+     r"<pose> needs 6 or 7 numbers, not '1 2 three 0 0 0'"),
+    ('<physics><max_step_size>0.5</max_step_size></physics>', r"max_step_size 0\.5 s must be in \(0, 0\.1\]"),
+    ('<model name="m"><static>true</static><link name="l"><collision name="c"><geometry>'
+     '<box><size>1 -1 1</size></box></geometry></collision></link></model>', r"sizes must be positive"),
+])
+def test_bad_worlds_name_file_line_and_element(tmp_path, body, message):
+    (tmp_path / "w.sdf").write_text(world_text(body))
+    with pytest.raises(WorldError, match=message):
+        read_sdf_world(tmp_path / "w.sdf")
+
+
+def test_malformed_xml_and_missing_file(tmp_path):
+    (tmp_path / "bad.sdf").write_text('<?xml version="1.0"?>\n<sdf>\n<world name="x">\n</sdf>\n')
+    with pytest.raises(WorldError, match=r"bad\.sdf:4: malformed XML"):
+        read_sdf_world(tmp_path / "bad.sdf")
+    with pytest.raises(WorldError, match=r"nope\.sdf: world file not found"):
+        read_sdf_world(tmp_path / "nope.sdf")
+
+
+def test_shipped_worlds_are_known_and_load():
+    assert {"empty", "cones", "maze", "room", "office"} <= set(known_worlds())
+    for name in ("empty", "cones", "maze", "room", "office"):
+        path = find_world(name)
+        w = read_sdf_world(path, model_paths(path))
+        assert w.warnings == [], (name, w.warnings)
+        world_spec(w).compile()
+
+
+def test_unknown_world_lists_the_known_ones():
+    with pytest.raises(WorldError, match=r"unknown world 'mars'; known worlds: cones, empty, maze, office, room"):
+        find_world("mars")
