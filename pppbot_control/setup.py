@@ -17,6 +17,10 @@ setup(
     description='Differential-drive controller, twist_mux and keyboard teleop for ppp_bot, with a ROS-free kinematics and odometry core.',
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [],
+        'console_scripts': [
+            'diff_drive_controller = pppbot_control.ros.diff_drive_controller:main',
+            'twist_mux = pppbot_control.ros.twist_mux:main',
+            'teleop_keyboard = pppbot_control.ros.teleop_keyboard:main',
+        ],
     },
 )

@@ -15,12 +15,12 @@ import sys
 VERBS: dict[str, tuple[str, str]] = {
     "run": ("pppbot_bringup.run", "run one node, like `ros2 run <package> <executable>`"),
     "topic": ("pppbot_bringup.ros.topic", "inspect topics: list, info, echo, hz (like `ros2 topic`)"),
+    "teleop": ("pppbot_bringup.teleop", "drive with the keyboard in this terminal (teleop_twist_keyboard's keys)"),
 }
 
 # Verbs of DESIGN.md that this checkout does not have yet: named, never faked.
 NOT_YET: dict[str, str] = {
     "launch_sim": "the bringup",
-    "teleop": "keyboard teleop",
     "bag": "rosbag2 record/play/info",
     "map_saver": "saving /map as Nav2 YAML + PGM",
     "eval": "evaluation scenarios",

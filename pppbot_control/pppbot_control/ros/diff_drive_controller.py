@@ -1,0 +1,313 @@
+"""``diff_drive_controller``: Jazzy's diff_drive_controller (with its joint-state wiring) for pppbot.
+
+Node name ``diff_drive_base_controller``. Takes ``~/cmd_vel`` (TwistStamped, as
+Jazzy) and ``~/cmd_vel_unstamped`` (Twist, as ppp_bot's twist_mux feeds it);
+limits the command per axis; sends wheel velocities by joint name on
+``/joint_commands``; integrates odometry from ``/joint_states`` (wheel positions,
+or velocities, or the command in open loop) and publishes ``/odom`` and TF
+``odom → base_link``. With no command for ``cmd_vel_timeout`` it brakes to zero
+within its deceleration limits.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass
+from typing import Sequence
+
+import rclpy
+from geometry_msgs.msg import TransformStamped, Twist, TwistStamped
+from nav_msgs.msg import Odometry as OdometryMsg
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.time import Time
+from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
+
+from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.ros.params import declare_parameters, on_valid_update
+from pppbot_common.throttle import Throttle
+from pppbot_control.kinematics import DiffDriveGeometry, Odometry
+from pppbot_control.limits import AxisLimits, SpeedLimiter
+
+NAN = math.nan
+WARN_PERIOD_S = 5.0
+
+
+@dataclass(frozen=True)
+class DiffDriveParameters:
+    left_wheel_names: list = param(["left_wheel_joint"], "joints of the left wheels")
+    right_wheel_names: list = param(["right_wheel_joint"], "joints of the right wheels")
+    wheel_separation: float = param(0.35, "distance between the wheels (m)")
+    wheel_radius: float = param(0.05, "wheel radius (m)")
+    wheel_separation_multiplier: float = param(1.0, "correction factor of wheel_separation")
+    left_wheel_radius_multiplier: float = param(1.0, "correction factor of the left radius")
+    right_wheel_radius_multiplier: float = param(1.0, "correction factor of the right radius")
+    odom_frame_id: str = param("odom", "frame of the odometry")
+    base_frame_id: str = param("base_link", "frame of the robot base")
+    tf_frame_prefix_enable: bool = param(True, "prefix frames with tf_frame_prefix (or the node's namespace)")
+    tf_frame_prefix: str = param("", "frame prefix; empty = the node's namespace")
+    pose_covariance_diagonal: list = param([0.001, 0.001, 0.001, 0.001, 0.001, 0.01], "x y z roll pitch yaw")
+    twist_covariance_diagonal: list = param([0.001, 0.001, 0.001, 0.001, 0.001, 0.01], "vx vy vz wx wy wz")
+    open_loop: bool = param(False, "integrate the command instead of wheel feedback")
+    position_feedback: bool = param(True, "odometry from wheel positions (else from wheel velocities)")
+    enable_odom_tf: bool = param(True, "publish odom → base frame on /tf")
+    cmd_vel_timeout: float = param(0.5, "seconds without a command before braking to zero")
+    publish_limited_velocity: bool = param(False, "publish the limited command on ~/cmd_vel_out")
+    publish_rate: float = param(50.0, "odometry and TF rate (Hz)")
+    update_rate: float = param(100.0, "control loop rate (Hz); controller_manager's update_rate")
+    velocity_rolling_window_size: int = param(10, "samples averaged for the odometry twist")
+    linear_has_velocity_limits: bool = param(True, "legacy switch", "linear.x.has_velocity_limits")
+    linear_has_acceleration_limits: bool = param(True, "legacy switch", "linear.x.has_acceleration_limits")
+    linear_has_jerk_limits: bool = param(True, "legacy switch", "linear.x.has_jerk_limits")
+    linear_max_velocity: float = param(NAN, "m/s; NaN = unlimited", "linear.x.max_velocity")
+    linear_min_velocity: float = param(NAN, "m/s; NaN = unlimited", "linear.x.min_velocity")
+    linear_max_acceleration: float = param(NAN, "m/s²", "linear.x.max_acceleration")
+    linear_max_deceleration: float = param(NAN, "m/s²", "linear.x.max_deceleration")
+    linear_max_acceleration_reverse: float = param(NAN, "m/s²", "linear.x.max_acceleration_reverse")
+    linear_max_deceleration_reverse: float = param(NAN, "m/s²", "linear.x.max_deceleration_reverse")
+    linear_min_acceleration: float = param(NAN, "m/s², negative (legacy)", "linear.x.min_acceleration")
+    linear_max_jerk: float = param(NAN, "m/s³", "linear.x.max_jerk")
+    linear_min_jerk: float = param(NAN, "m/s³, negative", "linear.x.min_jerk")
+    angular_has_velocity_limits: bool = param(True, "legacy switch", "angular.z.has_velocity_limits")
+    angular_has_acceleration_limits: bool = param(True, "legacy switch", "angular.z.has_acceleration_limits")
+    angular_has_jerk_limits: bool = param(True, "legacy switch", "angular.z.has_jerk_limits")
+    angular_max_velocity: float = param(NAN, "rad/s; NaN = unlimited", "angular.z.max_velocity")
+    angular_min_velocity: float = param(NAN, "rad/s; NaN = unlimited", "angular.z.min_velocity")
+    angular_max_acceleration: float = param(NAN, "rad/s²", "angular.z.max_acceleration")
+    angular_max_deceleration: float = param(NAN, "rad/s²", "angular.z.max_deceleration")
+    angular_max_acceleration_reverse: float = param(NAN, "rad/s²", "angular.z.max_acceleration_reverse")
+    angular_max_deceleration_reverse: float = param(NAN, "rad/s²", "angular.z.max_deceleration_reverse")
+    angular_min_acceleration: float = param(NAN, "rad/s², negative (legacy)", "angular.z.min_acceleration")
+    angular_max_jerk: float = param(NAN, "rad/s³", "angular.z.max_jerk")
+    angular_min_jerk: float = param(NAN, "rad/s³, negative", "angular.z.min_jerk")
+
+    def limits(self, axis: str) -> AxisLimits:
+        """The limits of ``linear`` or ``angular``, with the legacy has_* switches applied."""
+        def get(name: str) -> float:
+            return float(getattr(self, f"{axis}_{name}"))
+
+        velocity = getattr(self, f"{axis}_has_velocity_limits")
+        acceleration = getattr(self, f"{axis}_has_acceleration_limits")
+        jerk = getattr(self, f"{axis}_has_jerk_limits")
+        return AxisLimits(
+            max_velocity=get("max_velocity") if velocity else NAN,
+            min_velocity=get("min_velocity") if velocity else NAN,
+            max_acceleration=get("max_acceleration") if acceleration else NAN,
+            max_deceleration=get("max_deceleration") if acceleration else NAN,
+            max_acceleration_reverse=get("max_acceleration_reverse") if acceleration else NAN,
+            max_deceleration_reverse=get("max_deceleration_reverse") if acceleration else NAN,
+            min_acceleration=get("min_acceleration") if acceleration else NAN,
+            max_jerk=get("max_jerk") if jerk else NAN,
+            min_jerk=get("min_jerk") if jerk else NAN,
+        )
+
+    def geometry(self) -> DiffDriveGeometry:
+        return DiffDriveGeometry(self.wheel_separation, self.wheel_radius, self.wheel_separation_multiplier,
+                                 self.left_wheel_radius_multiplier, self.right_wheel_radius_multiplier)
+
+    def validate(self) -> None:
+        for name in ("left_wheel_names", "right_wheel_names"):
+            names = getattr(self, name)
+            if not names or not all(isinstance(n, str) and n for n in names):
+                raise ParameterError(name, names, "must be a non-empty list of joint names")
+        for name in ("wheel_separation", "wheel_radius", "wheel_separation_multiplier",
+                     "left_wheel_radius_multiplier", "right_wheel_radius_multiplier"):
+            check_finite_range(name, getattr(self, name), 0.0, 1000.0, low_open=True)
+        check_finite_range("cmd_vel_timeout", self.cmd_vel_timeout, 0.0, 3600.0)
+        check_finite_range("publish_rate", self.publish_rate, 0.0, 1000.0, low_open=True)
+        check_finite_range("update_rate", self.update_rate, 0.0, 1000.0, low_open=True)
+        if not 1 <= self.velocity_rolling_window_size <= 1000:
+            raise ParameterError("velocity_rolling_window_size", self.velocity_rolling_window_size,
+                                 "must be in [1, 1000]")
+        for name in ("pose_covariance_diagonal", "twist_covariance_diagonal"):
+            values = getattr(self, name)
+            if len(values) != 6 or not all(isinstance(v, (int, float)) and v >= 0 for v in values):
+                raise ParameterError(name, values, "must be 6 non-negative numbers")
+        for axis, prefix in (("linear", "linear.x"), ("angular", "angular.z")):
+            for name, value, rule in self.limits(axis).problems(prefix):
+                raise ParameterError(name, value, rule)
+
+
+def _mean(values: deque[float]) -> float:
+    return sum(values) / len(values) if values else 0.0
+
+
+class DiffDriveController(Node):
+    def __init__(self) -> None:
+        super().__init__("diff_drive_base_controller")
+        self.params = declare_parameters(self, DiffDriveParameters)
+        self._configure(self.params)
+        self.cmd_sub = self.create_subscription(TwistStamped, "~/cmd_vel", self.on_cmd_vel, 10)
+        self.cmd_unstamped_sub = self.create_subscription(Twist, "~/cmd_vel_unstamped", self.on_cmd_vel_unstamped, 10)
+        self.joint_sub = self.create_subscription(JointState, "/joint_states", self.on_joint_states, 10)
+        self.command_pub = self.create_publisher(JointState, "/joint_commands", 10)
+        self.odom_pub = self.create_publisher(OdometryMsg, "odom", 10)
+        self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
+        self.limited_pub = self.create_publisher(TwistStamped, "~/cmd_vel_out", 10)
+        self._throttle = Throttle(WARN_PERIOD_S)
+        self._target = (0.0, 0.0)
+        self._target_time: Time | None = None
+        self._last_update: Time | None = None
+        self._last_odom_publish: Time | None = None
+        self._wheels: tuple[float, float, float, float] | None = None  # left pos, right pos, left vel, right vel
+        self.timer = self.create_timer(1.0 / self.params.update_rate, self.update)
+        on_valid_update(self, lambda: self.params, self._apply)
+        self.get_logger().info(
+            f"wheels {self.params.left_wheel_names} / {self.params.right_wheel_names}, separation "
+            f"{self.params.wheel_separation} m, radius {self.params.wheel_radius} m; odometry "
+            f"{'open loop' if self.params.open_loop else 'from wheel ' + ('positions' if self.params.position_feedback else 'velocities')}")
+
+    def _configure(self, params: DiffDriveParameters) -> None:
+        self.geometry = params.geometry()
+        self.odometry = Odometry(self.geometry)
+        self.linear = SpeedLimiter(params.limits("linear"))
+        self.angular = SpeedLimiter(params.limits("angular"))
+        window = params.velocity_rolling_window_size
+        self._v_window: deque[float] = deque(maxlen=window)
+        self._w_window: deque[float] = deque(maxlen=window)
+        namespace = self.get_namespace().strip("/")
+        prefix = params.tf_frame_prefix or (namespace if params.tf_frame_prefix_enable else "")
+        self.prefix = f"{prefix.rstrip('/')}/" if prefix else ""
+
+    def _apply(self, params: DiffDriveParameters) -> None:
+        rate_changed = params.update_rate != self.params.update_rate
+        self.params = params
+        self._configure(params)
+        if rate_changed:
+            self.destroy_timer(self.timer)
+            self.timer = self.create_timer(1.0 / params.update_rate, self.update)
+
+    # ------------------------------------------------------------------ inputs
+    def _warn(self, key: str, text: str) -> None:
+        if self._throttle.allow(key, time.monotonic()):
+            self.get_logger().warning(text)
+
+    def _set_target(self, v: float, w: float) -> None:
+        if not (math.isfinite(v) and math.isfinite(w)):
+            self._warn("nonfinite", f"dropping a velocity command with non-finite values (v={v}, w={w})")
+            return
+        self._target = (v, w)
+        self._target_time = self.get_clock().now()
+
+    def on_cmd_vel(self, msg: TwistStamped) -> None:
+        self._set_target(msg.twist.linear.x, msg.twist.angular.z)
+
+    def on_cmd_vel_unstamped(self, msg: Twist) -> None:
+        self._set_target(msg.linear.x, msg.angular.z)
+
+    def on_joint_states(self, msg: JointState) -> None:
+        index = {name: i for i, name in enumerate(msg.name)}
+        wanted = [*self.params.left_wheel_names, *self.params.right_wheel_names]
+        missing = [n for n in wanted if n not in index]
+        if missing:
+            if not any(n in index for n in wanted):
+                return  # another robot part's joint states
+            self._warn("missing", f"joint states lack wheel joint(s) {', '.join(missing)}")
+            return
+
+        def side(names: list[str], values: Sequence[float]) -> float:
+            picked = [values[index[n]] for n in names if index[n] < len(values)]
+            return sum(picked) / len(picked) if len(picked) == len(names) else math.nan
+
+        left = self.params.left_wheel_names
+        right = self.params.right_wheel_names
+        sample = (side(left, msg.position), side(right, msg.position),
+                  side(left, msg.velocity), side(right, msg.velocity))
+        needed = sample[:2] if self.params.position_feedback else sample[2:]
+        if not all(math.isfinite(v) for v in needed):
+            self._warn("feedback", "ignoring joint states without finite wheel "
+                       + ("positions" if self.params.position_feedback else "velocities"))
+            return
+        self._wheels = sample
+
+    # ------------------------------------------------------------------- loop
+    def update(self) -> None:
+        now = self.get_clock().now()
+        dt = 0.0 if self._last_update is None else (now - self._last_update).nanoseconds * 1e-9
+        if dt < 0:  # time went back (sim reset): start over
+            self.linear.reset()
+            self.angular.reset()
+            dt = 0.0
+        self._last_update = now
+        v, w = self._target
+        if self._target_time is None or (now - self._target_time).nanoseconds * 1e-9 > self.params.cmd_vel_timeout:
+            v, w = 0.0, 0.0
+        v = self.linear.limit(v, dt)
+        w = self.angular.limit(w, dt)
+        left, right = self.geometry.wheel_speeds(v, w)
+        p = self.params
+        command = JointState(name=[*p.left_wheel_names, *p.right_wheel_names],
+                             velocity=[left] * len(p.left_wheel_names) + [right] * len(p.right_wheel_names))
+        command.header.stamp = now.to_msg()
+        self.command_pub.publish(command)
+        if p.publish_limited_velocity:
+            out = TwistStamped()
+            out.header.stamp = now.to_msg()
+            out.header.frame_id = self.prefix + p.base_frame_id
+            out.twist.linear.x, out.twist.angular.z = v, w
+            self.limited_pub.publish(out)
+        self._integrate(v, w, dt)
+        if self._last_odom_publish is None or (now - self._last_odom_publish).nanoseconds * 1e-9 >= 1.0 / p.publish_rate - 1e-6:
+            self._publish_odometry(now)
+            self._last_odom_publish = now
+
+    def _integrate(self, v: float, w: float, dt: float) -> None:
+        if self.params.open_loop:
+            self.odometry.update_open_loop(v, w, dt)
+        elif self._wheels is not None:
+            lp, rp, lv, rv = self._wheels
+            if self.params.position_feedback:
+                self.odometry.update_from_positions(lp, rp, dt)
+            else:
+                self.odometry.update_from_velocities(lv, rv, dt)
+        if dt > 0:
+            self._v_window.append(self.odometry.v)
+            self._w_window.append(self.odometry.w)
+
+    def _publish_odometry(self, now: Time) -> None:
+        p, o = self.params, self.odometry
+        msg = OdometryMsg()
+        msg.header.stamp = now.to_msg()
+        msg.header.frame_id = self.prefix + p.odom_frame_id
+        msg.child_frame_id = self.prefix + p.base_frame_id
+        msg.pose.pose.position.x, msg.pose.pose.position.y = o.x, o.y
+        qz, qw = math.sin(o.yaw / 2.0), math.cos(o.yaw / 2.0)
+        msg.pose.pose.orientation.z, msg.pose.pose.orientation.w = qz, qw
+        msg.twist.twist.linear.x = _mean(self._v_window)
+        msg.twist.twist.angular.z = _mean(self._w_window)
+        for i in range(6):
+            msg.pose.covariance[i * 7] = float(p.pose_covariance_diagonal[i])
+            msg.twist.covariance[i * 7] = float(p.twist_covariance_diagonal[i])
+        self.odom_pub.publish(msg)
+        if p.enable_odom_tf:
+            t = TransformStamped()
+            t.header = msg.header
+            t.child_frame_id = msg.child_frame_id
+            t.transform.translation.x, t.transform.translation.y = o.x, o.y
+            t.transform.rotation.z, t.transform.rotation.w = qz, qw
+            self.tf_pub.publish(TFMessage(transforms=[t]))
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    try:
+        node = DiffDriveController()
+    except ParameterError as exc:
+        print(f"[diff_drive_base_controller] error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,102 @@
+"""``twist_mux``: twist_mux's configuration and behaviour, plus a stop when the winner goes quiet.
+
+Parameters as twist_mux's YAML: ``topics.<name>.{topic, timeout, priority}`` and
+``locks.<name>.{topic, timeout, priority}`` (std_msgs/Bool), ``use_stamped``
+(inputs and output TwistStamped instead of Twist). Output on ``cmd_vel_out``.
+"""
+from __future__ import annotations
+
+import sys
+from typing import Any, Callable
+
+import rclpy
+from geometry_msgs.msg import Twist, TwistStamped
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from std_msgs.msg import Bool
+
+from pppbot_common.params import ParameterError
+from pppbot_control.mux import MuxConfigError, TwistMux, parse_config
+
+CHECK_RATE_HZ = 20.0
+
+
+def grouped(node: Node, prefix: str) -> dict[str, dict[str, Any]]:
+    """``prefix.<name>.<field>`` parameters as {name: {field: value}}."""
+    out: dict[str, dict[str, Any]] = {}
+    for name, parameter in node.get_parameters_by_prefix(prefix).items():
+        entry, _, field = name.partition(".")
+        if field:
+            out.setdefault(entry, {})[field] = getattr(parameter, "value", parameter)
+    return out
+
+
+class TwistMuxNode(Node):
+    def __init__(self) -> None:
+        super().__init__("twist_mux", allow_undeclared_parameters=True,
+                         automatically_declare_parameters_from_overrides=True)
+        use_stamped = self.get_parameter("use_stamped").value if self.has_parameter("use_stamped") else False
+        if not isinstance(use_stamped, bool):
+            raise ParameterError("use_stamped", use_stamped, "must be true or false")
+        self.stamped = use_stamped
+        try:
+            inputs, locks = parse_config(grouped(self, "topics"), grouped(self, "locks"))
+        except MuxConfigError as exc:
+            raise ParameterError("topics/locks", "...", str(exc)) from exc
+        self.mux = TwistMux(inputs, locks)
+        self.msg_type = TwistStamped if self.stamped else Twist
+        self.output = self.create_publisher(self.msg_type, "cmd_vel_out", 10)
+        for spec in inputs:
+            self.create_subscription(self.msg_type, spec.topic, self._input_callback(spec.name), 10)
+        for lock in locks:
+            self.create_subscription(Bool, lock.topic, self._lock_callback(lock.name), 10)
+        self.create_timer(1.0 / CHECK_RATE_HZ, self.check)
+        summary = ", ".join(f"{s.name} ({s.topic}, priority {s.priority}, {s.timeout_s:g} s)" for s in inputs)
+        self.get_logger().info(f"inputs: {summary}" + (f"; locks: {', '.join(l.name for l in locks)}" if locks else ""))
+
+    def _input_callback(self, name: str) -> Callable[[Any], None]:
+        return lambda msg: self.on_input(name, msg)
+
+    def _lock_callback(self, name: str) -> Callable[[Bool], None]:
+        return lambda msg: self.on_lock(name, msg)
+
+    def _now_s(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def on_input(self, name: str, msg: Any) -> None:
+        out = self.mux.on_input(name, msg, self._now_s())
+        if out is not None:
+            self.output.publish(out)
+
+    def on_lock(self, name: str, msg: Bool) -> None:
+        self.mux.on_lock(name, bool(msg.data), self._now_s())
+        self.check()
+
+    def check(self) -> None:
+        if self.mux.check_timeouts(self._now_s()):
+            zero = self.msg_type()
+            if self.stamped:
+                zero.header.stamp = self.get_clock().now().to_msg()
+            self.output.publish(zero)
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    try:
+        node = TwistMuxNode()
+    except ParameterError as exc:
+        print(f"[twist_mux] error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,134 @@
+"""Over DDS with the simulator: priorities through twist_mux, 1 m through the whole chain,
+odometry against ground truth, and the controller's handling of bad input."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import JointState
+
+from pppbot_common.ros.wait import wait_for_messages, wait_until
+
+pytestmark = pytest.mark.ros
+ROOT = Path(__file__).resolve().parents[2]
+PPPBOT = str(ROOT / "pppbot")
+CONTROLLERS = str(ROOT / "config" / "my_controllers.yaml")
+TWIST_MUX = str(ROOT / "config" / "twist_mux.yaml")
+
+
+@pytest.fixture(scope="module")
+def chain(request):
+    """simulator (empty world, 2x real time) + diff_drive_base_controller + twist_mux."""
+    from pppbot_common.process import ChildProcess, StopTimeouts
+
+    children = [
+        ChildProcess([PPPBOT, "run", "pppbot_sim", "simulator", "--ros-args", "-p", "world:=empty",
+                      "-p", "real_time_factor:=2.0"], name="simulator", timeouts=StopTimeouts(3, 3)),
+        ChildProcess([PPPBOT, "run", "pppbot_control", "diff_drive_controller", "--ros-args",
+                      "--params-file", CONTROLLERS, "-p", "use_sim_time:=true"], name="controller",
+                     timeouts=StopTimeouts(3, 3)),
+        ChildProcess([PPPBOT, "run", "pppbot_control", "twist_mux", "--ros-args", "--params-file", TWIST_MUX,
+                      "-p", "use_sim_time:=true", "-r", "cmd_vel_out:=/diff_drive_base_controller/cmd_vel_unstamped"],
+                     name="twist_mux", timeouts=StopTimeouts(3, 3)),
+    ]
+    try:
+        children[0].wait_for_output("lidar 'laser'", 30)
+        children[1].wait_for_output("odometry from wheel positions", 30)
+        children[2].wait_for_output("inputs: navigation", 30)
+        yield {c.name: c for c in children}
+    finally:
+        for child in children:
+            child.stop()
+
+
+def distance(a: Odometry, b: Odometry) -> float:
+    pa, pb = a.pose.pose.position, b.pose.pose.position
+    return math.hypot(pa.x - pb.x, pa.y - pb.y)
+
+
+def publisher(node, topic):
+    pub = node.create_publisher(Twist, topic, 10)
+    wait_until(lambda: pub.get_subscription_count() > 0, 10, f"a subscriber on {topic}")
+    return pub
+
+
+def twist(v: float, w: float = 0.0) -> Twist:
+    msg = Twist()
+    msg.linear.x, msg.angular.z = v, w
+    return msg
+
+
+def test_teleop_overrides_navigation_then_expires(ros_node, chain):
+    nav = publisher(ros_node, "/cmd_vel")
+    tele = publisher(ros_node, "/cmd_vel_teleop")
+    seen: list[float] = []
+    ros_node.create_subscription(Twist, "/diff_drive_base_controller/cmd_vel_unstamped",
+                                 lambda m: seen.append(m.linear.x), 10)
+    wait_until(lambda: (nav.publish(twist(0.2)), 0.2 in seen)[1], 10, "navigation through the mux", node=ros_node)
+    seen.clear()
+    # Both talk: only teleop's twists come out.
+    for _ in range(20):
+        nav.publish(twist(0.2))
+        tele.publish(twist(-0.1))
+        wait_until(lambda: False or True, 1, "", node=ros_node)
+    wait_until(lambda: -0.1 in seen, 5, "teleop's twist", node=ros_node)
+    first_teleop = seen.index(-0.1)
+    assert 0.2 not in seen[first_teleop:]
+    # Teleop goes quiet: after its 0.5 s (sim) timeout navigation gets through again.
+    seen.clear()
+    wait_until(lambda: (nav.publish(twist(0.2)), 0.2 in seen)[1], 10, "navigation again", node=ros_node)
+    nav.publish(twist(0.0))
+
+
+def test_one_metre_through_the_whole_chain(ros_node, chain):
+    tele = publisher(ros_node, "/cmd_vel_teleop")
+    odoms: list[Odometry] = []
+    truths: list[Odometry] = []
+    ros_node.create_subscription(Odometry, "/odom", odoms.append, 10)
+    ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
+    wait_until(lambda: odoms and truths, 10, "/odom and ground truth", node=ros_node)
+    odom0, truth0 = odoms[-1], truths[-1]
+    v, decel = 0.3, 1.0  # ppp_bot: linear.x.max_acceleration 1.0 (also the deceleration)
+    stop_at = 1.0 - v * v / (2 * decel)
+    wait_until(lambda: (tele.publish(twist(v)), distance(odoms[-1], odom0) >= stop_at)[1], 30,
+               "0.95 m of odometry", node=ros_node)
+    tele.publish(twist(0.0))
+    # Wait until the robot stands still.
+    wait_until(lambda: (tele.publish(twist(0.0)), len(truths) > 5
+                        and abs(truths[-1].twist.twist.linear.x) < 1e-3)[1], 10, "standstill", node=ros_node)
+    wait_until(lambda: len(odoms) > 0, 1, "", node=ros_node)
+    travelled = distance(truths[-1], truth0)
+    measured = distance(odoms[-1], odom0)
+    assert travelled == pytest.approx(1.0, rel=0.03)
+    assert measured == pytest.approx(travelled, rel=0.01)
+
+
+def test_controller_publishes_odometry_tf_and_wheel_commands(ros_node, chain):
+    (odom,) = wait_for_messages(ros_node, Odometry, "/odom", timeout_s=10)
+    assert (odom.header.frame_id, odom.child_frame_id) == ("odom", "base_link")
+    assert odom.pose.covariance[0] == pytest.approx(0.001) and odom.pose.covariance[35] == pytest.approx(0.01)
+    (cmd,) = wait_for_messages(ros_node, JointState, "/joint_commands", timeout_s=10)
+    assert list(cmd.name) == ["left_wheel_joint", "right_wheel_joint"]
+
+
+def test_non_finite_command_is_dropped_with_a_warning(ros_node, chain):
+    pub = ros_node.create_publisher(Twist, "/diff_drive_base_controller/cmd_vel_unstamped", 10)
+    wait_until(lambda: pub.get_subscription_count() > 0, 10, "the controller")
+    pub.publish(twist(math.nan))
+    chain["controller"].wait_for_output(r"dropping a velocity command with non-finite values \(v=nan", 10)
+    assert chain["controller"].running()
+
+
+@pytest.mark.parametrize("param, message", [
+    ("wheel_radius:=0.0", "parameter 'wheel_radius' = 0.0: must be a finite number in (0.0, 1000.0]"),
+    ("linear.x.max_acceleration:=-1.0", "parameter 'linear.x.max_acceleration' = -1.0: must be positive"),
+    ("left_wheel_names:=['']", "parameter 'left_wheel_names' = ['']: must be a non-empty list of joint names"),
+])
+def test_bad_parameters_stop_the_controller(spawn, param, message):
+    child = spawn([PPPBOT, "run", "pppbot_control", "diff_drive_controller", "--ros-args", "-p", param],
+                  name="bad-controller")
+    assert child.wait(30) == 1
+    assert message in child.output
