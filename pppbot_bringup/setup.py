@@ -22,6 +22,7 @@ setup(
     entry_points={
         'console_scripts': [
             'pppbot = pppbot_bringup.cli:main',
+            'launch_sim = pppbot_bringup.ros.launch_sim:main',
         ],
     },
 )

@@ -26,6 +26,22 @@ class StopTimeouts:
     sigterm_s: float = 5.0
 
 
+def die_with_parent(sig: int = signal.SIGTERM) -> None:
+    """In a child (``preexec_fn``): get ``sig`` when the parent dies, even by SIGKILL.
+
+    Linux only (prctl PR_SET_PDEATHSIG); elsewhere it does nothing. The setting
+    survives ``exec``. Spawn from the main thread: it fires when the spawning thread ends.
+    """
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        pr_set_pdeathsig = 1
+        libc.prctl(pr_set_pdeathsig, sig, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
 def _signal_group(proc: subprocess.Popen[bytes] | subprocess.Popen[str], sig: int) -> None:
     try:
         os.killpg(proc.pid, sig)

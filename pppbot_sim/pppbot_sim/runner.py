@@ -115,20 +115,20 @@ class PhysicsRunner:
             if self._pace_reset:
                 wall0, sim0 = time.monotonic(), self.sim.time_s
                 self._pace_reset = False
-            readings = self.advance()
-            if readings:
-                handle(readings)
-            now = time.monotonic()
             rtf = self.real_time_factor
             if rtf > 0:
-                ahead_s = wall0 + (self.sim.time_s - sim0) / rtf - now
+                # Checked before every advance: idle() may return early (a callback ran).
+                ahead_s = wall0 + (self.sim.time_s - sim0) / rtf - time.monotonic()
                 if ahead_s > 0:
                     idle(ahead_s)
                     last_idle = time.monotonic()
                     continue
                 if ahead_s < -1.0:
                     # Far behind (a slow machine, a debugger): do not sprint to catch up.
-                    wall0, sim0 = now, self.sim.time_s
-            if now - last_idle >= service_period_s:
+                    wall0, sim0 = time.monotonic(), self.sim.time_s
+            readings = self.advance()
+            if readings:
+                handle(readings)
+            if time.monotonic() - last_idle >= service_period_s:
                 idle(0.0)
                 last_idle = time.monotonic()

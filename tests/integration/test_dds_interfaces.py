@@ -4,7 +4,6 @@ from __future__ import annotations
 import math
 
 import pytest
-import rclpy
 from geometry_msgs.msg import PoseStamped
 from nav2_msgs.action import NavigateToPose
 from nav2_msgs.msg import ParticleCloud

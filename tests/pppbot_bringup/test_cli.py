@@ -27,7 +27,7 @@ def talker(spawn, python_script):
 def test_help_lists_verbs():
     result = pppbot("--help")
     assert result.returncode == 0
-    for verb in ("run", "topic", "setup", "env"):
+    for verb in ("run", "topic", "teleop", "launch_sim", "setup", "env"):
         assert re.search(rf"^\s+{verb}\s", result.stdout, re.M), verb
 
 
@@ -48,7 +48,7 @@ def test_run_reports_missing_package_and_executable():
     assert result.returncode == 1 and "package 'no_such_pkg' not found" in result.stderr
     result = pppbot("run", "pppbot_bringup", "nope")
     assert result.returncode == 1
-    assert "no executable 'nope' in package 'pppbot_bringup' (it has: pppbot)" in result.stderr
+    assert "no executable 'nope' in package 'pppbot_bringup' (it has: launch_sim, pppbot)" in result.stderr
 
 
 def test_run_executes_a_package_executable():
@@ -112,6 +112,6 @@ def test_topic_hz_measures_the_rate(spawn, talker):
 
 
 def test_a_design_verb_not_built_yet_says_so_instead_of_pretending():
-    result = pppbot("launch_sim", "world:=maze")
+    result = pppbot("bag", "record", "-a")
     assert result.returncode == 2
     assert "not built yet" in result.stderr and result.stdout == ""

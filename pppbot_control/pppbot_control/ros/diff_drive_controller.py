@@ -17,16 +17,15 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Sequence
 
-import rclpy
 from geometry_msgs.msg import TransformStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry as OdometryMsg
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.ros.node_main import run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.throttle import Throttle
 from pppbot_control.kinematics import DiffDriveGeometry, Odometry
@@ -292,21 +291,7 @@ class DiffDriveController(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = DiffDriveController()
-    except ParameterError as exc:
-        print(f"[diff_drive_base_controller] error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 1
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(DiffDriveController, "diff_drive_base_controller", args, fatal=(ParameterError,))
 
 
 if __name__ == "__main__":

@@ -141,6 +141,7 @@ def main(args: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         pass
     finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # cleanup must not be cut short
         termios.tcsetattr(fd, termios.TCSADRAIN, saved)
         for s, handler in previous.items():
             signal.signal(s, handler)

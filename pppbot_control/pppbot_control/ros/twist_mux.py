@@ -9,13 +9,12 @@ from __future__ import annotations
 import sys
 from typing import Any, Callable
 
-import rclpy
 from geometry_msgs.msg import Twist, TwistStamped
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_msgs.msg import Bool
 
 from pppbot_common.params import ParameterError
+from pppbot_common.ros.node_main import run_node
 from pppbot_control.mux import MuxConfigError, TwistMux, parse_config
 
 CHECK_RATE_HZ = 20.0
@@ -81,21 +80,7 @@ class TwistMuxNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = TwistMuxNode()
-    except ParameterError as exc:
-        print(f"[twist_mux] error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 1
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(TwistMuxNode, "twist_mux", args, fatal=(ParameterError,))
 
 
 if __name__ == "__main__":

@@ -15,9 +15,7 @@ import math
 import sys
 from dataclasses import dataclass
 
-import rclpy
 from geometry_msgs.msg import TransformStamped
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
@@ -26,6 +24,7 @@ from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.ros.node_main import run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.qos import LATCHED
 from pppbot_description.errors import DescriptionError
@@ -144,21 +143,7 @@ class RobotStatePublisher(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = RobotStatePublisher()
-    except (ParameterError, DescriptionError) as exc:
-        print(f"[robot_state_publisher] error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 1
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(RobotStatePublisher, "robot_state_publisher", args, fatal=(ParameterError, DescriptionError))
 
 
 if __name__ == "__main__":

@@ -19,13 +19,13 @@ from typing import Any
 import rclpy
 from builtin_interfaces.msg import Time as TimeMsg
 from nav_msgs.msg import Odometry
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, LaserScan
 from std_srvs.srv import Empty, Trigger
 
 from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.ros.node_main import run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.throttle import Throttle
 from pppbot_description.errors import DescriptionError
@@ -50,6 +50,7 @@ WARN_PERIOD_S = 5.0
 #: How often (wall time) the loop serves ROS callbacks when running flat out.
 SERVICE_PERIOD_S = 0.005
 RTF_LOG_PERIOD_S = 10.0
+VIEWER_PERIOD_S = 1.0 / 30.0
 
 
 @dataclass(frozen=True)
@@ -69,6 +70,7 @@ class SimulatorParameters:
     clock_rate: float = param(100.0, "/clock rate (Hz, sim time)")
     step_count: int = param(1, "physics steps per step_physics call")
     paused: bool = param(False, "start paused")
+    viewer: bool = param(False, "open MuJoCo's viewer window (needs a display)")
 
     def validate(self) -> None:
         for name in ("x", "y", "z", "yaw"):
@@ -117,6 +119,8 @@ class Simulator(Node):
         schedule.add("joint_states", p.joint_states_rate)
         schedule.add("ground_truth", p.ground_truth_rate)
         self._init_messages()
+        self.viewer = self._open_viewer() if p.viewer else None
+        self._viewer_synced = 0.0
         self.published_s = 0.0
         self._throttle = Throttle(WARN_PERIOD_S)
         self.runner = PhysicsRunner(self.sim, p.real_time_factor, p.command_timeout, p.paused,
@@ -133,6 +137,20 @@ class Simulator(Node):
         self.params = params
         self.runner.real_time_factor = params.real_time_factor
         self.runner.command_timeout_s = params.command_timeout
+
+    def _open_viewer(self) -> Any:
+        try:
+            import mujoco.viewer
+            return mujoco.viewer.launch_passive(self.sim.model, self.sim.data)
+        except Exception as exc:  # no display, no OpenGL: many exception types
+            raise ParameterError("viewer", True, f"cannot open MuJoCo's viewer ({exc}); run headless") from exc
+
+    def _sync_viewer(self) -> None:
+        now = time.monotonic()
+        if self.viewer is not None and now - self._viewer_synced >= VIEWER_PERIOD_S:
+            if self.viewer.is_running():
+                self.viewer.sync()
+            self._viewer_synced = now
 
     def _init_messages(self) -> None:
         """One message object per topic, filled in place: publishing serializes at once."""
@@ -280,6 +298,7 @@ class Simulator(Node):
         def idle(timeout_s: float) -> None:
             nonlocal log_wall, log_sim
             rclpy.spin_once(self, timeout_sec=timeout_s)
+            self._sync_viewer()
             now = time.monotonic()
             if now - log_wall >= RTF_LOG_PERIOD_S:
                 rtf = self.params.real_time_factor
@@ -295,21 +314,7 @@ class Simulator(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = Simulator()
-    except (ParameterError, DescriptionError, WorldError, SpawnError) as exc:
-        print(f"[simulator] error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 1
-    try:
-        node.run()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(Simulator, "simulator", args, spin=lambda node: node.run(), fatal=(ParameterError, DescriptionError, WorldError, SpawnError))
 
 
 if __name__ == "__main__":

@@ -1,0 +1,49 @@
+"""Readiness from the ROS graph, for the supervisor: "a first message arrived on <topic>".
+
+A hidden node spins in a background thread; each probe is a subscription that
+remembers whether a message came. Subscriptions are made before the nodes start,
+so nothing is missed (and latched topics are asked for with transient local QoS).
+"""
+from __future__ import annotations
+
+import threading
+from typing import Callable
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.qos import QoSProfile
+from rclpy.signals import SignalHandlerOptions
+
+from pppbot_common.ros.messages import get_interface
+from pppbot_common.ros.qos import DEFAULT
+
+
+class GraphProbe:
+    def __init__(self) -> None:
+        # The supervisor owns Ctrl-C; rclpy must not install its own handler.
+        self.context = rclpy.Context()
+        rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("_launch_sim_probe", context=self.context,
+                                      start_parameter_services=False, enable_rosout=False)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, name="graph-probe", daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        try:
+            self.executor.spin()
+        except (ExternalShutdownException, rclpy.executors.ShutdownException):
+            pass
+
+    def first_message(self, topic: str, type_name: str, qos: QoSProfile = DEFAULT) -> Callable[[], bool]:
+        """A probe that turns true once a message arrives on ``topic``."""
+        seen = threading.Event()
+        self.node.create_subscription(get_interface(type_name), topic, lambda _msg: seen.set(), qos, raw=True)
+        return seen.is_set
+
+    def close(self) -> None:
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        self._thread.join(timeout=2.0)

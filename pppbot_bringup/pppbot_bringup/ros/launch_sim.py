@@ -1,0 +1,101 @@
+"""``launch_sim``: ppp_bot's ``launch_sim.launch.py`` with pppbot's nodes, no ``launch`` package.
+
+    ./pppbot launch_sim [world:=cones] [localization:=false] [use_teleop:=true] ...
+    ./pppbot launch_sim --show-args
+
+Start order, each step waiting for real readiness (a first message, not a sleep):
+simulator (first /clock) → robot_state_publisher (/robot_description) and
+diff_drive_base_controller (first /odom) → twist_mux → mapping or localization
+(when built) → RViz (when on PATH) → keyboard teleop.
+"""
+from __future__ import annotations
+
+import shutil
+import sys
+import time
+from typing import Any, Sequence
+
+from pppbot_bringup.launch_sim import ARGUMENTS, plan
+from pppbot_bringup.paths import log_root
+from pppbot_bringup.ros.graph_probe import GraphProbe
+from pppbot_bringup.run import RunError, find_executable
+from pppbot_bringup.supervisor import Output, Supervisor
+from pppbot_common.launch_args import ArgumentError, describe, parse_assignments
+from pppbot_common.ros.qos import DEFAULT, LATCHED
+from pppbot_description.errors import DescriptionError
+from pppbot_description.xacro_model import process_xacro
+from pppbot_sim.errors import WorldError
+from pppbot_sim.worlds import find_world
+
+
+def run(argv: Sequence[str]) -> int:
+    if any(a in ("--show-args", "-s", "-h", "--help") for a in argv):
+        print(__doc__.strip(), "", describe(ARGUMENTS), sep="\n")
+        return 0
+    terminal = sys.stdin.isatty() and sys.stdout.isatty()
+    try:
+        values = parse_assignments(argv, ARGUMENTS)
+        world_file = find_world(values["world"])
+        urdf = process_xacro()
+        run_dir = log_root() / time.strftime("%Y-%m-%d-%H-%M-%S")
+        run_dir.mkdir(parents=True, exist_ok=True)
+        urdf_file = run_dir / "robot.urdf"
+        urdf_file.write_text(urdf)
+        probe = GraphProbe()
+    except (ArgumentError, WorldError, DescriptionError, RunError, OSError) as exc:
+        print(f"launch_sim: {exc}", file=sys.stderr)
+        return 2
+    try:
+        try:
+            the_plan = plan(values, world_file, urdf_file,
+                            lambda pkg, exe: str(find_executable(pkg, exe)),
+                            lambda topic, type_name, latched: probe.first_message(topic, type_name, _qos(latched)),
+                            terminal and values["use_teleop"], shutil.which("rviz2"))
+        except (ArgumentError, RunError) as exc:
+            print(f"launch_sim: {exc}", file=sys.stderr)
+            return 2
+        teleop_owns_terminal = any(n.terminal for n in the_plan.nodes)
+        output = Output(sys.stdout, log_dir=run_dir if teleop_owns_terminal else None)
+        output.event("INFO", "launch", f"log directory: {run_dir}")
+        if teleop_owns_terminal:
+            output.event("INFO", "launch", "node output goes to the log directory; warnings and errors show here")
+        for note in the_plan.notes:
+            output.event("WARNING", "launch", note)
+        supervisor = Supervisor(the_plan.nodes, output)
+        supervisor.install_signal_handlers()
+        announced = False
+
+        def announce() -> bool:
+            nonlocal announced
+            if not announced and all(supervisor.is_ready(n.name) for n in the_plan.nodes if n.required):
+                announced = True
+                drive = "the teleop keys" if teleop_owns_terminal else "./pppbot teleop (in another terminal)"
+                output.event("INFO", "launch", f"ppp_bot is up in '{world_file.stem}': drive with {drive}; "
+                                               "Ctrl-C stops everything")
+            return False
+
+        return supervisor.run(until=announce)
+    finally:
+        probe.close()
+
+
+def _qos(latched: bool) -> Any:
+    return LATCHED if latched else DEFAULT
+
+
+# ------------------------------------------------------------ command line
+def add_arguments(parser: Any) -> None:
+    """Unused: ``pppbot launch_sim`` hands its raw arguments to :func:`main_argv`."""
+
+
+def main_argv(argv: list[str]) -> int:
+    return run(argv)
+
+
+def main() -> int:
+    """Console entry point (``ros2 run pppbot_bringup launch_sim world:=maze``)."""
+    return run(sys.argv[1:])
+
+
+if __name__ == "__main__":
+    sys.exit(main())

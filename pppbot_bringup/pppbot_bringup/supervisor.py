@@ -1,0 +1,340 @@
+"""Start, watch and stop a set of node processes, as ``ros2 launch`` does, without orphans.
+
+No ROS here: readiness is a callable the caller provides (``launch_sim`` asks the
+ROS graph) or a regular expression on the node's output.
+
+* Order: a node starts once every node in its ``after`` is ready; a node is ready
+  when its check passes (or at once without a check); a check that does not pass
+  within its timeout ends the launch with an error naming it.
+* Output: each line prefixed ``[name-N]`` (N counts the processes of that name),
+  decoded with replacement; ros2 launch's ``process started with pid``, ``process
+  has finished cleanly`` and ``process has died`` lines. With a log directory,
+  each node's output goes to ``<dir>/<name-N>.log`` and only warnings and errors
+  are echoed (so a keyboard teleop can own the terminal).
+* Respawn: ``respawn`` with ``respawn_delay_s`` and at most ``max_respawns``
+  restarts. A ``required`` node that dies ends the launch with a non-zero code.
+* Shutdown (Ctrl-C, SIGTERM, SIGHUP, a required node's death): SIGINT to every
+  node, SIGTERM to the ones left after ``sigint_timeout_s``, SIGKILL after
+  ``sigterm_timeout_s`` more; a second Ctrl-C does not cut this short. Every
+  node runs in its own process group (killed whole) and gets SIGTERM from the
+  kernel if the supervisor itself is killed (PR_SET_PDEATHSIG).
+"""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Callable, Mapping, Sequence
+
+from pppbot_common.process import die_with_parent
+
+POLL_S = 0.05
+_LEVEL = re.compile(r"\[(WARN|WARNING|ERROR|FATAL)\]|Traceback|error:", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class ReadyCheck:
+    """How to know a node is up: ``probe()`` returns True, or a line matches ``output_pattern``."""
+
+    description: str
+    probe: Callable[[], bool] | None = None
+    output_pattern: str | None = None
+    timeout_s: float = 60.0
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    name: str
+    cmd: Sequence[str]
+    after: tuple[str, ...] = ()
+    ready: ReadyCheck | None = None
+    required: bool = False
+    respawn: bool = False
+    respawn_delay_s: float = 0.0
+    max_respawns: int = 3
+    #: the node reads and writes this terminal (a keyboard teleop); it stays in our process group
+    terminal: bool = False
+    env: Mapping[str, str] | None = None
+
+
+class Output:
+    """Where the launch's and the nodes' lines go."""
+
+    def __init__(self, stream: IO[str] = sys.stdout, log_dir: Path | None = None) -> None:
+        self.stream = stream
+        self.log_dir = log_dir
+        self._lock = threading.RLock()
+        self._files: dict[str, IO[str]] = {}
+        if log_dir is not None:
+            log_dir.mkdir(parents=True, exist_ok=True)
+
+    def _write(self, text: str) -> None:
+        with self._lock:
+            try:
+                self.stream.write(text + "\n")
+                self.stream.flush()
+            except (OSError, ValueError):
+                pass
+
+    def event(self, level: str, label: str, text: str) -> None:
+        self._write(f"[{level}] [{label}]: {text}")
+
+    def node_line(self, label: str, text: str) -> None:
+        if self.log_dir is None:
+            self._write(f"[{label}] {text}")
+            return
+        with self._lock:
+            log = self._files.get(label)
+            if log is None:
+                log = self._files[label] = open(self.log_dir / f"{label}.log", "a", buffering=1)
+            log.write(text + "\n")
+        if _LEVEL.search(text):
+            self._write(f"[{label}] {text}")
+
+    def close(self) -> None:
+        with self._lock:
+            for log in self._files.values():
+                log.close()
+            self._files.clear()
+
+
+@dataclass
+class _Running:
+    spec: NodeSpec
+    label: str
+    proc: subprocess.Popen[bytes]
+    started_s: float
+    lines: list[str] = field(default_factory=list)
+    ready: bool = False
+    reader: threading.Thread | None = None
+
+
+class Supervisor:
+    def __init__(self, specs: Sequence[NodeSpec], output: Output | None = None,
+                 sigint_timeout_s: float = 5.0, sigterm_timeout_s: float = 5.0,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        names = [s.name for s in specs]
+        duplicates = sorted({n for n in names if names.count(n) > 1})
+        if duplicates:
+            raise ValueError(f"node names must be unique: {', '.join(duplicates)}")
+        for spec in specs:
+            unknown = [d for d in spec.after if d not in names]
+            if unknown:
+                raise ValueError(f"node '{spec.name}' waits for unknown node(s) {', '.join(unknown)}")
+        self.specs = list(specs)
+        self.output = output or Output()
+        self.sigint_timeout_s = sigint_timeout_s
+        self.sigterm_timeout_s = sigterm_timeout_s
+        self.clock = clock
+        self._counts: dict[str, int] = {}
+        self._running: dict[str, _Running] = {}
+        self._ready: set[str] = set()
+        self._respawns: dict[str, int] = {}
+        self._respawn_at: dict[str, float] = {}
+        self._pending = list(self.specs)
+        self._shutdown = threading.Event()
+        self._shutdown_reason = ""
+        self._terminal_interrupted = False
+        self._repeated_requests: list[str] = []
+        self.exit_code = 0
+        self.pids: list[int] = []  # every process ever started (tests check none survives)
+
+    # ------------------------------------------------------------ public API
+    def request_shutdown(self, reason: str, exit_code: int = 0) -> None:
+        """Start the orderly shutdown (idempotent: a second request changes nothing).
+
+        Safe in a signal handler: it only sets flags; the loop does the talking.
+        """
+        if self._shutdown.is_set():
+            self._repeated_requests.append(reason)
+            return
+        self._shutdown_reason = reason
+        self.exit_code = max(self.exit_code, exit_code)
+        self._shutdown.set()
+
+    def _report_repeats(self) -> None:
+        while self._repeated_requests:
+            reason = self._repeated_requests.pop(0)
+            self.output.event("WARNING", "launch", f"{reason}: already shutting down, please wait")
+
+    def install_signal_handlers(self) -> None:
+        """Ctrl-C, SIGTERM and SIGHUP shut down the same orderly way."""
+        def handler(signum: int, frame: object) -> None:
+            if signum == signal.SIGINT and not self._shutdown.is_set():
+                # Ctrl-C in the terminal reached the terminal's node (same process group) too.
+                self._terminal_interrupted = True
+            self.request_shutdown(f"signal {signal.Signals(signum).name}", 0 if signum == signal.SIGINT else 1)
+
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, handler)
+
+    def is_ready(self, name: str) -> bool:
+        return name in self._ready
+
+    def run(self, until: Callable[[], bool] | None = None) -> int:
+        """Start everything, watch until shutdown (or ``until()``); return the exit code."""
+        try:
+            while not self._shutdown.is_set():
+                if until is not None and until():
+                    break
+                self._start_due()
+                self._check_readiness()
+                self._reap()
+                if not self._running and not self._pending and not self._respawn_at:
+                    self.output.event("INFO", "launch", "all processes have finished")
+                    break
+                self._shutdown.wait(POLL_S)
+        finally:
+            self._stop_all()
+            self.output.close()
+        return self.exit_code
+
+    # --------------------------------------------------------------- startup
+    def _start_due(self) -> None:
+        now = self.clock()
+        for name, at in list(self._respawn_at.items()):
+            if now >= at:
+                del self._respawn_at[name]
+                self._start(next(s for s in self.specs if s.name == name))
+        for spec in list(self._pending):
+            if all(d in self._ready for d in spec.after):
+                self._pending.remove(spec)
+                self._start(spec)
+
+    def _start(self, spec: NodeSpec) -> None:
+        self._counts[spec.name] = self._counts.get(spec.name, 0) + 1
+        label = f"{spec.name}-{self._counts[spec.name]}"
+        env = None if spec.env is None else {**os.environ, **spec.env}
+        try:
+            if spec.terminal:
+                proc = subprocess.Popen(list(spec.cmd), env=env, preexec_fn=die_with_parent)
+            else:
+                proc = subprocess.Popen(list(spec.cmd), env=env, stdin=subprocess.DEVNULL,
+                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                        start_new_session=True, preexec_fn=die_with_parent)
+        except OSError as exc:
+            self.output.event("ERROR", label, f"cannot start {' '.join(spec.cmd)}: {exc.strerror}")
+            self.request_shutdown(f"'{spec.name}' could not start", 1)
+            return
+        running = _Running(spec, label, proc, self.clock())
+        self._running[spec.name] = running
+        self.pids.append(proc.pid)
+        self.output.event("INFO", label, f"process started with pid [{proc.pid}]")
+        if proc.stdout is not None:
+            running.reader = threading.Thread(target=self._read, args=(running,), daemon=True)
+            running.reader.start()
+        if spec.ready is None:
+            self._mark_ready(running)
+
+    def _read(self, running: _Running) -> None:
+        stream = running.proc.stdout
+        if stream is None:
+            return
+        for raw in iter(stream.readline, b""):
+            text = raw.decode(errors="replace").rstrip("\r\n")
+            running.lines.append(text)
+            self.output.node_line(running.label, text)
+
+    def _mark_ready(self, running: _Running) -> None:
+        running.ready = True
+        self._ready.add(running.spec.name)
+        elapsed = self.clock() - running.started_s
+        what = f" ({running.spec.ready.description})" if running.spec.ready else ""
+        self.output.event("INFO", running.label, f"ready after {elapsed:.1f} s{what}")
+
+    def _check_readiness(self) -> None:
+        for running in list(self._running.values()):
+            check = running.spec.ready
+            if running.ready or check is None:
+                continue
+            if check.output_pattern is not None and any(re.search(check.output_pattern, l) for l in running.lines):
+                self._mark_ready(running)
+            elif check.probe is not None and check.probe():
+                self._mark_ready(running)
+            elif self.clock() - running.started_s > check.timeout_s:
+                self.output.event("ERROR", running.label,
+                                  f"not ready after {check.timeout_s:g} s (waited for {check.description})")
+                self.request_shutdown(f"'{running.spec.name}' did not become ready", 1)
+
+    # --------------------------------------------------------------- watching
+    def _reap(self) -> None:
+        for name, running in list(self._running.items()):
+            code = running.proc.poll()
+            if code is None:
+                continue
+            del self._running[name]
+            if running.reader is not None:
+                running.reader.join(timeout=2.0)
+            self._report_exit(running, code)
+            spec = running.spec
+            if spec.respawn and not self._shutdown.is_set():
+                done = self._respawns.get(name, 0)
+                if spec.max_respawns < 0 or done < spec.max_respawns:
+                    self._respawns[name] = done + 1
+                    self._ready.discard(name)
+                    self._respawn_at[name] = self.clock() + spec.respawn_delay_s
+                    limit = "no limit" if spec.max_respawns < 0 else f"{done + 1} of {spec.max_respawns}"
+                    self.output.event("INFO", running.label,
+                                      f"respawning in {spec.respawn_delay_s:g} s ({limit})")
+                    continue
+                self.output.event("ERROR", running.label, f"not respawning: {spec.max_respawns} respawns used")
+            if spec.required:
+                self.request_shutdown(f"required node '{name}' exited", 1)
+
+    def _report_exit(self, running: _Running, code: int) -> None:
+        if code == 0:
+            self.output.event("INFO", running.label, f"process has finished cleanly [pid {running.proc.pid}]")
+        else:
+            self.output.event("ERROR", running.label,
+                              f"process has died [pid {running.proc.pid}, exit code {code}, "
+                              f"cmd '{' '.join(running.spec.cmd)}']")
+
+    # --------------------------------------------------------------- shutdown
+    def _signal(self, running: _Running, sig: int) -> None:
+        try:
+            if running.spec.terminal:
+                os.kill(running.proc.pid, sig)
+            else:
+                os.killpg(running.proc.pid, sig)
+        except ProcessLookupError:
+            pass
+
+    def _stop_all(self) -> None:
+        if self._shutdown_reason:
+            self.output.event("INFO", "launch", f"shutting down ({self._shutdown_reason})")
+        self._respawn_at.clear()
+        self._pending.clear()
+        for sig, wait_s in ((signal.SIGINT, self.sigint_timeout_s), (signal.SIGTERM, self.sigterm_timeout_s),
+                            (signal.SIGKILL, 5.0)):
+            alive = [r for r in self._running.values() if r.proc.poll() is None]
+            if not alive:
+                break
+            if sig != signal.SIGINT:
+                names = ", ".join(r.label for r in alive)
+                self.output.event("WARNING", "launch", f"sending {signal.Signals(sig).name} to {names}")
+            for running in alive:
+                if not (sig == signal.SIGINT and running.spec.terminal and self._terminal_interrupted):
+                    self._signal(running, sig)
+            deadline = time.monotonic() + wait_s
+            while time.monotonic() < deadline and any(r.proc.poll() is None for r in alive):
+                self._report_repeats()
+                time.sleep(POLL_S)
+        for running in list(self._running.values()):
+            if running.proc.poll() is None:
+                running.proc.wait()
+            if not running.spec.terminal:
+                try:  # whatever the node left in its group
+                    os.killpg(running.proc.pid, signal.SIGKILL)
+                except (ProcessLookupError, PermissionError):
+                    pass
+            if running.reader is not None:
+                running.reader.join(timeout=2.0)
+            self._report_exit(running, running.proc.returncode)
+        self._running.clear()
+        self._report_repeats()

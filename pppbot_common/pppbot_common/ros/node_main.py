@@ -1,0 +1,45 @@
+"""The ``main()`` of a pppbot node: start, spin, and end cleanly however it ends.
+
+A bad parameter (or any of ``fatal`` errors) at start prints one line naming it
+and exits 1. Ctrl-C and shutdown end with 0, including the race where a callback
+publishes while SIGINT is already tearing the context down.
+"""
+from __future__ import annotations
+
+import sys
+from typing import Callable, TypeVar
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from pppbot_common.errors import PppbotError
+
+N = TypeVar("N", bound=Node)
+
+
+def run_node(factory: Callable[[], N], name: str, args: list[str] | None = None,
+             spin: Callable[[N], None] = rclpy.spin,
+             fatal: tuple[type[BaseException], ...] = (PppbotError,)) -> int:
+    rclpy.init(args=args)
+    try:
+        node = factory()
+    except fatal as exc:
+        print(f"[{name}] error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
+    except KeyboardInterrupt:
+        rclpy.try_shutdown()
+        return 0
+    try:
+        spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:
+        if rclpy.ok():
+            raise
+        # The context was shut down under a running callback: that is the end we asked for.
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

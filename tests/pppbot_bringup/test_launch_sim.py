@@ -1,0 +1,134 @@
+"""launch_sim: arguments, --show-args, the node plan, and an end-to-end headless run."""
+from __future__ import annotations
+
+import math
+import os
+import re
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+
+from pppbot_bringup.launch_sim import ARGUMENTS, plan
+from pppbot_common.launch_args import ArgumentError, describe, parse_assignments
+from pppbot_common.ros.wait import wait_until
+
+ROOT = Path(__file__).resolve().parents[2]
+PPPBOT = str(ROOT / "pppbot")
+
+
+def values(*argv: str) -> dict:
+    return parse_assignments(list(argv), ARGUMENTS)
+
+
+def test_defaults_are_ppp_bots():
+    v = values()
+    assert (v["world"], v["localization"], v["use_teleop"], v["use_rviz"], v["headless"]) == \
+        ("cones", False, True, True, True)
+    assert (v["real_time_factor"], v["z"], v["log_level"]) == (1.0, 0.05, "info")
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["wrld:=maze"], "unknown argument 'wrld'; known: world, localization, map"),
+    (["world=maze"], "'world=maze' is not of the form name:=value"),
+    (["localization:=maybe"], "localization:=maybe: must be true or false"),
+    (["real_time_factor:=fast"], "real_time_factor:=fast: must be a number"),
+    (["log_level:=loud"], "log_level:=loud: allowed values are debug, info, warn, error, fatal"),
+    (["x:=1", "x:=2"], "argument 'x' given twice"),
+])
+def test_bad_arguments_are_named(argv, message):
+    with pytest.raises(ArgumentError) as info:
+        values(*argv)
+    assert message in str(info.value)
+
+
+def test_show_args_lists_every_argument_with_its_default():
+    result = subprocess.run([PPPBOT, "launch_sim", "--show-args"], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0
+    for argument in ARGUMENTS:
+        assert f"    '{argument.name}':" in result.stdout
+    assert "(default: 'cones')" in result.stdout and "Choices: debug, info, warn, error, fatal" in result.stdout
+    assert describe(ARGUMENTS) in result.stdout
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["world:=mars"], "unknown world 'mars'; known worlds: cones, empty, maze, office, room"),
+    (["wrld:=maze"], "unknown argument 'wrld'"),
+    (["localization:=true", "map:=/nowhere/map.yaml"], "localization:=true needs a map; /nowhere/map.yaml does not exist"),
+])
+def test_launch_refuses_bad_input_before_starting_anything(argv, message):
+    result = subprocess.run([PPPBOT, "launch_sim", *argv], capture_output=True, text=True, timeout=60,
+                            stdin=subprocess.DEVNULL)
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert "process started" not in result.stdout
+
+
+def fake_plan(*argv: str, terminal: bool = False, rviz: str | None = None):
+    probes = []
+
+    def probe(topic, type_name, latched):
+        probes.append((topic, type_name, latched))
+        return lambda: True
+
+    p = plan(values(*argv), ROOT / "worlds" / "maze.sdf", Path("/tmp/robot.urdf"),
+             lambda pkg, exe: f"/bin/{pkg}/{exe}", probe, terminal, rviz)
+    return p, probes
+
+
+def test_plan_follows_ppp_bots_order_and_wiring():
+    p, probes = fake_plan("world:=maze", "real_time_factor:=3", terminal=True, rviz="/usr/bin/rviz2")
+    names = [n.name for n in p.nodes]
+    assert names == ["simulator", "robot_state_publisher", "diff_drive_base_controller", "twist_mux",
+                     "rviz2", "teleop_keyboard"]
+    by_name = {n.name: n for n in p.nodes}
+    assert by_name["robot_state_publisher"].after == ("simulator",)
+    assert by_name["twist_mux"].after == ("diff_drive_base_controller",)
+    assert set(by_name["teleop_keyboard"].after) == {"simulator", "robot_state_publisher",
+                                                     "diff_drive_base_controller", "twist_mux"}
+    assert by_name["teleop_keyboard"].terminal and not by_name["simulator"].terminal
+    sim = " ".join(by_name["simulator"].cmd)
+    assert "world:=" in sim and "maze.sdf" in sim and "real_time_factor:=3.0" in sim and "use_sim_time" not in sim
+    mux = " ".join(by_name["twist_mux"].cmd)
+    assert "-r cmd_vel_out:=/diff_drive_base_controller/cmd_vel_unstamped" in mux and "use_sim_time:=true" in mux
+    assert ("/robot_description", "std_msgs/msg/String", True) in probes
+    assert all(n.required for n in p.nodes if n.name not in ("rviz2", "teleop_keyboard"))
+
+
+def test_plan_without_terminal_rviz_or_mapping_says_so():
+    p, _ = fake_plan()
+    assert [n.name for n in p.nodes][-1] == "twist_mux"
+    notes = " ".join(p.notes)
+    assert "run ./pppbot teleop in another terminal" in notes
+    assert "rviz2 is not on PATH" in notes
+    assert "mapping (SLAM) is not built yet" in notes
+
+
+@pytest.mark.ros
+def test_end_to_end_headless_drive_and_clean_sigint(ros_node, spawn):
+    launch = spawn([PPPBOT, "launch_sim", "world:=empty", "use_teleop:=false", "use_rviz:=false",
+                    "real_time_factor:=2.0"], name="launch_sim")
+    launch.wait_for_output(r"ppp_bot is up in 'empty'", 60)
+    pids = [int(p) for p in re.findall(r"process started with pid \[(\d+)\]", launch.output)]
+    assert len(pids) == 4
+    truths: list[Odometry] = []
+    ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
+    pub = ros_node.create_publisher(Twist, "/cmd_vel_teleop", 10)
+    wait_until(lambda: truths and pub.get_subscription_count() > 0, 20, "ground truth and twist_mux", node=ros_node)
+    start = truths[-1].pose.pose.position
+    forward = Twist()
+    forward.linear.x = 0.4
+    wait_until(lambda: (pub.publish(forward), math.hypot(truths[-1].pose.pose.position.x - start.x,
+                                                         truths[-1].pose.pose.position.y - start.y) > 0.5)[1],
+               30, "the robot to drive 0.5 m", node=ros_node)
+    t0 = time.monotonic()
+    os.kill(launch.pid, signal.SIGINT)
+    assert launch.wait(15) == 0
+    assert time.monotonic() - t0 < 15
+    assert launch.output.count("process has finished cleanly") == 4
+    for pid in pids:
+        assert not os.path.exists(f"/proc/{pid}") or open(f"/proc/{pid}/stat").read().rsplit(")", 1)[-1].split()[0] == "Z"

@@ -1,0 +1,143 @@
+"""The supervisor with plain Python children: order, readiness, respawn, required nodes,
+signal escalation, and no process left behind in any case."""
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+SCRIPT = str(Path(__file__).resolve().parents[1] / "scripts" / "supervise.py")
+
+SLEEPER = "print('up', flush=True)\nwhile True: time.sleep(0.1)\n"
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def wait_dead(pids: list[int], timeout_s: float = 5.0) -> list[int]:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline and any(alive(p) for p in pids):
+        time.sleep(0.05)
+    return [p for p in pids if alive(p)]
+
+
+def started_pids(output: str) -> list[int]:
+    return [int(p) for p in re.findall(r"process started with pid \[(\d+)\]", output)]
+
+
+@pytest.fixture
+def supervise(spawn):
+    def start(children: list[dict], **options: float):
+        config = {"children": children, **options}
+        child = spawn([sys.executable, SCRIPT, json.dumps(config)], name="supervisor")
+        child.wait_for_output("SUPERVISOR READY", 20)
+        return child
+    return start
+
+
+def test_order_follows_readiness(supervise):
+    sup = supervise([
+        {"name": "a", "code": "time.sleep(0.5); print('a ready', flush=True)\nwhile True: time.sleep(0.1)\n",
+         "ready": "a ready"},
+        {"name": "b", "code": SLEEPER, "after": ["a"]},
+    ])
+    sup.wait_for_output(r"\[b-1\] up", 20)
+    out = sup.output
+    assert out.index("[INFO] [a-1]: ready after") < out.index("[INFO] [b-1]: process started with pid")
+    assert re.search(r"\[INFO\] \[a-1\]: ready after 0\.\d s \('a ready' printed\)", out)
+    os.kill(sup.pid, signal.SIGINT)
+    assert sup.wait(20) == 0
+    assert wait_dead(started_pids(sup.output)) == []
+
+
+def test_readiness_timeout_ends_the_launch(supervise):
+    sup = supervise([
+        {"name": "mute", "code": SLEEPER, "ready": "never", "ready_timeout": 0.5},
+        {"name": "later", "code": SLEEPER, "after": ["mute"]},
+    ])
+    assert sup.wait(20) == 1
+    assert "[ERROR] [mute-1]: not ready after 0.5 s (waited for 'never' printed)" in sup.output
+    assert "later-1" not in sup.output
+    assert wait_dead(started_pids(sup.output)) == []
+
+
+def test_respawn_stops_at_its_limit_and_required_ends_the_launch(supervise):
+    sup = supervise([
+        {"name": "flaky", "code": "print('boom', flush=True); sys.exit(3)\n", "respawn": True,
+         "max_respawns": 2, "required": True, "respawn_delay": 0.1},
+        {"name": "steady", "code": SLEEPER},
+    ])
+    assert sup.wait(30) == 1
+    out = sup.output
+    assert out.count("[flaky-") and "[INFO] [flaky-3]: process started" in out and "flaky-4" not in out
+    assert "respawning in 0.1 s (1 of 2)" in out and "respawning in 0.1 s (2 of 2)" in out
+    assert "not respawning: 2 respawns used" in out
+    assert re.search(r"\[ERROR\] \[flaky-1\]: process has died \[pid \d+, exit code 3", out)
+    assert "required node 'flaky' exited" in out
+    assert wait_dead(started_pids(out)) == []
+
+
+def test_sigterm_escalates_for_a_child_that_ignores_sigint(supervise):
+    sup = supervise([
+        {"name": "stubborn", "code": SLEEPER, "ignore": ["INT"]},
+        {"name": "obedient", "code": SLEEPER},
+    ], sigint_timeout=0.5, sigterm_timeout=2.0)
+    sup.wait_for_output(r"\[stubborn-1\] up", 20)
+    sup.wait_for_output(r"\[obedient-1\] up", 20)
+    os.kill(sup.pid, signal.SIGTERM)
+    assert sup.wait(20) == 1  # ended by SIGTERM
+    out = sup.output
+    assert "shutting down (signal SIGTERM)" in out
+    assert "[WARNING] [launch]: sending SIGTERM to stubborn-1" in out
+    assert re.search(r"\[ERROR\] \[stubborn-1\]: process has died \[pid \d+, exit code -15", out)
+    assert "[INFO] [obedient-1]: process has finished cleanly" in out or "obedient-1]: process has died" in out
+    assert wait_dead(started_pids(out)) == []
+
+
+def test_sigkill_for_a_child_that_ignores_everything_and_a_second_ctrl_c_waits(supervise):
+    sup = supervise([{"name": "deaf", "code": SLEEPER, "ignore": ["INT", "TERM"]}],
+                    sigint_timeout=0.5, sigterm_timeout=0.5)
+    sup.wait_for_output(r"\[deaf-1\] up", 20)
+    os.kill(sup.pid, signal.SIGINT)
+    sup.wait_for_output("shutting down", 10)
+    os.kill(sup.pid, signal.SIGINT)  # impatient user
+    assert sup.wait(20) == 0
+    out = sup.output
+    assert "already shutting down, please wait" in out
+    assert "sending SIGKILL to deaf-1" in out
+    assert wait_dead(started_pids(out)) == []
+
+
+def test_a_killed_supervisor_leaves_no_orphans(supervise):
+    sup = supervise([{"name": "a", "code": SLEEPER}, {"name": "b", "code": SLEEPER}])
+    sup.wait_for_output(r"\[a-1\] up", 20)
+    sup.wait_for_output(r"\[b-1\] up", 20)
+    pids = started_pids(sup.output)
+    assert len(pids) == 2 and all(alive(p) for p in pids)
+    os.kill(sup.pid, signal.SIGKILL)
+    sup.wait(10)
+    assert wait_dead(pids) == []  # PR_SET_PDEATHSIG: the kernel sent them SIGTERM
+
+
+def test_bad_specs_are_refused():
+    from pppbot_bringup.supervisor import NodeSpec, Supervisor
+
+    with pytest.raises(ValueError, match="waits for unknown node"):
+        Supervisor([NodeSpec("a", ["true"], after=("ghost",))])
+    with pytest.raises(ValueError, match="node names must be unique: a"):
+        Supervisor([NodeSpec("a", ["true"]), NodeSpec("a", ["true"])])
