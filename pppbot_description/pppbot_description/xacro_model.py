@@ -13,6 +13,7 @@ from typing import Mapping
 
 import xacro
 
+from pppbot_common.resources import share_directory
 from pppbot_description.errors import DescriptionError
 
 PACKAGE = "pppbot_description"
@@ -22,17 +23,7 @@ _ARG_DECLARATION = re.compile(r"<xacro:arg\s+name\s*=\s*[\"']([^\"']+)[\"']")
 
 def urdf_directory() -> Path:
     """``share/pppbot_description/urdf`` when installed, else the source folder."""
-    try:
-        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-        try:
-            installed = Path(get_package_share_directory(PACKAGE)) / "urdf"
-            if installed.is_dir():
-                return installed
-        except PackageNotFoundError:
-            pass
-    except ImportError:
-        pass
-    return Path(__file__).resolve().parent.parent / "urdf"
+    return share_directory(PACKAGE, "urdf", Path(__file__).resolve().parent.parent / "urdf")
 
 
 def default_xacro_path() -> Path:

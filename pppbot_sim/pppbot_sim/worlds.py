@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from pppbot_common.resources import share_directory
 from pppbot_sim.errors import WorldError
 
 PACKAGE = "pppbot_sim"
@@ -11,17 +12,7 @@ WORLD_SUFFIXES = (".sdf", ".world", ".xml")
 
 def worlds_directory() -> Path:
     """``share/pppbot_sim/worlds`` when installed, else the checkout's ``worlds/``."""
-    try:
-        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-        try:
-            installed = Path(get_package_share_directory(PACKAGE)) / "worlds"
-            if installed.is_dir():
-                return installed
-        except PackageNotFoundError:
-            pass
-    except ImportError:
-        pass
-    return Path(__file__).resolve().parents[2] / "worlds"
+    return share_directory(PACKAGE, "worlds", Path(__file__).resolve().parents[2] / "worlds")
 
 
 def known_worlds(directory: Path | None = None) -> list[str]:
