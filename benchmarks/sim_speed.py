@@ -18,6 +18,8 @@ import sys
 import time
 from pathlib import Path
 
+from pppbot_common.dds_isolation import isolate_dds
+
 ROOT = Path(__file__).resolve().parent.parent
 SUBSCRIBER = """
 import rclpy, sys
@@ -34,11 +36,6 @@ except BaseException:
     pass
 print('scans', count[0], flush=True)
 """
-
-
-def isolate_dds() -> None:
-    os.environ.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 
 def core_rtf(world: str, sim_seconds: float) -> float:

@@ -9,48 +9,21 @@
 """
 from __future__ import annotations
 
-import fcntl
 import os
 import sys
-import tempfile
 from pathlib import Path
-from typing import IO, Any, Callable, Iterator
+from typing import Any, Callable, Iterator
 
 import pytest
 
+from pppbot_common.dds_isolation import isolate_dds
 from pppbot_common.process import ChildProcess, StopTimeouts
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 SCRIPTS = Path(__file__).resolve().parent / "scripts"
 
-# Linux domain IDs that map to valid DDS ports: 0-101 and 215-232. 0 is the default
-# every ROS user runs in, so tests avoid it.
-_DOMAIN_IDS = [*range(1, 102), *range(215, 233)]
-_domain_lock: IO[str] | None = None
-
-
-def _claim_domain_id() -> int:
-    """A domain ID no other pppbot test session on this machine holds."""
-    global _domain_lock
-    start = os.getpid() % len(_DOMAIN_IDS)
-    for i in range(len(_DOMAIN_IDS)):
-        domain = _DOMAIN_IDS[(start + i) % len(_DOMAIN_IDS)]
-        lock = open(Path(tempfile.gettempdir()) / f"pppbot-ros-domain-{domain}.lock", "w")
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            lock.close()
-            continue
-        _domain_lock = lock
-        return domain
-    raise RuntimeError("every ROS domain ID is held by another pppbot test session")
-
-
 def pytest_configure(config: pytest.Config) -> None:
-    os.environ["ROS_DOMAIN_ID"] = str(_claim_domain_id())
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ.pop("ROS_STATIC_PEERS", None)
-    os.environ.pop("ROS_LOCALHOST_ONLY", None)
+    isolate_dds()
     os.environ["PYTHONUNBUFFERED"] = "1"
 
 

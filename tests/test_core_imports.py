@@ -56,27 +56,33 @@ def is_adapter(module: str) -> bool:
 
 
 def ros_reach(modules: dict[str, Path]) -> dict[str, list[str]]:
-    """For each module, one import chain that reaches ROS (empty if none)."""
+    """For each module, one import chain that reaches ROS (empty if none): breadth first."""
     graph = {m: imports_of(p, m) for m, p in modules.items()}
-    memo: dict[str, list[str]] = {}
 
-    def chain(module: str, stack: tuple[str, ...]) -> list[str]:
-        if module in memo:
-            return memo[module]
-        memo[module] = []  # cycles: assume clean until proven otherwise
-        for name in sorted(graph[module]):
-            if is_ros_module(name):
-                memo[module] = [module, name]
-                break
-            target = name if name in graph else name.rpartition(".")[0]
-            if target in graph and target != module and target not in stack:
-                sub = chain(target, (*stack, module))
-                if sub:
-                    memo[module] = [module, *sub]
-                    break
-        return memo[module]
+    def project_target(name: str) -> str | None:
+        for candidate in (name, name.rpartition(".")[0]):
+            if candidate in graph:
+                return candidate
+        return None
 
-    return {m: chain(m, ()) for m in graph}
+    def chain(start: str) -> list[str]:
+        parents: dict[str, str | None] = {start: None}
+        queue = [start]
+        while queue:
+            module = queue.pop(0)
+            for name in sorted(graph[module]):
+                if is_ros_module(name):
+                    path = [name, module]
+                    while parents[path[-1]] is not None:
+                        path.append(parents[path[-1]])  # type: ignore[arg-type]
+                    return list(reversed(path))
+                target = project_target(name)
+                if target is not None and target not in parents:
+                    parents[target] = module
+                    queue.append(target)
+        return []
+
+    return {m: chain(m) for m in graph}
 
 
 MODULES = project_modules()
@@ -110,3 +116,16 @@ def test_checker_catches_a_transitive_import(tmp_path):
     reach = ros_reach(modules)
     assert reach["pkg.core"] == ["pkg.core", "pkg.ros.node", "rclpy"]
     assert reach["pkg"] == []
+
+
+def test_checker_follows_import_cycles(tmp_path):
+    """a ↔ b in a cycle, b → c → rclpy: both a and b are caught."""
+    files = {"pkg.a": "from pkg import b\n", "pkg.b": "from pkg import a\nfrom pkg import c\n", "pkg.c": "import rclpy\n"}
+    modules = {}
+    for name, text in files.items():
+        path = tmp_path / f"{name.split('.')[1]}.py"
+        path.write_text(text)
+        modules[name] = path
+    reach = ros_reach(modules)
+    assert reach["pkg.a"] == ["pkg.a", "pkg.b", "pkg.c", "rclpy"]
+    assert reach["pkg.b"][-1] == "rclpy"

@@ -249,6 +249,11 @@ def ensure_interfaces(force: bool, quiet: bool) -> bool:
     for pkg in packages:
         if pkg not in missing:
             say(f"{pkg.name}: provided by the environment, not built")
+            # An earlier build of ours would shadow it (install/setup.bash comes last).
+            for stale in (INSTALL / pkg.name, BUILD / pkg.name):
+                if stale.exists():
+                    shutil.rmtree(stale)
+                    say(f"removed our earlier build {stale.relative_to(ROOT)}")
     if missing:
         names = " ".join(p.name for p in missing)
         say(f"building interface packages the environment lacks: {names}")

@@ -286,6 +286,11 @@ class Supervisor:
                 self.output.event("ERROR", running.label, f"not respawning: {spec.max_respawns} respawns used")
             if spec.required:
                 self.request_shutdown(f"required node '{name}' exited", 1)
+            waiting = [s.name for s in self._pending if name in s.after]
+            if not running.ready and waiting:
+                self.output.event("ERROR", running.label,
+                                  f"exited before it was ready; {', '.join(waiting)} cannot start")
+                self.request_shutdown(f"'{name}' exited before it was ready", 1)
 
     def _report_exit(self, running: _Running, code: int) -> None:
         if code == 0:

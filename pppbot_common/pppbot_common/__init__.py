@@ -1,1 +1,3 @@
-"""Shared pure-Python helpers for pppbot: SE(2) math, map file I/O, grid ray casting, process control, and thin ROS helpers (QoS, message types, graph waits)."""
+"""Shared code of pppbot's packages: errors, node parameters, map files (Nav2 YAML + PGM),
+process control, DDS isolation, name:=value arguments, and thin ROS helpers in ``ros/``
+(QoS presets, interface lookup, graph waits, a node's main)."""

@@ -1,6 +1,7 @@
 """twist_mux's arbitration: the freshest highest-priority input wins unless a lock forbids it.
 
-An input is *active* while its last message is younger than its timeout. A lock
+An input is *active* while its last message is younger than its timeout (0: for
+ever, once heard from). A lock
 is *locked* while its last Bool was true, or, when its timeout is positive, when
 no message came within the timeout (twist_mux's rule: a silent watchdog locks).
 The output follows the highest-priority active input whose priority is not
@@ -96,7 +97,10 @@ class TwistMux:
         self._winner: str | None = None
 
     def _active(self, state: _InputState, now_s: float) -> bool:
-        return state.last_s is not None and now_s - state.last_s <= state.spec.timeout_s
+        """Heard from within its timeout; a timeout of 0 never expires (as upstream)."""
+        if state.last_s is None:
+            return False
+        return state.spec.timeout_s == 0 or now_s - state.last_s <= state.spec.timeout_s
 
     def _locked(self, state: _LockState, now_s: float) -> bool:
         if state.spec.timeout_s > 0 and (state.last_s is None or now_s - state.last_s > state.spec.timeout_s):

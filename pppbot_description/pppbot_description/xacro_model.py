@@ -65,7 +65,9 @@ def _locate_error(exc: BaseException, top: Path) -> str:
         line = _line_of(current, missing_path.name)
         where = f"{current}:{line}" if line else str(current)
         return f"{where}: included file not found: {missing_path}"
-    return f"{current}: {message}"
+    undefined = re.search(r"name '(\w+)' is not defined", message)
+    line = _line_of(current, undefined.group(1)) if undefined else None
+    return f"{current}:{line}: {message}" if line else f"{current}: {message}"
 
 
 def process_xacro(path: str | Path | None = None, mappings: Mapping[str, str] | None = None) -> str:

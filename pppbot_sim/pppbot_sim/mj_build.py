@@ -126,8 +126,16 @@ def world_spec(world: World) -> mujoco.MjSpec:
         b.add_freejoint(name=f"{body.name}::free")
         for shape in body.shapes:
             _add_shape(spec, b, shape)
-        if body.mass is not None:
-            # Scale geom densities so the link weighs what the SDF says.
+        if body.mass is not None and body.inertia is not None:
+            ixx, ixy, ixz, iyy, iyz, izz = body.inertia
+            com = body.inertial_pose if body.inertial_pose is not None else np.eye(4)
+            b.explicitinertial = True
+            b.mass = body.mass
+            b.ipos = com[:3, 3]
+            b.iquat = quat_wxyz(com[:3, :3])
+            b.fullinertia = [ixx, iyy, izz, ixy, ixz, iyz]
+        elif body.mass is not None:
+            # Mass without inertia: scale geom densities so the link weighs what the SDF says.
             volume_mass = sum(1000.0 * _shape_volume(s) for s in body.shapes) or 1.0
             for geom in b.geoms:
                 geom.density = 1000.0 * body.mass / volume_mass

@@ -50,7 +50,10 @@ class PhysicsRunner:
         self.paused = False
 
     def command(self, velocities: Mapping[str, float]) -> None:
-        """Wheel velocity targets (rad/s); raises KeyError/ValueError as Simulation does."""
+        """Wheel velocity targets (rad/s); raises KeyError/ValueError as Simulation does,
+        and ValueError for an empty command (it would keep the last one alive)."""
+        if not velocities:
+            raise ValueError("empty command (no joint names)")
         self.sim.set_wheel_velocities(velocities)
         self._last_command_s = self.sim.time_s
 

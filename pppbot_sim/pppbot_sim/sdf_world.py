@@ -32,8 +32,7 @@ SKIPPED = {"gui", "plugin", "light"}
 # Elements that carry nothing a collision world needs; ignored without a word.
 IGNORED = {
     "visual", "scene", "audio", "audio_source", "audio_sink", "wind", "atmosphere", "spherical_coordinates",
-    "magnetic_field", "self_collide", "enable_wind", "kinematic", "gravity", "allow_auto_disable", "frame",
-    "must_be_base_link", "velocity_decay", "battery",
+    "magnetic_field", "enable_wind", "allow_auto_disable", "battery", "laser_retro", "max_contacts",
 }
 SHAPES = {"box", "cylinder", "sphere", "capsule", "ellipsoid", "plane", "mesh"}
 MESH_SUFFIXES = {".stl", ".obj", ".dae"}
@@ -62,6 +61,10 @@ class Body:
     pose: np.ndarray
     shapes: list[Shape]
     mass: float | None = None
+    #: ixx, ixy, ixz, iyy, iyz, izz about the centre of mass, when the SDF gives them
+    inertia: tuple[float, float, float, float, float, float] | None = None
+    #: centre of mass pose in the link frame (4×4)
+    inertial_pose: np.ndarray | None = None
 
 
 @dataclass
@@ -273,24 +276,37 @@ class _Reader:
                   static: bool) -> None:
         name = f"{model}::{link.get('name', 'link')}"
         pose = model_pose @ self.pose(link, file)
-        self.note_unknown(link, {"collision", "pose", "inertial"}, file)
+        self.note_unknown(link, {"collision", "pose", "inertial", "sensor"}, file)
+        for sensor in link.findall("sensor"):
+            self.warn(sensor, f"sensor '{sensor.get('name')}' of link '{name}' is not simulated "
+                              "(only the robot's sensors are)", file)
         shapes = [self.read_collision(c, file, name) for c in link.findall("collision")]
         if static:
             for s in shapes:
                 self.world.static_shapes.append(Shape(s.name, s.kind, s.size, pose @ s.pose, s.mesh,
                                                       s.scale, s.friction))
             return
-        mass = None
+        mass = inertia = inertial_pose = None
         inertial = link.find("inertial")
         if inertial is not None and inertial.find("mass") is not None:
             mass = self.number(inertial, "mass", None, file)
             if mass <= 0:
                 raise self.fail(inertial.find("mass"), f"link '{name}' has mass {mass}; it must be positive", file)
+            inertial_pose = self.pose(inertial, file)
+            matrix = inertial.find("inertia")
+            if matrix is not None:
+                values = tuple(self.number(matrix, k, 0.0, file) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"))
+                full = np.array([[values[0], values[1], values[2]], [values[1], values[3], values[4]],
+                                 [values[2], values[4], values[5]]])
+                if np.linalg.eigvalsh(full).min() <= 0:
+                    raise self.fail(matrix, f"link '{name}': the inertia matrix must be positive definite", file)
+                inertia = (values[0], values[1], values[2], values[3], values[4], values[5])
         if shapes:
-            self.world.bodies.append(Body(name, pose, shapes, mass))
+            self.world.bodies.append(Body(name, pose, shapes, mass, inertia, inertial_pose))
 
     def read_collision(self, collision: etree._Element, file: Path, link: str) -> Shape:
         name = f"{link}::{collision.get('name', 'collision')}"
+        self.note_unknown(collision, {"geometry", "pose", "surface"}, file)
         geometry = collision.find("geometry")
         if geometry is None or len(geometry) == 0:
             raise self.fail(collision, f"collision '{name}' needs a <geometry>", file)

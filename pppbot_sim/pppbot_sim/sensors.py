@@ -19,6 +19,24 @@ from pppbot_description.urdf_model import Sensor
 from pppbot_sim.errors import SpawnError
 from pppbot_sim.mj_build import ROBOT_GROUP
 
+def tag_pose(tag: Sensor) -> tuple[float, float, float, float, float, float]:
+    """The sensor's ``<pose>`` in its link's frame: x y z roll pitch yaw (zeros when absent).
+
+    Raises:
+        SpawnError: not six numbers.
+    """
+    text = tag.find_text("pose")
+    if not text:
+        return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    try:
+        values = [float(v) for v in text.split()]
+    except ValueError:
+        values = []
+    if len(values) != 6 or not all(math.isfinite(v) for v in values):
+        raise SpawnError(f"sensor '{tag.name}' on link '{tag.link}': <pose> needs 6 numbers, not '{text}'")
+    return (values[0], values[1], values[2], values[3], values[4], values[5])
+
+
 # Geom groups the lidar sees: everything but the robot's.
 LIDAR_GROUPS = np.array([0 if g == ROBOT_GROUP else 1 for g in range(6)], dtype=np.uint8)
 
@@ -36,6 +54,7 @@ class LidarSpec:
     range_min: float
     range_max: float
     noise_stddev: float
+    pose: tuple[float, float, float, float, float, float] = (0.0,) * 6
 
     @property
     def angle_increment(self) -> float:
@@ -58,6 +77,7 @@ class LidarSpec:
             range_min=f(f"{base}/range/min", 0.08),
             range_max=f(f"{base}/range/max", 20.0),
             noise_stddev=f(f"{base}/noise/stddev", 0.0),
+            pose=tag_pose(tag),
         )
         problems = []
         if spec.samples < 1:
@@ -115,8 +135,10 @@ class ImuSpec:
     frame_id: str
     topic: str
     rate_hz: float
-    gyro_stddev: float
-    accel_stddev: float
+    #: per axis x, y, z
+    gyro_stddev: tuple[float, float, float]
+    accel_stddev: tuple[float, float, float]
+    pose: tuple[float, float, float, float, float, float] = (0.0,) * 6
 
     @classmethod
     def from_tag(cls, tag: Sensor) -> "ImuSpec":
@@ -124,9 +146,13 @@ class ImuSpec:
         rate = tag.update_rate_hz or 100.0
         if rate <= 0:
             raise SpawnError(f"imu '{tag.name}' on link '{tag.link}': update_rate {rate} <= 0")
-        return cls(tag.name, tag.link, tag.frame_id, tag.topic, rate,
-                   gyro_stddev=f("imu/angular_velocity/z/noise/stddev", 0.0),
-                   accel_stddev=f("imu/linear_acceleration/z/noise/stddev", 0.0))
+
+        def axes(kind: str) -> tuple[float, float, float]:
+            x, y, z = (f(f"imu/{kind}/{axis}/noise/stddev", 0.0) for axis in "xyz")
+            return (x, y, z)
+
+        return cls(tag.name, tag.link, tag.frame_id, tag.topic, rate, axes("angular_velocity"),
+                   axes("linear_acceleration"), tag_pose(tag))
 
 
 @dataclass(frozen=True)
@@ -147,6 +173,8 @@ class Imu:
             return slice(int(sensor.adr[0]), int(sensor.adr[0] + sensor.dim[0]))
 
         self._gyro, self._accel, self._quat = where("gyro"), where("accel"), where("quat")
+        self._gyro_sd = np.asarray(spec.gyro_stddev)
+        self._accel_sd = np.asarray(spec.accel_stddev)
 
     @staticmethod
     def add_to(spec: mujoco.MjSpec, site: str, sensor_prefix: str) -> None:
@@ -159,8 +187,8 @@ class Imu:
     def read(self, data: mujoco.MjData, rng: np.random.Generator) -> ImuReading:
         values = data.sensordata
         noise = rng.normal(0.0, 1.0, 6)
-        gyro = values[self._gyro] + self.spec.gyro_stddev * noise[:3]
-        accel = values[self._accel] + self.spec.accel_stddev * noise[3:]
+        gyro = values[self._gyro] + self._gyro_sd * noise[:3]
+        accel = values[self._accel] + self._accel_sd * noise[3:]
         w, x, y, z = values[self._quat]
         return ImuReading(np.array([x, y, z, w]), gyro, accel)
 

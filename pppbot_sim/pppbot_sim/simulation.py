@@ -14,10 +14,19 @@ from typing import Mapping
 
 import mujoco
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from pppbot_description.urdf_model import RobotModel, Sensor
 from pppbot_sim.errors import SimulationDiverged, SpawnError, WorldError
-from pppbot_sim.mj_build import RobotHandles, SpawnPose, WheelDrive, add_robot, mjcf_world_spec, world_spec
+from pppbot_sim.mj_build import (
+    RobotHandles,
+    SpawnPose,
+    WheelDrive,
+    add_robot,
+    mjcf_world_spec,
+    quat_wxyz,
+    world_spec,
+)
 from pppbot_sim.sdf_world import World, read_sdf_world
 from pppbot_sim.sensors import Imu, ImuReading, ImuSpec, Lidar, LidarSpec, finalize_ranges, sensor_specs
 
@@ -134,15 +143,17 @@ class Simulation:
         self.spawn = spawn
         self.handles: RobotHandles = add_robot(spec, robot, spawn, name, drive)
         lidar_specs, imu_specs, self.unsimulated_sensors = sensor_specs(list(robot.sensors))
+        sensor_sites = {s.name: self._add_sensor_site(spec, name, s.name, s.link, s.pose) for s in lidar_specs}
+        sensor_sites.update({s.name: self._add_sensor_site(spec, name, s.name, s.link, s.pose) for s in imu_specs})
         for imu_spec in imu_specs:
-            Imu.add_to(spec, self.handles.sites[imu_spec.link], f"{name}/{imu_spec.name}/")
+            Imu.add_to(spec, sensor_sites[imu_spec.name], f"{name}/{imu_spec.name}/")
         try:
             self.model = spec.compile()
         except ValueError as exc:
             raise SpawnError(f"MuJoCo could not compile the world with the robot: {exc}") from exc
         self.data = mujoco.MjData(self.model)
         self.rng = np.random.default_rng(seed)
-        self.lidars = [Lidar(s, self.model, self.handles.sites[s.link]) for s in lidar_specs]
+        self.lidars = [Lidar(s, self.model, sensor_sites[s.name]) for s in lidar_specs]
         self.imus = [Imu(s, self.model, f"{name}/{s.name}/") for s in imu_specs]
         self.schedule = Schedule()
         for i, lidar in enumerate(self.lidars):
@@ -164,6 +175,19 @@ class Simulation:
         mujoco.mj_forward(self.model, self.data)
         self._spawn_qpos = self._qpos.copy()
         self._resume_at_s = 0.0
+
+    @staticmethod
+    def _add_sensor_site(spec: mujoco.MjSpec, robot: str, sensor: str, link: str,
+                         pose: tuple[float, float, float, float, float, float]) -> str:
+        """A site at the sensor tag's <pose> in its link's frame; returns its name."""
+        body = spec.body(f"{robot}/{link}")
+        if body is None:
+            raise SpawnError(f"sensor '{sensor}' is on link '{link}', which the robot does not have")
+        site = f"{robot}/sensor/{sensor}"
+        x, y, z, roll, pitch, yaw = pose
+        w_, x_, y_, z_ = quat_wxyz(Rotation.from_euler("xyz", [roll, pitch, yaw]).as_matrix())
+        body.add_site(name=site, pos=[x, y, z], quat=[w_, x_, y_, z_])
+        return site
 
     # --------------------------------------------------------------- stepping
     @property

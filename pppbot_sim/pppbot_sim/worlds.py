@@ -28,11 +28,14 @@ def find_world(name_or_path: str, directory: Path | None = None) -> Path:
     """
     text = name_or_path.strip()
     path = Path(text).expanduser()
+    folder = directory or worlds_directory()
     if path.suffix in WORLD_SUFFIXES or "/" in text:
         if path.is_file():
             return path
-        raise WorldError(f"world file '{text}' not found")
-    folder = directory or worlds_directory()
+        if "/" not in text and (folder / text).is_file():
+            return folder / text
+        known = ", ".join(known_worlds(folder)) or "none"
+        raise WorldError(f"world file '{text}' not found (known worlds in {folder}: {known})")
     for suffix in WORLD_SUFFIXES:
         candidate = folder / f"{text}{suffix}"
         if candidate.is_file():

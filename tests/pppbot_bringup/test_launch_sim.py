@@ -132,3 +132,61 @@ def test_end_to_end_headless_drive_and_clean_sigint(ros_node, spawn):
     assert launch.output.count("process has finished cleanly") == 4
     for pid in pids:
         assert not os.path.exists(f"/proc/{pid}") or open(f"/proc/{pid}/stat").read().rsplit(")", 1)[-1].split()[0] == "Z"
+
+
+@pytest.mark.ros
+def test_in_a_terminal_the_teleop_drives_and_ctrl_c_ends_everything(ros_node):
+    """launch_sim on a pseudo-terminal that is its controlling terminal, as in a shell."""
+    import fcntl
+    import pty
+    import select
+    import termios
+
+    from pppbot_common.process import stop_process_group
+
+    master, slave = pty.openpty()
+
+    def own_terminal() -> None:
+        os.setsid()
+        fcntl.ioctl(0, termios.TIOCSCTTY, 0)
+
+    proc = subprocess.Popen([PPPBOT, "launch_sim", "world:=empty", "use_rviz:=false", "real_time_factor:=2.0"],
+                            stdin=slave, stdout=slave, stderr=slave, preexec_fn=own_terminal)
+    os.close(slave)
+    screen = bytearray()
+
+    def read_until(text: str, timeout_s: float) -> str:
+        deadline = time.monotonic() + timeout_s
+        while text not in screen.decode(errors="replace"):
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise AssertionError(f"'{text}' not on the screen:\n{screen.decode(errors='replace')[-3000:]}")
+            ready, _, _ = select.select([master], [], [], min(remaining, 0.2))
+            if ready:
+                try:
+                    screen.extend(os.read(master, 65536))
+                except OSError:
+                    break
+        return screen.decode(errors="replace")
+
+    try:
+        read_until("ppp_bot is up in 'empty': drive with the teleop keys", 90)
+        text = read_until("CTRL-C to quit", 30)
+        assert "node output goes to the log directory" in text
+        assert "[simulator-1] [INFO]" not in text  # node output went to the log files
+        log_dir = Path(re.search(r"log directory: (\S+)", text).group(1))
+        truths: list[Odometry] = []
+        ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
+        wait_until(lambda: truths, 20, "ground truth", node=ros_node)
+        start = truths[-1].pose.pose.position
+        # A held key: the terminal repeats it until the robot has gone 0.2 m.
+        wait_until(lambda: (os.write(master, b"i"), truths[-1].pose.pose.position.x - start.x > 0.2)[1], 30,
+                   "driving forward", node=ros_node)
+        os.write(master, b"\x03")  # Ctrl-C: SIGINT to the terminal's foreground group
+        assert proc.wait(timeout=20) == 0
+        text = read_until("teleop_keyboard-1]: process has finished cleanly", 5)
+        assert text.count("process has finished cleanly") == 5
+        assert (log_dir / "simulator-1.log").read_text().count("lidar 'laser'") == 1
+    finally:
+        stop_process_group(proc)
+        os.close(master)

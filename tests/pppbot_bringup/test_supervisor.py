@@ -141,3 +141,13 @@ def test_bad_specs_are_refused():
         Supervisor([NodeSpec("a", ["true"], after=("ghost",))])
     with pytest.raises(ValueError, match="node names must be unique: a"):
         Supervisor([NodeSpec("a", ["true"]), NodeSpec("a", ["true"])])
+
+
+def test_a_node_dying_before_ready_ends_the_launch_instead_of_hanging(supervise):
+    sup = supervise([
+        {"name": "fragile", "code": "sys.exit(4)\n", "ready": "never"},
+        {"name": "dependent", "code": SLEEPER, "after": ["fragile"]},
+    ])
+    assert sup.wait(20) == 1
+    assert "[ERROR] [fragile-1]: exited before it was ready; dependent cannot start" in sup.output
+    assert "dependent-1" not in sup.output

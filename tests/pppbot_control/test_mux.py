@@ -66,3 +66,11 @@ def test_a_silent_watchdog_lock_locks():
 def test_bad_config_is_named(topics, message):
     with pytest.raises(MuxConfigError, match=message):
         parse_config(topics, {})
+
+
+def test_zero_timeout_never_expires():
+    inputs, _ = parse_config({"joystick": {"topic": "joy_vel", "timeout": 0, "priority": 50}}, {})
+    mux = TwistMux(inputs)
+    assert mux.on_input("joystick", "joy", 0.0) == "joy"
+    assert mux.check_timeouts(1000.0) is False
+    assert mux.winner(1000.0) == "joystick"

@@ -11,7 +11,6 @@ from pathlib import Path
 import pytest
 from geometry_msgs.msg import Twist
 
-from pppbot_common.process import ChildProcess
 from pppbot_common.ros.wait import wait_until
 
 pytestmark = pytest.mark.ros
@@ -22,7 +21,6 @@ PPPBOT = str(Path(__file__).resolve().parents[2] / "pppbot")
 def teleop(spawn):
     """teleop_keyboard with a pty as its terminal; yields (child, write_key, master_fd)."""
     master, slave = pty.openpty()
-    child = ChildProcess.__new__(ChildProcess)
     proc = subprocess.Popen([PPPBOT, "run", "pppbot_control", "teleop_keyboard", "--ros-args",
                              "-p", "key_timeout:=0.6", "-p", "repeat_rate:=10.0"],
                             stdin=slave, stdout=slave, stderr=slave, start_new_session=True)
@@ -55,7 +53,6 @@ def teleop(spawn):
         from pppbot_common.process import stop_process_group
         stop_process_group(proc)
         os.close(master)
-    del child
 
 
 def test_keys_publish_the_twists_of_teleop_twist_keyboard(ros_node, teleop):

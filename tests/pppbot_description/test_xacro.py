@@ -108,5 +108,5 @@ def test_undefined_property_is_reported_with_the_file(tmp_path):
           <link name="${no_such_property}"/>
         </robot>
     """)
-    with pytest.raises(DescriptionError, match=rf"^{top}: .*no_such_property"):
+    with pytest.raises(DescriptionError, match=rf"^{top}:3: .*no_such_property"):
         process_xacro(top)

@@ -96,7 +96,30 @@ def test_skipped_and_unsupported_elements_are_reported(world):
     assert world.skipped_summary() == "skipped gui, light, plugin ×2"
     assert any("unsupported element <actor> in <world>" in w and "features.sdf:" in w for w in world.warnings)
     assert any("joint 'fixed_to_world'" in w for w in world.warnings)
+    # elements that change physics are named, not silently dropped
+    assert any("unsupported element <kinematic> in <link>" in w for w in world.warnings)
+    assert any("unsupported element <self_collide> in <link>" in w for w in world.warnings)
     assert not any("scene" in w for w in world.warnings)
+
+
+def test_free_link_with_full_inertia(tmp_path):
+    (tmp_path / "w.sdf").write_text(world_text("""
+        <model name="m"><pose>0 0 1 0 0 0</pose><link name="l">
+          <inertial><pose>0.1 0 0 0 0 0</pose><mass>3.0</mass>
+            <inertia><ixx>0.1</ixx><iyy>0.2</iyy><izz>0.3</izz></inertia></inertial>
+          <collision name="c"><geometry><sphere><radius>0.2</radius></sphere></geometry></collision>
+        </link></model>"""))
+    model = world_spec(read_sdf_world(tmp_path / "w.sdf")).compile()
+    body = model.body("m::l")
+    assert body.mass[0] == pytest.approx(3.0)
+    np.testing.assert_allclose(sorted(body.inertia), [0.1, 0.2, 0.3])
+    np.testing.assert_allclose(body.ipos, [0.1, 0.0, 0.0])
+    (tmp_path / "bad.sdf").write_text(world_text("""
+        <model name="m"><link name="l"><inertial><mass>1</mass><inertia><ixx>-1</ixx><iyy>1</iyy><izz>1</izz>
+        </inertia></inertial><collision name="c"><geometry><sphere><radius>0.2</radius></sphere></geometry>
+        </collision></link></model>"""))
+    with pytest.raises(WorldError, match="inertia matrix must be positive definite"):
+        read_sdf_world(tmp_path / "bad.sdf")
 
 
 @pytest.mark.parametrize("suffix, scale", [(".stl", (1.0, 1.0, 1.0)), (".obj", (2.0, 1.0, 0.5))])
@@ -161,3 +184,6 @@ def test_shipped_worlds_are_known_and_load():
 def test_unknown_world_lists_the_known_ones():
     with pytest.raises(WorldError, match=r"unknown world 'mars'; known worlds: cones, empty, maze, office, room"):
         find_world("mars")
+    assert find_world("maze.sdf") == find_world("maze")
+    with pytest.raises(WorldError, match=r"world file 'mars.sdf' not found \(known worlds in .*: cones, empty"):
+        find_world("mars.sdf")

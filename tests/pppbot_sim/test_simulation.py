@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import mujoco
@@ -213,3 +214,17 @@ def test_schedule_runs_events_at_their_rates():
     assert counts == {"fast": 101, "slow": 11}
     with pytest.raises(ValueError, match="rate of 'bad' must be a positive number"):
         schedule.add("bad", 0.0)
+
+
+def test_sensor_pose_in_the_tag_moves_the_sensor():
+    """A lidar tag <pose> 0.1 m forward: the scan's origin moves with it."""
+    urdf = re.sub(r'(<sensor name="laser" type="gpu_lidar">\s*)<pose>0 0 0 0 0 0</pose>',
+                  r"\1<pose>0.1 0 0 0 0 0</pose>", process_xacro())
+    assert "<pose>0.1 0 0 0 0 0</pose>" in urdf
+    sim = make_sim(DATA / "box_room.sdf", robot=parse_urdf(urdf))
+    mujoco.mj_forward(sim.model, sim.data)
+    site = sim.model.site("ppp_bot/sensor/laser").id
+    np.testing.assert_allclose(sim.data.site_xpos[site], [0.15, 0.0, 0.2], atol=1e-9)
+    imu_site = sim.model.site("ppp_bot/sensor/imu").id
+    np.testing.assert_allclose(sim.data.site_xpos[imu_site],
+                               sim.data.site_xpos[sim.model.site("ppp_bot/imu_link").id], atol=1e-12)

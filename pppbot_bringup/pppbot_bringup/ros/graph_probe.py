@@ -27,6 +27,7 @@ class GraphProbe:
                                       start_parameter_services=False, enable_rosout=False)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
+        self._closed = False
         self._thread = threading.Thread(target=self._spin, name="graph-probe", daemon=True)
         self._thread.start()
 
@@ -43,6 +44,10 @@ class GraphProbe:
         return seen.is_set
 
     def close(self) -> None:
+        """Stop listening (idempotent); probes keep answering what they saw."""
+        if self._closed:
+            return
+        self._closed = True
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)

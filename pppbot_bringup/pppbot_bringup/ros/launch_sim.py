@@ -10,6 +10,7 @@ diff_drive_base_controller (first /odom) → twist_mux → mapping or localizati
 """
 from __future__ import annotations
 
+import os
 import shutil
 import sys
 import time
@@ -38,13 +39,12 @@ def run(argv: Sequence[str]) -> int:
         world_file = find_world(values["world"])
         urdf = process_xacro()
         run_dir = log_root() / time.strftime("%Y-%m-%d-%H-%M-%S")
-        run_dir.mkdir(parents=True, exist_ok=True)
         urdf_file = run_dir / "robot.urdf"
-        urdf_file.write_text(urdf)
         probe = GraphProbe()
     except (ArgumentError, WorldError, DescriptionError, RunError, OSError) as exc:
         print(f"launch_sim: {exc}", file=sys.stderr)
         return 2
+    os.environ["PYTHONUNBUFFERED"] = "1"  # children's print() reaches the log as it happens
     try:
         try:
             the_plan = plan(values, world_file, urdf_file,
@@ -54,6 +54,8 @@ def run(argv: Sequence[str]) -> int:
         except (ArgumentError, RunError) as exc:
             print(f"launch_sim: {exc}", file=sys.stderr)
             return 2
+        run_dir.mkdir(parents=True, exist_ok=True)
+        urdf_file.write_text(urdf)
         teleop_owns_terminal = any(n.terminal for n in the_plan.nodes)
         output = Output(sys.stdout, log_dir=run_dir if teleop_owns_terminal else None)
         output.event("INFO", "launch", f"log directory: {run_dir}")
@@ -67,8 +69,9 @@ def run(argv: Sequence[str]) -> int:
 
         def announce() -> bool:
             nonlocal announced
-            if not announced and all(supervisor.is_ready(n.name) for n in the_plan.nodes if n.required):
+            if not announced and all(supervisor.is_ready(n.name) for n in the_plan.nodes):
                 announced = True
+                probe.close()  # its subscriptions (/clock at 100 Hz) are not needed any more
                 drive = "the teleop keys" if teleop_owns_terminal else "./pppbot teleop (in another terminal)"
                 output.event("INFO", "launch", f"ppp_bot is up in '{world_file.stem}': drive with {drive}; "
                                                "Ctrl-C stops everything")

@@ -23,7 +23,10 @@ from pppbot_common.ros.messages import get_field, get_interface, message_to_yaml
 from pppbot_common.ros.qos import qos_matching_publishers
 from pppbot_common.ros.wait import wait_for_topic
 
-_SETTLE_S = 0.3
+#: Discovery is over once the graph has not changed for this long ...
+_SETTLE_S = 1.5
+#: ... and no sooner than this.
+_MIN_DISCOVERY_S = 3.5
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,12 +36,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("-t", "--show-types", action="store_true", help="also print each topic's type")
     p.add_argument("-c", "--count-topics", action="store_true", help="print only the number of topics")
     p.add_argument("--include-hidden-topics", action="store_true", help="also list hidden topics")
-    _spin_time(p, 2.0)
+    _spin_time(p, 5.0)
 
     p = sub.add_parser("info", help="a topic's type and its publishers and subscribers")
     p.add_argument("topic_name")
     p.add_argument("-v", "--verbose", action="store_true", help="each endpoint's node and QoS")
-    _spin_time(p, 2.0)
+    _spin_time(p, 5.0)
 
     p = sub.add_parser("echo", help="print messages as YAML")
     p.add_argument("topic_name")
@@ -98,7 +101,7 @@ def _settled_topics(node: Node, spin_time_s: float) -> list[tuple[str, list[str]
         now = node.get_topic_names_and_types()
         if now != last:
             last, changed_at = now, time.monotonic()
-        elif time.monotonic() - changed_at >= _SETTLE_S and time.monotonic() - start >= 2 * _SETTLE_S:
+        elif time.monotonic() - changed_at >= _SETTLE_S and time.monotonic() - start >= _MIN_DISCOVERY_S:
             break
     return [(name, list(types)) for name, types in last]
 

@@ -7,13 +7,15 @@ publishes while SIGINT is already tearing the context down.
 from __future__ import annotations
 
 import sys
-from typing import Callable, TypeVar
+import time
+from typing import Any, Callable, TypeVar
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from pppbot_common.errors import PppbotError
+from pppbot_common.throttle import Throttle
 
 N = TypeVar("N", bound=Node)
 
@@ -43,3 +45,19 @@ def run_node(factory: Callable[[], N], name: str, args: list[str] | None = None,
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def guarded(node: Node, callback: Callable[[Any], None], what: str,
+            period_s: float = 5.0) -> Callable[[Any], None]:
+    """``callback`` that survives one bad message: an exception is logged (at most once
+    per ``period_s`` for each kind of error) and the message dropped."""
+    throttle = Throttle(period_s)
+
+    def call(msg: Any) -> None:
+        try:
+            callback(msg)
+        except Exception as exc:  # one bad message must not end the node
+            if throttle.allow(type(exc).__name__, time.monotonic()):
+                node.get_logger().warning(f"dropping a {what} message: {type(exc).__name__}: {exc}")
+
+    return call

@@ -25,7 +25,7 @@ from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.node_main import run_node
+from pppbot_common.ros.node_main import guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.throttle import Throttle
 from pppbot_control.kinematics import DiffDriveGeometry, Odometry
@@ -139,9 +139,12 @@ class DiffDriveController(Node):
         super().__init__("diff_drive_base_controller")
         self.params = declare_parameters(self, DiffDriveParameters)
         self._configure(self.params)
-        self.cmd_sub = self.create_subscription(TwistStamped, "~/cmd_vel", self.on_cmd_vel, 10)
-        self.cmd_unstamped_sub = self.create_subscription(Twist, "~/cmd_vel_unstamped", self.on_cmd_vel_unstamped, 10)
-        self.joint_sub = self.create_subscription(JointState, "/joint_states", self.on_joint_states, 10)
+        self.cmd_sub = self.create_subscription(TwistStamped, "~/cmd_vel",
+                                                guarded(self, self.on_cmd_vel, "TwistStamped"), 10)
+        self.cmd_unstamped_sub = self.create_subscription(Twist, "~/cmd_vel_unstamped",
+                                                          guarded(self, self.on_cmd_vel_unstamped, "Twist"), 10)
+        self.joint_sub = self.create_subscription(JointState, "/joint_states",
+                                                  guarded(self, self.on_joint_states, "JointState"), 10)
         self.command_pub = self.create_publisher(JointState, "/joint_commands", 10)
         self.odom_pub = self.create_publisher(OdometryMsg, "odom", 10)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)

@@ -31,6 +31,7 @@ from pppbot_control.teleop import HELP, TeleopState
 from pppbot_control.teleop import Twist as CoreTwist
 
 STATUS_LINES_PER_HELP = 14
+SUBSCRIBER_WAIT_S = 5.0
 
 
 @dataclass(frozen=True)
@@ -132,6 +133,12 @@ def main(args: list[str] | None = None) -> int:
         print(f"[teleop_keyboard] error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 1
+    # Keys pressed before twist_mux has matched our publisher would be lost.
+    deadline = time.monotonic() + SUBSCRIBER_WAIT_S
+    while node.pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if node.pub.get_subscription_count() == 0:
+        print(f"(nobody subscribes to {node.pub.topic_name} yet: is twist_mux running?)", flush=True)
     fd = sys.stdin.fileno()
     saved = termios.tcgetattr(fd)
     previous = {s: signal.signal(s, _raise_interrupt) for s in (signal.SIGTERM, signal.SIGHUP)}

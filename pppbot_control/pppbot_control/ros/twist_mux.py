@@ -14,7 +14,7 @@ from rclpy.node import Node
 from std_msgs.msg import Bool
 
 from pppbot_common.params import ParameterError
-from pppbot_common.ros.node_main import run_node
+from pppbot_common.ros.node_main import guarded, run_node
 from pppbot_control.mux import MuxConfigError, TwistMux, parse_config
 
 CHECK_RATE_HZ = 20.0
@@ -38,10 +38,12 @@ class TwistMuxNode(Node):
         if not isinstance(use_stamped, bool):
             raise ParameterError("use_stamped", use_stamped, "must be true or false")
         self.stamped = use_stamped
+        topics, lock_entries = grouped(self, "topics"), grouped(self, "locks")
         try:
-            inputs, locks = parse_config(grouped(self, "topics"), grouped(self, "locks"))
+            inputs, locks = parse_config(topics, lock_entries)
         except MuxConfigError as exc:
-            raise ParameterError("topics/locks", "...", str(exc)) from exc
+            raise ParameterError("topics" if "locks." not in str(exc) else "locks",
+                                 topics if "locks." not in str(exc) else lock_entries, str(exc)) from exc
         self.mux = TwistMux(inputs, locks)
         self.msg_type = TwistStamped if self.stamped else Twist
         self.output = self.create_publisher(self.msg_type, "cmd_vel_out", 10)
@@ -54,10 +56,10 @@ class TwistMuxNode(Node):
         self.get_logger().info(f"inputs: {summary}" + (f"; locks: {', '.join(l.name for l in locks)}" if locks else ""))
 
     def _input_callback(self, name: str) -> Callable[[Any], None]:
-        return lambda msg: self.on_input(name, msg)
+        return guarded(self, lambda msg: self.on_input(name, msg), f"'{name}' input")
 
     def _lock_callback(self, name: str) -> Callable[[Bool], None]:
-        return lambda msg: self.on_lock(name, msg)
+        return guarded(self, lambda msg: self.on_lock(name, msg), f"'{name}' lock")
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9

@@ -14,17 +14,17 @@ import functools
 import math
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.node_main import run_node
+from pppbot_common.ros.node_main import guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.qos import LATCHED
 from pppbot_description.errors import DescriptionError
@@ -32,21 +32,30 @@ from pppbot_description.kinematics import FrameTransform, KinematicTree
 from pppbot_description.urdf_model import RobotModel, parse_urdf
 from pppbot_description.xacro_model import read_robot_description
 
-#: What tf2's StaticTransformBroadcaster uses.
-TF_STATIC_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: What tf2's StaticTransformBroadcaster uses: reliable, transient local, depth 1.
+TF_STATIC_QOS = LATCHED
 WARN_PERIOD_S = 5.0
 
 
-@functools.lru_cache(maxsize=4)
 def load_description(value: str) -> tuple[str, str, RobotModel]:
     """``(urdf_xml, source, model)`` from the parameter: XML, a file path, or empty for ppp_bot.
 
-    Cached, so validating a value and then applying it parses once.
+    Cached by value and file modification time, so validating a value and then
+    applying it parses once, and an edited file is read again.
 
     Raises:
         DescriptionError: unreadable file, xacro error, or a malformed URDF.
     """
+    path = Path(value.strip()) if value.strip() and not value.strip().startswith("<") else None
+    try:
+        mtime = path.stat().st_mtime_ns if path is not None else 0
+    except OSError:
+        mtime = -1
+    return _load_description(value, mtime)
+
+
+@functools.lru_cache(maxsize=4)
+def _load_description(value: str, mtime: int) -> tuple[str, str, RobotModel]:
     urdf, source = read_robot_description(value)
     return urdf, source, parse_urdf(urdf, source)
 
@@ -92,7 +101,7 @@ class RobotStatePublisher(Node):
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
         self._last_published: Time | None = None
         self._load(self.params)
-        self.create_subscription(JointState, "joint_states", self.on_joint_states, 10)
+        self.create_subscription(JointState, "joint_states", guarded(self, self.on_joint_states, "JointState"), 10)
         on_valid_update(self, lambda: self.params, self._load)
 
     def _load(self, params: RspParameters) -> None:
@@ -123,6 +132,10 @@ class RobotStatePublisher(Node):
         if bad:
             self.get_logger().warning(f"ignoring non-finite position(s) of {', '.join(bad)}",
                                       throttle_duration_sec=WARN_PERIOD_S)
+        if msg.header.stamp.sec < 0:
+            self.get_logger().warning(f"dropping a JointState with a negative stamp ({msg.header.stamp.sec} s)",
+                                      throttle_duration_sec=WARN_PERIOD_S)
+            return
         stamp = Time.from_msg(msg.header.stamp, clock_type=self.get_clock().clock_type)
         if not self._due(stamp):
             return

@@ -25,7 +25,7 @@ from sensor_msgs.msg import Imu, JointState, LaserScan
 from std_srvs.srv import Empty, Trigger
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.node_main import run_node
+from pppbot_common.ros.node_main import guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.throttle import Throttle
 from pppbot_description.errors import DescriptionError
@@ -109,7 +109,7 @@ class Simulator(Node):
         self.truth_pub = self.create_publisher(Odometry, "ground_truth/odom", 10)
         self.scan_pubs = [self.create_publisher(LaserScan, lidar.spec.topic, 10) for lidar in self.sim.lidars]
         self.imu_pubs = [self.create_publisher(Imu, imu.spec.topic, 10) for imu in self.sim.imus]
-        self.create_subscription(JointState, "joint_commands", self.on_joint_commands, 10)
+        self.create_subscription(JointState, "joint_commands", guarded(self, self.on_joint_commands, "JointState"), 10)
         self.create_service(Empty, "pause_physics", self._pause)
         self.create_service(Empty, "unpause_physics", self._unpause)
         self.create_service(Empty, "reset_world", self._reset)
@@ -171,8 +171,8 @@ class Simulator(Node):
         for imu in self.sim.imus:
             msg = Imu()
             msg.header.frame_id = imu.spec.frame_id
-            msg.angular_velocity_covariance[0::4] = [imu.spec.gyro_stddev ** 2] * 3
-            msg.linear_acceleration_covariance[0::4] = [imu.spec.accel_stddev ** 2] * 3
+            msg.angular_velocity_covariance[0::4] = [s * s for s in imu.spec.gyro_stddev]
+            msg.linear_acceleration_covariance[0::4] = [s * s for s in imu.spec.accel_stddev]
             msg.orientation_covariance[0::4] = [1e-6] * 3
             self._imu_msgs.append(msg)
 

@@ -1,0 +1,47 @@
+"""A ROS_DOMAIN_ID of one's own, for tests and benchmarks, with DDS kept on this machine.
+
+Each claim holds a lock file per domain in the temporary directory for as long as
+the process lives, so concurrent runs (a developer's and CI's) never share one.
+"""
+from __future__ import annotations
+
+import fcntl
+import os
+import tempfile
+from pathlib import Path
+from typing import IO
+
+# Linux domain IDs that map to valid DDS ports: 0-101 and 215-232. 0 is the default
+# every ROS user runs in, so runs avoid it.
+DOMAIN_IDS = [*range(1, 102), *range(215, 233)]
+_held: list[IO[str]] = []
+
+
+def claim_domain_id() -> int:
+    """A domain ID no other claimant on this machine holds (held until this process ends).
+
+    Raises:
+        RuntimeError: every domain ID is taken.
+    """
+    start = os.getpid() % len(DOMAIN_IDS)
+    for i in range(len(DOMAIN_IDS)):
+        domain = DOMAIN_IDS[(start + i) % len(DOMAIN_IDS)]
+        lock = open(Path(tempfile.gettempdir()) / f"pppbot-ros-domain-{domain}.lock", "w")
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            lock.close()
+            continue
+        _held.append(lock)
+        return domain
+    raise RuntimeError("every ROS domain ID is held by another pppbot run")
+
+
+def isolate_dds() -> int:
+    """Set this process's (and its children's) environment: own domain, localhost only."""
+    domain = claim_domain_id()
+    os.environ["ROS_DOMAIN_ID"] = str(domain)
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ.pop("ROS_STATIC_PEERS", None)
+    os.environ.pop("ROS_LOCALHOST_ONLY", None)
+    return domain
