@@ -4,16 +4,11 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from pppbot_common.resources import checkout_root, maps_directory
+
+__all__ = ["checkout_root", "config_directory", "log_root", "maps_directory"]
+
 PACKAGE = "pppbot_bringup"
-
-
-def checkout_root() -> Path | None:
-    """The checkout, when running from one (``./pppbot`` sets PPPBOT_ROOT)."""
-    root = os.environ.get("PPPBOT_ROOT")
-    if root and Path(root, "config").is_dir():
-        return Path(root)
-    guess = Path(__file__).resolve().parents[2]
-    return guess if (guess / "config").is_dir() and (guess / "pppbot").is_file() else None
 
 
 def config_directory() -> Path:
@@ -22,11 +17,6 @@ def config_directory() -> Path:
         return root / "config"
     from ament_index_python.packages import get_package_share_directory
     return Path(get_package_share_directory(PACKAGE)) / "config"
-
-
-def maps_directory() -> Path:
-    root = checkout_root()
-    return (root / "maps") if root is not None else Path.cwd() / "maps"
 
 
 def log_root() -> Path:

@@ -54,15 +54,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="arguments passed on, including --ros-args ...")
 
 
-def main(args: argparse.Namespace) -> int:
+def exec_node(package: str, executable: str, argv: list[str], verb: str) -> int:
+    """Replace this process with the executable (as ``ros2 run`` does); 1 with a message if missing."""
     try:
-        path = find_executable(args.package, args.executable)
+        path = find_executable(package, executable)
     except RunError as exc:
-        print(f"pppbot run: {exc}", file=sys.stderr)
+        print(f"pppbot {verb}: {exc}", file=sys.stderr)
         return 1
     sys.stdout.flush()
-    os.execv(str(path), [str(path), *args.argv])
+    os.execv(str(path), [str(path), *argv])
     return 0  # not reached
 
 
-__all__ = ["RunError", "executables_of", "find_executable", "add_arguments", "main"]
+def main(args: argparse.Namespace) -> int:
+    return exec_node(args.package, args.executable, args.argv, "run")
+
+
+__all__ = ["RunError", "executables_of", "exec_node", "find_executable", "add_arguments", "main"]

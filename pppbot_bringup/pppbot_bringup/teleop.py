@@ -5,10 +5,8 @@ Extra arguments go to the node, e.g. ``pppbot teleop --ros-args -p speed:=0.3``.
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 
-from pppbot_bringup.run import RunError, find_executable
+from pppbot_bringup.run import exec_node
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -16,10 +14,4 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    try:
-        path = find_executable("pppbot_control", "teleop_keyboard")
-    except RunError as exc:
-        print(f"pppbot teleop: {exc}", file=sys.stderr)
-        return 1
-    os.execv(str(path), [str(path), *args.argv])
-    return 0  # not reached
+    return exec_node("pppbot_control", "teleop_keyboard", args.argv, "teleop")

@@ -17,6 +17,10 @@ import enum
 import math
 from dataclasses import dataclass
 
+from pppbot_common.se2 import wrap_angle
+
+__all__ = ["ARC_EPSILON", "DiffDriveGeometry", "Integration", "Odometry", "integrate", "wrap_angle"]
+
 #: Below this heading change (rad) the exact arc formula loses precision: use Runge-Kutta.
 ARC_EPSILON = 1e-6
 
@@ -50,14 +54,6 @@ class DiffDriveGeometry:
         """(v, w) of the body for wheel speeds in rad/s (or the wheels' angle changes → distances)."""
         left_m, right_m = left * self.left_radius, right * self.right_radius
         return (right_m + left_m) / 2.0, (right_m - left_m) / self.separation
-
-
-def wrap_angle(angle: float) -> float:
-    """``angle`` in (−π, π]."""
-    wrapped = math.fmod(angle + math.pi, 2.0 * math.pi)
-    if wrapped <= 0.0:
-        wrapped += 2.0 * math.pi
-    return wrapped - math.pi
 
 
 class Integration(enum.Enum):

@@ -4,12 +4,12 @@
 """
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 
 from pppbot_common.launch_args import Argument, ArgumentError, describe, parse_assignments
 from pppbot_common.maps import MapFileError, save_map
+from pppbot_common.resources import maps_directory
 from pppbot_sim.errors import WorldError
 from pppbot_sim.ground_truth import ground_truth_map
 from pppbot_sim.simulation import load_world
@@ -25,8 +25,7 @@ ARGUMENTS = [
 
 
 def default_output(world: str) -> Path:
-    root = Path(os.environ.get("PPPBOT_ROOT", "."))
-    return root / "maps" / f"{Path(world).stem}_ground_truth"
+    return maps_directory() / f"{Path(world).stem}_ground_truth"
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_description.urdf_model import RobotModel, Sensor
 from pppbot_sim.errors import SimulationDiverged, SpawnError, WorldError
 from pppbot_sim.mj_build import (
@@ -92,7 +93,7 @@ class GroundTruth:
     @property
     def yaw(self) -> float:
         x, y, z, w = self.orientation_xyzw
-        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        return yaw_from_quaternion(x, y, z, w)
 
 
 @dataclass(frozen=True)
@@ -170,6 +171,7 @@ class Simulation:
         self._joint_qpos = np.array([int(j.qposadr[0]) for j in joints], dtype=int)
         self._joint_qvel = np.array([int(j.dofadr[0]) for j in joints], dtype=int)
         self._actuator = {j: self.model.actuator(a).id for j, a in self.handles.actuators.items()}
+        self._effort_index = np.array([self._actuator.get(j, -1) for j in self.joint_names], dtype=int)
         # Views into MjData's buffers (each attribute access would build a new one).
         self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
         mujoco.mj_forward(self.model, self.data)
@@ -250,8 +252,7 @@ class Simulation:
             self._ctrl[actuator] = 0.0
 
     def wheel_state(self) -> WheelState:
-        efforts = np.array([self.data.actuator_force[self._actuator[j]] if j in self._actuator else 0.0
-                            for j in self.joint_names])
+        efforts = np.where(self._effort_index >= 0, self.data.actuator_force[self._effort_index], 0.0)
         # Fancy indexing copies: the state is a snapshot.
         return WheelState(list(self.joint_names), self._qpos[self._joint_qpos], self._qvel[self._joint_qvel],
                           efforts)

@@ -55,11 +55,16 @@ def teleop(spawn):
         os.close(master)
 
 
+def listen(ros_node, on_twist) -> None:
+    """Subscribe to teleop's output and wait until its publisher is matched."""
+    ros_node.create_subscription(Twist, "/cmd_vel_teleop", on_twist, 10)
+    wait_until(lambda: ros_node.count_publishers("/cmd_vel_teleop") > 0, 10, "teleop's publisher", node=ros_node)
+
+
 def test_keys_publish_the_twists_of_teleop_twist_keyboard(ros_node, teleop):
     proc, press, wait_text, _ = teleop
     got: list[Twist] = []
-    ros_node.create_subscription(Twist, "/cmd_vel_teleop", got.append, 10)
-    wait_until(lambda: ros_node.count_publishers("/cmd_vel_teleop") > 0, 10, "teleop's publisher", node=ros_node)
+    listen(ros_node, got.append)
     press("i")
     wait_until(lambda: any(t.linear.x == 0.5 for t in got), 10, "forward 0.5", node=ros_node)
     press("q")
@@ -75,8 +80,7 @@ def test_keys_publish_the_twists_of_teleop_twist_keyboard(ros_node, teleop):
 def test_holding_repeats_and_releasing_stops(ros_node, teleop):
     proc, press, _, _ = teleop
     got: list[tuple[float, float]] = []
-    ros_node.create_subscription(Twist, "/cmd_vel_teleop", lambda m: got.append((time.monotonic(), m.linear.x)), 10)
-    wait_until(lambda: ros_node.count_publishers("/cmd_vel_teleop") > 0, 10, "teleop's publisher", node=ros_node)
+    listen(ros_node, lambda m: got.append((time.monotonic(), m.linear.x)))
     press("i")
     start = time.monotonic()
     # No more keys: it repeats at 10 Hz until the 0.6 s key timeout, then sends one zero.
@@ -93,8 +97,7 @@ def test_holding_repeats_and_releasing_stops(ros_node, teleop):
 def test_ctrl_c_restores_the_terminal_and_stops(ros_node, teleop):
     proc, press, _, master = teleop
     got: list[Twist] = []
-    ros_node.create_subscription(Twist, "/cmd_vel_teleop", got.append, 10)
-    wait_until(lambda: ros_node.count_publishers("/cmd_vel_teleop") > 0, 10, "teleop's publisher", node=ros_node)
+    listen(ros_node, got.append)
     press("i")
     wait_until(lambda: any(t.linear.x == 0.5 for t in got), 10, "forward", node=ros_node)
     press("\x03")

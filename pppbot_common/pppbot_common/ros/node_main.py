@@ -13,6 +13,7 @@ from typing import Any, Callable, TypeVar
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 
 from pppbot_common.errors import PppbotError
 from pppbot_common.throttle import Throttle
@@ -22,8 +23,11 @@ N = TypeVar("N", bound=Node)
 
 def run_node(factory: Callable[[], N], name: str, args: list[str] | None = None,
              spin: Callable[[N], None] = rclpy.spin,
-             fatal: tuple[type[BaseException], ...] = (PppbotError,)) -> int:
-    rclpy.init(args=args)
+             fatal: tuple[type[BaseException], ...] = (PppbotError,),
+             signal_handlers: bool = True) -> int:
+    """Create the node and ``spin`` it. ``signal_handlers=False`` leaves Ctrl-C to the
+    node (rclpy then does not shut the context down under it)."""
+    rclpy.init(args=args, signal_handler_options=None if signal_handlers else SignalHandlerOptions.NO)
     try:
         node = factory()
     except fatal as exc:
@@ -47,17 +51,29 @@ def run_node(factory: Callable[[], N], name: str, args: list[str] | None = None,
     return 0
 
 
+class Warnings:
+    """A node's warnings, at most one per ``period_s`` for each kind of problem
+    (rclpy's own throttling is per call site, so different problems would hide each other)."""
+
+    def __init__(self, node: Node, period_s: float = 5.0) -> None:
+        self.node = node
+        self.throttle = Throttle(period_s)
+
+    def __call__(self, kind: str, text: str) -> None:
+        if self.throttle.allow(kind, time.monotonic()):
+            self.node.get_logger().warning(text)
+
+
 def guarded(node: Node, callback: Callable[[Any], None], what: str,
             period_s: float = 5.0) -> Callable[[Any], None]:
     """``callback`` that survives one bad message: an exception is logged (at most once
     per ``period_s`` for each kind of error) and the message dropped."""
-    throttle = Throttle(period_s)
+    warn = Warnings(node, period_s)
 
     def call(msg: Any) -> None:
         try:
             callback(msg)
         except Exception as exc:  # one bad message must not end the node
-            if throttle.allow(type(exc).__name__, time.monotonic()):
-                node.get_logger().warning(f"dropping a {what} message: {type(exc).__name__}: {exc}")
+            warn(type(exc).__name__, f"dropping a {what} message: {type(exc).__name__}: {exc}")
 
     return call

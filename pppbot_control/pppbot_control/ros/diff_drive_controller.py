@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 import sys
-import time
 from collections import deque
 from dataclasses import dataclass
 from typing import Sequence
@@ -25,9 +24,9 @@ from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.node_main import guarded, run_node
+from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
-from pppbot_common.throttle import Throttle
+from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_control.kinematics import DiffDriveGeometry, Odometry
 from pppbot_control.limits import AxisLimits, SpeedLimiter
 
@@ -149,7 +148,7 @@ class DiffDriveController(Node):
         self.odom_pub = self.create_publisher(OdometryMsg, "odom", 10)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
         self.limited_pub = self.create_publisher(TwistStamped, "~/cmd_vel_out", 10)
-        self._throttle = Throttle(WARN_PERIOD_S)
+        self._warn = Warnings(self, WARN_PERIOD_S)
         self._target = (0.0, 0.0)
         self._target_time: Time | None = None
         self._last_update: Time | None = None
@@ -183,9 +182,6 @@ class DiffDriveController(Node):
             self.timer = self.create_timer(1.0 / params.update_rate, self.update)
 
     # ------------------------------------------------------------------ inputs
-    def _warn(self, key: str, text: str) -> None:
-        if self._throttle.allow(key, time.monotonic()):
-            self.get_logger().warning(text)
 
     def _set_target(self, v: float, w: float) -> None:
         if not (math.isfinite(v) and math.isfinite(w)):
@@ -276,7 +272,7 @@ class DiffDriveController(Node):
         msg.header.frame_id = self.prefix + p.odom_frame_id
         msg.child_frame_id = self.prefix + p.base_frame_id
         msg.pose.pose.position.x, msg.pose.pose.position.y = o.x, o.y
-        qz, qw = math.sin(o.yaw / 2.0), math.cos(o.yaw / 2.0)
+        _, _, qz, qw = quaternion_from_yaw(o.yaw)
         msg.pose.pose.orientation.z, msg.pose.pose.orientation.w = qz, qw
         msg.twist.twist.linear.x = _mean(self._v_window)
         msg.twist.twist.angular.z = _mean(self._w_window)

@@ -20,12 +20,11 @@ from dataclasses import dataclass
 from types import FrameType
 from typing import Any
 
-import rclpy
 from geometry_msgs.msg import Twist, TwistStamped
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 
 from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.ros.node_main import run_node
 from pppbot_common.ros.params import declare_parameters
 from pppbot_control.teleop import HELP, TeleopState
 from pppbot_control.teleop import Twist as CoreTwist
@@ -120,19 +119,8 @@ def run(node: Teleop, fd: int) -> None:
             last_sent_s = now
 
 
-def main(args: list[str] | None = None) -> int:
-    if not sys.stdin.isatty():
-        print("teleop_keyboard reads keys from a terminal, and its standard input is not one.\n"
-              "Run it in a terminal of its own: ./pppbot teleop", file=sys.stderr)
-        return 1
-    # Ctrl-C is ours: rclpy must not shut the context down before the last stop twist.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    try:
-        node = Teleop()
-    except ParameterError as exc:
-        print(f"[teleop_keyboard] error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 1
+def terminal_session(node: Teleop) -> None:
+    """Drive from this terminal until Ctrl-C (or SIGTERM/SIGHUP), then put everything back."""
     # Keys pressed before twist_mux has matched our publisher would be lost.
     deadline = time.monotonic() + SUBSCRIBER_WAIT_S
     while node.pub.get_subscription_count() == 0 and time.monotonic() < deadline:
@@ -153,9 +141,16 @@ def main(args: list[str] | None = None) -> int:
         for s, handler in previous.items():
             signal.signal(s, handler)
         node.publish(CoreTwist())  # stop the robot on the way out
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+
+
+def main(args: list[str] | None = None) -> int:
+    if not sys.stdin.isatty():
+        print("teleop_keyboard reads keys from a terminal, and its standard input is not one.\n"
+              "Run it in a terminal of its own: ./pppbot teleop", file=sys.stderr)
+        return 1
+    # Ctrl-C is ours: rclpy must not shut the context down before the last stop twist.
+    return run_node(Teleop, "teleop_keyboard", args, spin=terminal_session, fatal=(ParameterError,),
+                    signal_handlers=False)
 
 
 if __name__ == "__main__":

@@ -25,9 +25,8 @@ from sensor_msgs.msg import Imu, JointState, LaserScan
 from std_srvs.srv import Empty, Trigger
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.node_main import guarded, run_node
+from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
-from pppbot_common.throttle import Throttle
 from pppbot_description.errors import DescriptionError
 from pppbot_description.urdf_model import parse_urdf
 from pppbot_description.xacro_model import read_robot_description
@@ -122,7 +121,7 @@ class Simulator(Node):
         self.viewer = self._open_viewer() if p.viewer else None
         self._viewer_synced = 0.0
         self.published_s = 0.0
-        self._throttle = Throttle(WARN_PERIOD_S)
+        self._warn = Warnings(self, WARN_PERIOD_S)
         self.runner = PhysicsRunner(self.sim, p.real_time_factor, p.command_timeout, p.paused,
                                     log=lambda text: self.get_logger().error(text))
         on_valid_update(self, lambda: self.params, self._apply)
@@ -211,10 +210,6 @@ class Simulator(Node):
             reason = exc.args[0] if exc.args else str(exc)
             self._warn(type(exc).__name__, f"rejecting a joint command: {reason}")
 
-    def _warn(self, key: str, text: str) -> None:
-        """A warning at most every WARN_PERIOD_S per kind of problem."""
-        if self._throttle.allow(key, time.monotonic()):
-            self.get_logger().warning(text)
 
     # -------------------------------------------------------------- services
     def _pause(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
