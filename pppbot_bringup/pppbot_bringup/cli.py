@@ -17,11 +17,11 @@ VERBS: dict[str, tuple[str, str]] = {
     "topic": ("pppbot_bringup.ros.topic", "inspect topics: list, info, echo, hz (like `ros2 topic`)"),
     "teleop": ("pppbot_bringup.teleop", "drive with the keyboard in this terminal (teleop_twist_keyboard's keys)"),
     "launch_sim": ("pppbot_bringup.ros.launch_sim", "the simulation bringup (name:=value arguments; --show-args)"),
+    "bag": ("pppbot_bringup.bag.cli", "record, play, inspect and reindex rosbag2 (MCAP) bags (like `ros2 bag`)"),
 }
 
 # Verbs of DESIGN.md that this checkout does not have yet: named, never faked.
 NOT_YET: dict[str, str] = {
-    "bag": "rosbag2 record/play/info",
     "map_saver": "saving /map as Nav2 YAML + PGM",
     "eval": "evaluation scenarios",
 }

@@ -114,6 +114,6 @@ def test_topic_hz_measures_the_rate(spawn, talker):
 
 
 def test_a_design_verb_not_built_yet_says_so_instead_of_pretending():
-    result = pppbot("bag", "record", "-a")
+    result = pppbot("eval", "drive")
     assert result.returncode == 2
     assert "not built yet" in result.stderr and result.stdout == ""

@@ -2,31 +2,13 @@
 from __future__ import annotations
 
 import importlib
-import re
 from collections import OrderedDict
 from typing import Any
 
 import yaml
 
 from pppbot_common.errors import MessageTypeError
-
-_TYPE_NAME = re.compile(r"^(?P<pkg>[A-Za-z][\w]*)/(?:(?P<kind>msg|srv|action)/)?(?P<name>[A-Z]\w*)$")
-
-
-def split_type_name(type_name: str) -> tuple[str, str, str]:
-    """``'pkg/msg/Name'`` or ``'pkg/Name'`` → ``(pkg, kind, Name)``.
-
-    Raises:
-        MessageTypeError: the name is not of that form.
-    """
-    match = _TYPE_NAME.match(type_name.strip())
-    if match is None:
-        raise MessageTypeError(
-            f"'{type_name}' is not an interface type name; expected 'package/msg/Name' "
-            "(e.g. 'geometry_msgs/msg/Twist')"
-        )
-    return match["pkg"], match["kind"] or "msg", match["name"]
-
+from pppbot_common.type_names import split_type_name
 
 def get_interface(type_name: str) -> Any:
     """The Python class of an installed interface type.

@@ -1,0 +1,139 @@
+"""``pppbot bag reindex``: make a bag readable again after its recorder was killed.
+
+A killed recorder leaves its last MCAP file without summary and footer, and
+``metadata.yaml`` describing the bag as it was when that file was opened. Every chunk
+the recorder had closed (it closes one at least every second) is complete on disk.
+Reindexing reads each file as a stream of records up to the first incomplete one,
+rewrites an unfinished file as a complete MCAP file (the original is kept next to it
+as ``<file>.unfinished``), and writes ``metadata.yaml`` anew from what the files hold,
+as ``ros2 bag reindex`` does for rosbag2.
+"""
+from __future__ import annotations
+
+import io
+import re
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO
+
+import zstandard
+from mcap.exceptions import McapError
+from mcap.records import Channel, Footer, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+from mcap.writer import Writer as McapWriter
+from rosbags.rosbag2.metadata import parse_qos
+
+from pppbot_bringup.bag.errors import BagError
+from pppbot_bringup.bag.metadata import BagMetadata, FileInfo, Topic
+from pppbot_bringup.bag.writer import LIBRARY, RECORDING_RECORD
+
+
+@dataclass
+class _FileScan:
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    channels: dict[int, Channel] = field(default_factory=dict)
+    messages: list[Message] = field(default_factory=list)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    complete: bool = False
+
+
+def _scan(stream: IO[bytes], keep_messages: bool) -> _FileScan:
+    scan = _FileScan()
+    try:
+        for record in StreamReader(stream).records:
+            if isinstance(record, Schema):
+                scan.schemas[record.id] = record
+            elif isinstance(record, Channel):
+                scan.channels[record.id] = record
+            elif isinstance(record, Message):
+                scan.messages.append(record if keep_messages else Message(
+                    record.channel_id, record.log_time, b"", record.publish_time, record.sequence))
+            elif isinstance(record, Metadata):
+                scan.metadata[record.name] = dict(record.metadata)
+            elif isinstance(record, Footer):
+                scan.complete = True
+    except (McapError, EOFError, ValueError, zstandard.ZstdError, struct.error):
+        scan.complete = False  # the rest of the file was never written
+    return scan
+
+
+def _rewrite(path: Path, scan: _FileScan) -> None:
+    tmp = path.with_name(path.name + ".recovering")
+    with tmp.open("wb") as out:
+        writer = McapWriter(out)
+        writer.start(profile="ros2", library=LIBRARY)
+        schema_ids = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in scan.schemas.items()}
+        channel_ids = {cid: writer.register_channel(c.topic, c.message_encoding,
+                                                    schema_ids.get(c.schema_id, 0), dict(c.metadata))
+                       for cid, c in scan.channels.items()}
+        for name, data in scan.metadata.items():
+            writer.add_metadata(name, data)
+        for m in scan.messages:
+            if m.channel_id in channel_ids:
+                writer.add_message(channel_ids[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence)
+        writer.finish()
+    path.rename(path.with_name(path.name + ".unfinished"))
+    tmp.rename(path)
+
+
+def _index(name: str) -> tuple[int, str]:
+    match = re.search(r"_(\d+)\.mcap(\.zstd)?$", name)
+    return (int(match[1]) if match else 1 << 30, name)
+
+
+def reindex(bag: Path) -> str:
+    """Rebuild ``bag/metadata.yaml`` (and finish unfinished files); returns a report.
+
+    Raises:
+        BagError: not a directory, or no MCAP file in it.
+    """
+    if not bag.is_dir():
+        raise BagError(f"'{bag}' is not a bag directory")
+    files = sorted((p for p in bag.iterdir() if p.name.endswith((".mcap", ".mcap.zstd"))),
+                   key=lambda p: _index(p.name))
+    if not files:
+        raise BagError(f"'{bag}' holds no .mcap files to reindex")
+    metadata = BagMetadata()
+    topics: dict[str, Topic] = {}
+    notes: list[str] = []
+    for path in files:
+        compressed = path.name.endswith(".zstd")
+        with path.open("rb") as raw:
+            stream: IO[bytes] = (io.BufferedReader(zstandard.ZstdDecompressor().stream_reader(raw))
+                                 if compressed else raw)
+            scan = _scan(stream, keep_messages=False)
+        if not scan.complete and not compressed:
+            with path.open("rb") as raw:
+                scan = _scan(raw, keep_messages=True)
+            _rewrite(path, scan)
+            notes.append(f"finished the unfinished file {path.name} ({len(scan.messages)} messages kept; "
+                         f"the original is {path.name}.unfinished)")
+        recording = scan.metadata.get(RECORDING_RECORD, {})
+        if compressed:
+            metadata.compression_mode, metadata.compression_format = "file", "zstd"
+        elif recording.get("compression_mode") == "message":
+            metadata.compression_mode, metadata.compression_format = "message", recording.get(
+                "compression_format", "zstd")
+        metadata.ros_distro = recording.get("ros_distro", metadata.ros_distro)
+        info = FileInfo(path.name)
+        for m in scan.messages:
+            channel = scan.channels.get(m.channel_id)
+            if channel is None:
+                continue
+            info.add(m.log_time)
+            topic = topics.get(channel.topic)
+            if topic is None:
+                schema = scan.schemas.get(channel.schema_id)
+                topic = topics[channel.topic] = Topic(
+                    channel.topic, schema.name if schema else "",
+                    parse_qos(channel.metadata.get("offered_qos_profiles", "")) if
+                    channel.metadata.get("offered_qos_profiles") else [],
+                    channel.metadata.get("topic_type_hash", ""), channel.message_encoding)
+            topic.message_count += 1
+        metadata.files.append(info)
+    metadata.topics = list(topics.values())
+    metadata.write(bag)
+    lines = [f"reindexed '{bag}': {len(files)} file(s), {metadata.message_count} messages, "
+             f"{len(topics)} topic(s)", *notes]
+    return "\n".join(lines)
