@@ -66,10 +66,10 @@ def test_rosbags_reads_back_every_message_and_field(tmp_path, preset):
     got = read_rosbags(tmp_path / "bag")
     assert {k: len(v) for k, v in got.items()} == {"/tf_static": 1, "/scan": 300, "/chatter": 300}
     s = got["/scan"][123]
-    assert s.header.stamp.sec == 123 and s.header.frame_id == "lidar_frame"  # type: ignore[attr-defined]
-    assert list(s.ranges[:3]) == pytest.approx([4.0, 4.001, 4.002]) and math.isinf(s.ranges[-1])  # type: ignore[attr-defined]
-    assert got["/chatter"][7].data == "hello 7"  # type: ignore[attr-defined]
-    assert got["/tf_static"][0].transforms[0].child_frame_id == "base_link"  # type: ignore[attr-defined]
+    assert s.header.stamp.sec == 123 and s.header.frame_id == "lidar_frame"
+    assert list(s.ranges[:3]) == pytest.approx([4.0, 4.001, 4.002]) and math.isinf(s.ranges[-1])
+    assert got["/chatter"][7].data == "hello 7"
+    assert got["/tf_static"][0].transforms[0].child_frame_id == "base_link"
 
 
 def test_mcap_reader_decodes_with_the_stored_definitions(tmp_path):
@@ -153,7 +153,7 @@ def test_compressed_bags_read_back(tmp_path, mode):
         assert all(p.endswith(".mcap.zstd") for p in info["relative_file_paths"])
         assert not list((tmp_path / "bag").glob("*.mcap"))
     got = read_rosbags(tmp_path / "bag")
-    assert len(got["/scan"]) == 200 and got["/chatter"][199].data == "hello 199"  # type: ignore[attr-defined]
+    assert len(got["/scan"]) == 200 and got["/chatter"][199].data == "hello 199"
     assert "Compression:       " + mode in format_info(summarize(tmp_path / "bag"))
 
 
