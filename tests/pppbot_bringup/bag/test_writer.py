@@ -181,5 +181,5 @@ def test_never_overwrites_and_refuses_misuse(tmp_path):
 ])
 def test_bad_options_are_named(tmp_path, options, message):
     with pytest.raises(BagError, match=message):
-        BagWriter(tmp_path / "bag", WriterOptions(**options))  # type: ignore[arg-type]
+        BagWriter(tmp_path / "bag", WriterOptions(**options))
     assert not (tmp_path / "bag").exists()
