@@ -186,7 +186,7 @@ def _read_keys(player: Player) -> None:
 
 
 def main(options: PlayOptions) -> int:
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     node = Node(options.node_name)
     player = Player(node, options)
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):

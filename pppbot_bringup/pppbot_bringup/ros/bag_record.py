@@ -157,7 +157,7 @@ def main(options: RecordOptions) -> int:
     except BagError as exc:
         print(f"pppbot bag record: {exc}", file=sys.stderr)
         return 1
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()
 
     def on_signal(signum: int, frame: Any) -> None:
