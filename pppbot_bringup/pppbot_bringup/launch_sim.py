@@ -9,6 +9,7 @@ diff_drive_base_controller (first /odom) → twist_mux → mapping or localizati
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -32,6 +33,8 @@ ARGUMENTS = [
     Argument("z", 0.05, "spawn z of base_link (m); ppp_bot rests at 0.05"),
     Argument("yaw", 0.0, "spawn yaw (rad)"),
     Argument("log_level", "info", "log level of every node", choices=LOG_LEVELS),
+    Argument("record", False, "record every topic (pppbot bag record -a, sim time) while the launch runs"),
+    Argument("bag_path", "", "the bag directory for record:=true; default rosbag2_YYYY_MM_DD-HH_MM_SS here"),
 ]
 
 #: (topic, type, latched) → a probe that a first message came
@@ -90,6 +93,16 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
             after=("diff_drive_base_controller",), required=True,
             ready=ReadyCheck("its inputs", output_pattern=r"inputs: ")),
     ]
+    if values["record"]:
+        bag = Path(values["bag_path"] or time.strftime("rosbag2_%Y_%m_%d-%H_%M_%S"))
+        if bag.exists():
+            raise ArgumentError(f"bag_path: '{bag}' exists already; a bag is never overwritten")
+        # Right after the simulator, so the rest of the bringup (latched /robot_description,
+        # /tf_static) is in the bag; stopping the launch finishes the bag.
+        nodes.insert(1, NodeSpec("bag_record", [resolve("pppbot_bringup", "pppbot"), "bag", "record", "-a",
+                                                "--use-sim-time", "-o", str(bag)],
+                                 after=("simulator",), ready=ReadyCheck("recording", output_pattern=r"recording to ")))
+        notes.append(f"recording every topic to {bag} (ends when the launch ends)")
     if values["localization"]:
         map_file = Path(values["map"]) if values["map"] else maps_directory() / f"{world_file.stem}.yaml"
         if not map_file.is_file():

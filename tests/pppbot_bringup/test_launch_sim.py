@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
+from rosbags.rosbag2 import Reader
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 
@@ -106,15 +107,28 @@ def test_plan_without_terminal_rviz_or_mapping_says_so():
     assert "run ./pppbot teleop in another terminal" in notes
     assert "rviz2 is not on PATH" in notes
     assert "mapping (SLAM) is not built yet" in notes
+    assert "bag_record" not in [n.name for n in p.nodes]
+
+
+def test_record_adds_a_recorder_right_after_the_simulator(tmp_path):
+    p, _ = fake_plan("record:=true", f"bag_path:={tmp_path / 'b'}")
+    recorder = p.nodes[1]
+    assert recorder.name == "bag_record" and recorder.after == ("simulator",) and not recorder.required
+    assert list(recorder.cmd) == ["/bin/pppbot_bringup/pppbot", "bag", "record", "-a", "--use-sim-time",
+                                  "-o", str(tmp_path / "b")]
+    (tmp_path / "b").mkdir()
+    with pytest.raises(ArgumentError, match="exists already"):
+        fake_plan("record:=true", f"bag_path:={tmp_path / 'b'}")
 
 
 @pytest.mark.ros
-def test_end_to_end_headless_drive_and_clean_sigint(ros_node, spawn):
+def test_end_to_end_headless_drive_record_and_clean_sigint(ros_node, spawn, tmp_path):
+    bag = tmp_path / "drive_bag"
     launch = spawn([PPPBOT, "launch_sim", "world:=empty", "use_teleop:=false", "use_rviz:=false",
-                    "real_time_factor:=2.0"], name="launch_sim")
+                    "real_time_factor:=2.0", "record:=true", f"bag_path:={bag}"], name="launch_sim")
     launch.wait_for_output(r"ppp_bot is up in 'empty'", 60)
     pids = [int(p) for p in re.findall(r"process started with pid \[(\d+)\]", launch.output)]
-    assert len(pids) == 4
+    assert len(pids) == 5
     truths: list[Odometry] = []
     ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
     pub = ros_node.create_publisher(Twist, "/cmd_vel_teleop", 10)
@@ -129,9 +143,14 @@ def test_end_to_end_headless_drive_and_clean_sigint(ros_node, spawn):
     os.kill(launch.pid, signal.SIGINT)
     assert launch.wait(15) == 0
     assert time.monotonic() - t0 < 15
-    assert launch.output.count("process has finished cleanly") == 4
+    assert launch.output.count("process has finished cleanly") == 5
     for pid in pids:
         assert not os.path.exists(f"/proc/{pid}") or open(f"/proc/{pid}/stat").read().rsplit(")", 1)[-1].split()[0] == "Z"
+    # Stopping the launch finished the bag: the drive and the latched description are in it.
+    with Reader(bag) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+    assert counts["/cmd_vel_teleop"] > 0 and counts["/odom"] > 0 and counts["/scan"] > 0
+    assert counts["/robot_description"] == 1 and counts["/tf_static"] >= 1
 
 
 @pytest.mark.ros
@@ -184,7 +203,16 @@ def test_in_a_terminal_the_teleop_drives_and_ctrl_c_ends_everything(ros_node):
                    "driving forward", node=ros_node)
         os.write(master, b"\x03")  # Ctrl-C: SIGINT to the terminal's foreground group
         assert proc.wait(timeout=20) == 0
-        text = read_until("teleop_keyboard-1]: process has finished cleanly", 5)
+        read_until("teleop_keyboard-1]: process has finished cleanly", 5)
+        while select.select([master], [], [], 0.5)[0]:  # the launch has exited: read what is left
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:
+                break
+            if not chunk:
+                break
+            screen.extend(chunk)
+        text = screen.decode(errors="replace")
         assert text.count("process has finished cleanly") == 5
         assert (log_dir / "simulator-1.log").read_text().count("lidar 'laser'") == 1
     finally:
