@@ -33,7 +33,9 @@ def open_bag(path: Path | str) -> Iterator[Reader]:
         reader = Reader(path)
         reader.open()
     except (ReaderError, KeyError, ValueError, OSError, EOFError) as exc:
-        raise BagError(f"cannot read bag '{path}': {exc}") from exc
+        hint = (f" (if its recorder was killed, `pppbot bag reindex {path}` recovers it)"
+                if path.is_dir() else "")
+        raise BagError(f"cannot read bag '{path}': {exc}{hint}") from exc
     try:
         yield reader
     finally:

@@ -3,8 +3,8 @@
 Messages are published as recorded (serialized bytes, no round trip) at their
 recorded reception times scaled by ``--rate``, on publishers with the QoS the topic
 was recorded with (``playback_qos``). ``--clock`` publishes /clock with the bag's time.
-In a terminal: space pauses and resumes, ``s`` publishes the next message while
-paused, up/down arrows change the rate by 10 %.
+In a terminal: space pauses and resumes, ``s`` or the right arrow publishes the
+next message while paused, up/down arrows change the rate by 10 %.
 """
 from __future__ import annotations
 
@@ -164,7 +164,7 @@ class Player:
         if key == " ":
             clock.set_paused(not clock.paused)
             log.info("paused" if clock.paused else "playing")
-        elif key == "s" and clock.paused:
+        elif key in ("s", "\x1b[C") and clock.paused:
             self.step.set()
         elif key in ("\x1b[A", "\x1b[B"):
             clock.set_rate(clock.rate * (1.1 if key == "\x1b[A" else 1 / 1.1))
@@ -186,6 +186,10 @@ def _read_keys(player: Player) -> None:
 
 
 def main(options: PlayOptions) -> int:
+    if options.start_paused and not (options.keyboard_controls and sys.stdin.isatty()):
+        print("pppbot bag play: --start-paused needs the keyboard controls in a terminal to resume "
+              "(the pause/resume services of rosbag2's player are not provided)", file=sys.stderr)
+        return 1
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     node = Node(options.node_name)
     player = Player(node, options)

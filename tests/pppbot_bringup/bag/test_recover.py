@@ -35,7 +35,7 @@ def killed_bag(tmp_path: Path, options: WriterOptions, flushed: int, unflushed: 
 @pytest.mark.parametrize("mode", [CompressionMode.NONE, CompressionMode.MESSAGE])
 def test_reindex_recovers_every_flushed_message(tmp_path, mode):
     bag = killed_bag(tmp_path, WriterOptions(compression_mode=mode, max_bag_size=20_000), 1500, 7)
-    with pytest.raises(BagError):  # as killed: metadata.yaml lists files without their contents
+    with pytest.raises(BagError, match="bag reindex"):  # as killed: files lack their summaries
         with open_bag(bag) as reader:
             list(reader.messages())
     report = reindex(bag)
