@@ -170,6 +170,8 @@ def record_options(args: argparse.Namespace, now: float | None = None) -> Record
 
 def play_options(args: argparse.Namespace) -> PlayOptions:
     all_topics = not (args.topics or args.regex)
+    if all_topics:
+        args.include_hidden_topics = True  # like ros2 bag play: every topic in the bag
     return PlayOptions(
         bag=Path(args.bag_path),
         selection=_selection(args, [], all_topics),

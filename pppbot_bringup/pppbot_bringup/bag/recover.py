@@ -26,7 +26,7 @@ from rosbags.rosbag2.metadata import parse_qos
 
 from pppbot_bringup.bag.errors import BagError
 from pppbot_bringup.bag.metadata import BagMetadata, FileInfo, Topic
-from pppbot_bringup.bag.writer import LIBRARY, RECORDING_RECORD
+from pppbot_bringup.bag.writer import LIBRARY, RECORDING_RECORD, compress_file
 
 
 @dataclass
@@ -90,8 +90,10 @@ def reindex(bag: Path) -> str:
     """
     if not bag.is_dir():
         raise BagError(f"'{bag}' is not a bag directory")
-    files = sorted((p for p in bag.iterdir() if p.name.endswith((".mcap", ".mcap.zstd"))),
-                   key=lambda p: _index(p.name))
+    names = {p.name for p in bag.iterdir()}
+    # x.mcap next to x.mcap.zstd: killed while compressing x; the .zstd is complete.
+    files = sorted((bag / n for n in names if n.endswith(".mcap.zstd")
+                    or (n.endswith(".mcap") and n + ".zstd" not in names)), key=lambda p: _index(p.name))
     if not files:
         raise BagError(f"'{bag}' holds no .mcap files to reindex")
     metadata = BagMetadata()
@@ -132,6 +134,14 @@ def reindex(bag: Path) -> str:
                     channel.metadata.get("topic_type_hash", ""), channel.message_encoding)
             topic.message_count += 1
         metadata.files.append(info)
+    if metadata.compression_mode == "file":
+        # The files finished before the kill are compressed; compress the others alike,
+        # since a bag has one compression mode.
+        for info in metadata.files:
+            if not info.path.endswith(".zstd"):
+                compress_file(bag / info.path)
+                info.path += ".zstd"
+                notes.append(f"compressed {info.path} like the bag's other files")
     metadata.topics = list(topics.values())
     metadata.write(bag)
     lines = [f"reindexed '{bag}': {len(files)} file(s), {metadata.message_count} messages, "

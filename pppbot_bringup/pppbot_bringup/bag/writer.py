@@ -202,14 +202,16 @@ class BagWriter:
         """Finish the last file, wait for file compression, write ``metadata.yaml``."""
         if self._closed:
             return self.metadata
-        self._close_file()
         self._closed = True
         try:
+            self._close_file()
             for job in self._compressing:
                 job.result()
+        except OSError as exc:
+            raise BagError(f"finishing bag '{self.path}' failed: {exc}") from exc
         finally:
             self._pool.shutdown()
-        self._write_metadata()
+            self._write_metadata()
         return self.metadata
 
     def __enter__(self) -> BagWriter:
@@ -274,7 +276,7 @@ class BagWriter:
         file.stream.close()
         if self.options.compression_mode is CompressionMode.FILE:
             file.info.path = f"{file.path.name}.{self.options.compression_format}"
-            self._compressing.append(self._pool.submit(_compress_file, file.path))
+            self._compressing.append(self._pool.submit(compress_file, file.path))
         self._write_metadata()
 
     def _write_metadata(self) -> None:
@@ -282,7 +284,7 @@ class BagWriter:
         self.metadata.write(self.path)
 
 
-def _compress_file(path: Path) -> None:
+def compress_file(path: Path) -> None:
     """``x.mcap`` → ``x.mcap.zstd`` (one zstd frame), then remove ``x.mcap``."""
     target = path.with_name(path.name + ".zstd")
     tmp = path.with_name(path.name + ".zstd.tmp")

@@ -109,7 +109,12 @@ class Player:
                 raise BagError(f"no topic of '{self.options.bag}' is selected for playback")
             if self.options.delay_s:
                 self.stop.wait(self.options.delay_s)
+            if reader.message_count == 0:
+                raise BagError(f"bag '{self.options.bag}' has no messages")
             first = reader.start_time + int(self.options.start_offset_s * 1e9)
+            if first > reader.end_time:
+                raise BagError(f"--start-offset {self.options.start_offset_s:g} s is past the end of the bag "
+                               f"({(reader.end_time - reader.start_time) / 1e9:.3f} s long)")
             self.clock = PlaybackClock(first, self.options.rate, paused=self.options.start_paused)
             if self.options.start_paused:
                 self.node.get_logger().info("paused: press space to play (or s to step)")
@@ -117,12 +122,13 @@ class Player:
             clock_thread.start()
             while not self.stop.is_set():
                 self.clock.jump(first)
+                before = self.published
                 for topic, stamp, data in self._messages(reader, connections, first):
                     if not self._wait_until(stamp):
                         break
                     self.publishers[topic].publish(data)
                     self.published += 1
-                if not self.options.loop:
+                if not self.options.loop or self.published == before:
                     break
         self.stop.set()
         return 0

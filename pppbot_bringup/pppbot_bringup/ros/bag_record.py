@@ -16,6 +16,7 @@ from __future__ import annotations
 import functools
 import os
 import queue
+import re
 import signal
 import sys
 import threading
@@ -23,7 +24,8 @@ import time
 from typing import Any
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
@@ -36,7 +38,7 @@ from pppbot_bringup.bag.writer import BagWriter
 from pppbot_bringup.ros.bag_common import qos_to_bag, type_hash_string
 from pppbot_common.errors import MessageTypeError
 from pppbot_common.ros.messages import get_interface
-from pppbot_common.ros.qos import qos_matching_publishers
+from pppbot_common.ros.qos import subscription_qos
 
 #: Subscription history: deep enough that a busy moment never overwrites unread messages.
 QUEUE_DEPTH = 1000
@@ -54,9 +56,12 @@ class Recorder(Node):
         self.skipped: set[str] = set()
         self.error: BaseException | None = None
         self._started = time.monotonic()
+        self._warned_no_clock = False
         self._writer_thread = threading.Thread(target=self._write_loop, name="bag-writer", daemon=True)
         self._writer_thread.start()
-        self._poll = self.create_timer(options.polling_interval_s, self._discover)
+        # Discovery runs on wall time: with --use-sim-time it must run before /clock exists.
+        self._poll = self.create_timer(options.polling_interval_s, self._discover,
+                                       clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(f"recording to '{options.output}'")
         self._discover()
 
@@ -67,6 +72,9 @@ class Recorder(Node):
             self._poll.cancel()  # --no-discovery: only what showed up at start
             return
         if self.options.use_sim_time and self.get_clock().now().nanoseconds == 0:
+            if time.monotonic() - self._started > 5.0 and not self._warned_no_clock:
+                self._warned_no_clock = True
+                self.get_logger().warning("--use-sim-time: no /clock yet; recording starts when it comes")
             return  # no /clock yet: messages would be stamped 0
         for name, types in self.get_topic_names_and_types():
             if name in self.subscribed or name in self.skipped or not self.options.selection.matches(name):
@@ -94,7 +102,7 @@ class Recorder(Node):
         hashes = {type_hash_string(p.topic_type_hash) for p in publishers} - {""}
         self.writer_call(self.writer.add_topic, name, definition, [qos_to_bag(p.qos_profile) for p in publishers],
                          definition.type_hash or next(iter(hashes), ""))
-        qos = qos_matching_publishers(self, name, depth=QUEUE_DEPTH)
+        qos = subscription_qos(publishers, QUEUE_DEPTH)
         self.subscribed[name] = self.create_subscription(
             msg_class, name, functools.partial(self._received, name), qos, raw=True)
         log.info(f"subscribed to '{name}' ({type_name})")
@@ -135,12 +143,25 @@ class Recorder(Node):
                 return
 
     def finish(self) -> BagMetadata:
-        """Stop the subscriptions, write everything queued, close the bag."""
+        """Take what DDS has already received, stop the subscriptions, write everything
+        queued, close the bag."""
+        executor = SingleThreadedExecutor(context=self.context)
+        executor.add_node(self)
+        deadline = time.monotonic() + 2.0
+        while time.monotonic() < deadline and self._take_pending(executor):
+            pass
+        executor.remove_node(self)
         for sub in self.subscribed.values():
             self.destroy_subscription(sub)
         self.queue.put(_STOP)
         self._writer_thread.join()
         return self.writer.close()
+
+    def _take_pending(self, executor: SingleThreadedExecutor) -> bool:
+        """One callback of what is already received; False when there is none."""
+        before = self.queue.qsize()
+        executor.spin_once(timeout_sec=0.0)
+        return self.queue.qsize() != before
 
 
 def _summary(metadata: BagMetadata, output: str) -> str:
@@ -152,6 +173,10 @@ def _summary(metadata: BagMetadata, output: str) -> str:
 
 
 def main(options: RecordOptions) -> int:
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", options.node_name):
+        print(f"pppbot bag record: --node-name '{options.node_name}' is not a valid node name "
+              "(letters, digits and underscores, not starting with a digit)", file=sys.stderr)
+        return 1
     try:
         writer = BagWriter(options.output, options.writer, ros_distro=os.environ.get("ROS_DISTRO", "jazzy"))
     except BagError as exc:
@@ -172,7 +197,11 @@ def main(options: RecordOptions) -> int:
     except ExternalShutdownException:
         pass
     finally:
-        metadata = recorder.finish()
+        try:
+            metadata = recorder.finish()
+        except (OSError, BagError) as exc:
+            recorder.error = recorder.error or exc
+            metadata = writer.metadata
         recorder.destroy_node()
         rclpy.try_shutdown()
     print(_summary(metadata, str(options.output)), flush=True)

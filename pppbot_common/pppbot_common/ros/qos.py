@@ -1,6 +1,8 @@
 """QoS profiles pppbot uses, and QoS that matches a topic's publishers."""
 from __future__ import annotations
 
+from typing import Any, Sequence
+
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
@@ -30,7 +32,11 @@ def qos_matching_publishers(node: Node, topic: str, depth: int = 10) -> QoSProfi
     ``ros2 topic echo`` does), so latched topics deliver their stored message and
     best-effort publishers are still heard.
     """
-    infos = node.get_publishers_info_by_topic(topic)
+    return subscription_qos(node.get_publishers_info_by_topic(topic), depth)
+
+
+def subscription_qos(infos: Sequence[Any], depth: int = 10) -> QoSProfile:
+    """A subscription QoS compatible with every publisher in ``infos`` (endpoint infos)."""
     reliability = ReliabilityPolicy.RELIABLE
     durability = DurabilityPolicy.VOLATILE
     if infos:

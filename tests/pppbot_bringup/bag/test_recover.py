@@ -27,6 +27,8 @@ def killed_bag(tmp_path: Path, options: WriterOptions, flushed: int, unflushed: 
         writer.write("/chatter", serialize_message(String(data=f"m{i}")), 1_000 + i)
         if i + 1 == flushed:
             writer.flush()
+    for job in writer._compressing:  # finished files are compressed by then (a steady state to copy)
+        job.result()
     shutil.copytree(tmp_path / "live", tmp_path / "killed")  # the disk at the moment of the kill
     writer.close()
     return tmp_path / "killed"
@@ -49,6 +51,17 @@ def test_reindex_recovers_every_flushed_message(tmp_path, mode):
     assert info["compression_mode"] == ("message" if mode is CompressionMode.MESSAGE else "")
     assert info["topics_with_message_count"][0]["message_count"] == len(data)
     assert list(bag.glob("*.unfinished"))  # the original is kept
+
+
+def test_reindex_of_a_killed_file_compressed_split_bag_compresses_the_last_file(tmp_path):
+    bag = killed_bag(tmp_path, WriterOptions(compression_mode=CompressionMode.FILE, max_bag_size=5_000), 1500, 3)
+    assert list(bag.glob("*.mcap.zstd")) and list(bag.glob("*.mcap"))  # finished files and the open one
+    reindex(bag)
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["compression_mode"] == "file"
+    assert all(p.endswith(".mcap.zstd") for p in info["relative_file_paths"])
+    with Reader(bag) as reader:
+        assert sum(1 for _ in reader.messages()) >= 1500
 
 
 def test_reindex_of_a_finished_bag_changes_nothing_but_metadata(tmp_path):
