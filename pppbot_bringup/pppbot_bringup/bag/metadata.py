@@ -98,16 +98,6 @@ class BagMetadata:
     def message_count(self) -> int:
         return sum(f.message_count for f in self.files)
 
-    @property
-    def start_ns(self) -> int:
-        stamps = [f.start_ns for f in self.files if f.message_count]
-        return min(stamps) if stamps else 0
-
-    @property
-    def end_ns(self) -> int:
-        stamps = [f.end_ns for f in self.files if f.message_count]
-        return max(stamps) if stamps else 0
-
     def as_yaml_dict(self, files: Sequence[FileInfo] | None = None,
                      topics: Sequence[Topic] | None = None) -> dict[str, Any]:
         """The ``rosbag2_bagfile_information`` mapping, for all files or just ``files``."""

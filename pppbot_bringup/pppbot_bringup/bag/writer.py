@@ -110,13 +110,15 @@ class _OpenFile:
         self._tell = 0
         self._pending = 0
 
-    def size(self, adding: int) -> int:
-        """Bytes on disk plus (uncompressed) bytes still in the open chunk."""
+    def size(self) -> int:
+        """Bytes on disk plus (uncompressed) bytes written since the last chunk reached it."""
         tell = self.stream.tell()
         if tell != self._tell:
             self._tell, self._pending = tell, 0
-        self._pending += adding
         return tell + self._pending
+
+    def account(self, size: int) -> None:
+        self._pending += size
 
 
 class BagWriter:
@@ -185,10 +187,10 @@ class BagWriter:
         if self._split_due(file, log_time_ns, len(data)):
             self._close_file()
             file = self._open_file()
-            file.size(len(data))
         file.mcap.add_message(file.channels[topic], log_time=log_time_ns, data=data,
                               publish_time=log_time_ns if publish_time_ns is None else publish_time_ns,
                               sequence=sequence & 0xFFFFFFFF)
+        file.account(len(data))
         file.info.add(log_time_ns)
         file.topic_counts[topic] = file.topic_counts.get(topic, 0) + 1
         self._topics[topic].message_count += 1
@@ -228,12 +230,11 @@ class BagWriter:
 
     def _split_due(self, file: _OpenFile, stamp_ns: int, size: int) -> bool:
         if file.info.message_count == 0:
-            file.size(size)
             return False
         o = self.options
         if o.max_bag_duration_s > 0 and stamp_ns - file.info.start_ns >= o.max_bag_duration_s * 1e9:
             return True
-        return bool(o.max_bag_size) and file.size(size) > o.max_bag_size
+        return bool(o.max_bag_size) and file.size() + size > o.max_bag_size
 
     def _register(self, file: _OpenFile, topic: Topic) -> None:
         definition = self._definitions[topic.name]

@@ -25,20 +25,21 @@ def _duration(t: QosTime) -> Duration:
     return Duration(nanoseconds=min(t.sec * 1_000_000_000 + t.nsec, _INFINITE_NS))
 
 
+def _policy(kind: Any, policy: Any) -> Any:
+    """rclpy's policy as the rosbags enum of the same name (UNKNOWN if it has none)."""
+    return kind.__members__.get(policy.name, kind.UNKNOWN)
+
+
 def qos_to_bag(profile: QoSProfile) -> Qos:
     """An endpoint's QoS as rosbag2 records it."""
     return Qos(
-        history=QosHistory[profile.history.name] if profile.history.name in QosHistory.__members__
-        else QosHistory.UNKNOWN,
+        history=_policy(QosHistory, profile.history),
         depth=int(profile.depth),
-        reliability=QosReliability[profile.reliability.name]
-        if profile.reliability.name in QosReliability.__members__ else QosReliability.UNKNOWN,
-        durability=QosDurability[profile.durability.name]
-        if profile.durability.name in QosDurability.__members__ else QosDurability.UNKNOWN,
+        reliability=_policy(QosReliability, profile.reliability),
+        durability=_policy(QosDurability, profile.durability),
         deadline=_time(profile.deadline),
         lifespan=_time(profile.lifespan),
-        liveliness=QosLiveliness[profile.liveliness.name]
-        if profile.liveliness.name in QosLiveliness.__members__ else QosLiveliness.UNKNOWN,
+        liveliness=_policy(QosLiveliness, profile.liveliness),
         liveliness_lease_duration=_time(profile.liveliness_lease_duration),
         avoid_ros_namespace_conventions=bool(profile.avoid_ros_namespace_conventions),
     )

@@ -17,7 +17,7 @@ import threading
 import time
 import tty
 from dataclasses import dataclass
-from typing import Any, Iterator
+from typing import Any
 
 import rclpy
 from rclpy.node import Node
@@ -98,10 +98,6 @@ class Player:
             chosen += conns
         return chosen
 
-    def _messages(self, reader: Any, connections: list[Any], start_ns: int) -> Iterator[tuple[str, int, bytes]]:
-        for conn, stamp, data in reader.messages(connections, start=start_ns):
-            yield conn.topic, stamp, data
-
     def run(self) -> int:
         with open_bag(self.options.bag) as reader:
             connections = self._make_publishers(reader)
@@ -123,10 +119,10 @@ class Player:
             while not self.stop.is_set():
                 self.clock.jump(first)
                 before = self.published
-                for topic, stamp, data in self._messages(reader, connections, first):
+                for conn, stamp, data in reader.messages(connections, start=first):
                     if not self._wait_until(stamp):
                         break
-                    self.publishers[topic].publish(data)
+                    self.publishers[conn.topic].publish(data)
                     self.published += 1
                 if not self.options.loop or self.published == before:
                     break

@@ -111,9 +111,9 @@ class Recorder(Node):
 
     def _received(self, topic: str, data: bytes, info: Any) -> None:
         recv_ns = self.get_clock().now().nanoseconds
-        send_ns = info.get("source_timestamp", recv_ns) if isinstance(info, dict) else recv_ns
-        sequence = info.get("publication_sequence_number", 0) if isinstance(info, dict) else 0
-        self.queue.put((topic, data, recv_ns, send_ns, sequence or 0))
+        info = info if isinstance(info, dict) else {}
+        self.queue.put((topic, data, recv_ns, info.get("source_timestamp", recv_ns),
+                        info.get("publication_sequence_number") or 0))
 
     def writer_call(self, fn: Any, *args: Any) -> None:
         """Run ``fn`` on the writer thread, in order with the queued messages."""

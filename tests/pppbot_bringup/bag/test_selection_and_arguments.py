@@ -72,6 +72,6 @@ def test_argparse_refuses_bad_values(argv, capsys):
     assert exit_.value.code == 2 and "error: argument" in capsys.readouterr().err
 
 
-def test_info_and_play_of_a_missing_bag(tmp_path, capsys):
+def test_info_of_a_missing_bag(tmp_path, capsys):
     assert cli.main(parse("info", str(tmp_path / "nope"))) == 1
     assert f"bag '{tmp_path / 'nope'}' does not exist" in capsys.readouterr().err
