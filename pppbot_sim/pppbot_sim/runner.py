@@ -23,7 +23,7 @@ MAX_STEPS_PER_ADVANCE = 1000
 
 @dataclass(frozen=True)
 class Reading:
-    """One thing to publish: ``kind`` is clock, joint_states, ground_truth, lidar or imu."""
+    """One thing to publish: ``kind`` is clock, joint_states, ground_truth, lidar, imu or collision."""
 
     kind: str
     stamp_s: float
@@ -100,6 +100,7 @@ class PhysicsRunner:
                 readings.append(Reading("ground_truth", now, sim.ground_truth()))
             else:
                 readings.append(Reading(event, now))
+        readings += [Reading("collision", c.stamp_s, c) for c in sim.take_collisions()]
         return readings
 
     def run_until(self, stop_when: Callable[[], bool], handle: Callable[[list[Reading]], None],

@@ -20,6 +20,7 @@ from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_description.urdf_model import RobotModel, Sensor
 from pppbot_sim.errors import SimulationDiverged, SpawnError, WorldError
 from pppbot_sim.mj_build import (
+    ROBOT_GROUP,
     RobotHandles,
     SpawnPose,
     WheelDrive,
@@ -30,6 +31,7 @@ from pppbot_sim.mj_build import (
 )
 from pppbot_sim.sdf_world import World, read_sdf_world
 from pppbot_sim.sensors import Imu, ImuReading, ImuSpec, Lidar, LidarSpec, finalize_ranges, sensor_specs
+from pppbot_sim.wheel_slip import SlipModel, WheelSlip
 
 _log = logging.getLogger("pppbot_sim.mujoco")
 
@@ -43,6 +45,8 @@ def route_mujoco_warnings() -> None:
 #: Beyond these the state is garbage, not physics (m and m/s or rad/s).
 DIVERGED_POSITION_M = 1e5
 DIVERGED_VELOCITY = 1e4
+#: A robot-obstacle contact that stops for less than this (sim s) is still the same collision.
+COLLISION_GAP_S = 0.5
 
 
 @dataclass
@@ -111,6 +115,16 @@ class ImuSample:
 
 
 @dataclass(frozen=True)
+class Collision:
+    """The robot started touching something other than the ground (one per contact episode)."""
+
+    stamp_s: float
+    position: np.ndarray  # world frame (m)
+    robot_part: str
+    obstacle: str
+
+
+@dataclass(frozen=True)
 class WheelState:
     names: list[str]
     positions: np.ndarray
@@ -139,7 +153,8 @@ class Simulation:
     """A world, one robot, its wheel servos and sensors."""
 
     def __init__(self, spec: mujoco.MjSpec, robot: RobotModel, spawn: SpawnPose = SpawnPose(),
-                 name: str = "ppp_bot", seed: int = 0, drive: WheelDrive = WheelDrive()) -> None:
+                 name: str = "ppp_bot", seed: int = 0, drive: WheelDrive = WheelDrive(),
+                 slip: SlipModel = SlipModel()) -> None:
         route_mujoco_warnings()
         self.spawn = spawn
         self.handles: RobotHandles = add_robot(spec, robot, spawn, name, drive)
@@ -172,6 +187,16 @@ class Simulation:
         self._joint_qvel = np.array([int(j.dofadr[0]) for j in joints], dtype=int)
         self._actuator = {j: self.model.actuator(a).id for j, a in self.handles.actuators.items()}
         self._effort_index = np.array([self._actuator.get(j, -1) for j in self.joint_names], dtype=int)
+        wheels = np.array([j in self.handles.wheel_joints for j in self.joint_names], dtype=bool)
+        # Its own generator: slip does not change the sensor noise of a seed.
+        self.slip = WheelSlip(slip, wheels, np.random.default_rng((seed, 1)))
+        robot_geoms = self.model.geom_group == ROBOT_GROUP
+        ground = np.isin(self.model.geom_type, (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD))
+        self._robot_geom = robot_geoms
+        self._obstacle_geom = ~robot_geoms & ~ground
+        # (robot body, obstacle geom) → last time seen touching (sim s); bounded by the pairs that exist
+        self._touching: dict[tuple[int, int], float] = {}
+        self.collisions: list[Collision] = []
         # Views into MjData's buffers (each attribute access would build a new one).
         self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
         mujoco.mj_forward(self.model, self.data)
@@ -215,7 +240,40 @@ class Simulation:
         if self._bad_state_warnings() != warnings or self.diverged():
             self._resume_at_s = end_s
             raise SimulationDiverged(f"simulation diverged at t = {end_s:.3f} s")
+        self._track_collisions()
         return self.schedule.due(self.time_s, self.step_s)
+
+    def _track_collisions(self) -> None:
+        """Append a :class:`Collision` for each (robot body, obstacle geom) pair that started touching.
+
+        Contacts of a robot pushing on a wall flicker from step to step; an episode ends
+        only after :data:`COLLISION_GAP_S` without contact.
+        """
+        count = int(self.data.ncon)
+        now = self.time_s
+        if count:
+            contacts = self.data.contact
+            geoms = contacts.geom[:count]
+            g1, g2 = geoms[:, 0], geoms[:, 1]
+            robot_first = self._robot_geom[g1] & self._obstacle_geom[g2]
+            robot_second = self._robot_geom[g2] & self._obstacle_geom[g1]
+            for i in np.flatnonzero(robot_first | robot_second):
+                robot, obstacle = (g1[i], g2[i]) if robot_first[i] else (g2[i], g1[i])
+                key = (int(self.model.geom_bodyid[robot]), int(obstacle))
+                if now - self._touching.get(key, -math.inf) > COLLISION_GAP_S:
+                    self.collisions.append(Collision(now, contacts.pos[i].copy(),
+                                                     self.model.body(key[0]).name, self._geom_label(key[1])))
+                self._touching[key] = now
+
+    def _geom_label(self, geom: int) -> str:
+        name = self.model.geom(geom).name
+        body = self.model.body(int(self.model.geom_bodyid[geom])).name
+        return name or f"{body or 'world'} geom {geom}"
+
+    def take_collisions(self) -> list[Collision]:
+        """Collisions since the last call."""
+        taken, self.collisions = self.collisions, []
+        return taken
 
     def _bad_state_warnings(self) -> int:
         w = self.data.warning
@@ -253,9 +311,10 @@ class Simulation:
 
     def wheel_state(self) -> WheelState:
         efforts = np.where(self._effort_index >= 0, self.data.actuator_force[self._effort_index], 0.0)
-        # Fancy indexing copies: the state is a snapshot.
-        return WheelState(list(self.joint_names), self._qpos[self._joint_qpos], self._qvel[self._joint_qvel],
-                          efforts)
+        # Fancy indexing copies: the state is a snapshot. Slip changes what the encoders report.
+        positions, velocities = self.slip.apply(self.time_s, self._qpos[self._joint_qpos],
+                                                self._qvel[self._joint_qvel])
+        return WheelState(list(self.joint_names), positions, velocities, efforts)
 
     # --------------------------------------------------------------- readings
     def ground_truth(self) -> GroundTruth:
@@ -284,6 +343,8 @@ class Simulation:
         self.data.qvel[self._joint_qvel] = 0.0
         self.data.qacc_warmstart[:] = 0.0
         self.stop_wheels()
+        self.slip.reset()
+        self._touching.clear()
         mujoco.mj_forward(self.model, self.data)
 
     def reset_all(self) -> None:
@@ -292,6 +353,8 @@ class Simulation:
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[:] = self._spawn_qpos
         self.data.time = time_s
+        self.slip.reset()
+        self._touching.clear()
         mujoco.mj_forward(self.model, self.data)
 
 

@@ -16,11 +16,13 @@ from pppbot_sim.mj_build import ROBOT_GROUP, SpawnPose
 from pppbot_sim.runner import PhysicsRunner
 from pppbot_sim.sensors import LidarSpec, finalize_ranges
 from pppbot_sim.simulation import Schedule, Simulation, load_world
+from pppbot_sim.wheel_slip import SlipModel, WheelSlip
 from pppbot_sim.worlds import find_world, model_paths
 
 DATA = Path(__file__).parent / "data"
 ROBOT = parse_urdf(process_xacro())
 WHEEL_RADIUS, WHEEL_SEPARATION = 0.05, 0.35
+ROBOT_JOINTS = [j for j in ("left_wheel_joint", "right_wheel_joint")]
 
 
 def make_sim(world: str | Path = "empty", spawn: SpawnPose = SpawnPose(), seed: int = 0, robot=ROBOT) -> Simulation:
@@ -228,3 +230,80 @@ def test_sensor_pose_in_the_tag_moves_the_sensor():
     imu_site = sim.model.site("ppp_bot/sensor/imu").id
     np.testing.assert_allclose(sim.data.site_xpos[imu_site],
                                sim.data.site_xpos[sim.model.site("ppp_bot/imu_link").id], atol=1e-12)
+
+
+# ------------------------------------------------------------ wheel slip
+def wheel_travel(sim: Simulation, seconds: float) -> tuple[np.ndarray, np.ndarray]:
+    """(reported, true) wheel rotation (rad) over ``seconds`` of driving, read at 100 Hz."""
+    start_reported = sim.wheel_state().positions
+    start_true = sim.data.qpos[sim._joint_qpos].copy()
+    end = sim.time_s + seconds
+    while sim.time_s < end - 1e-9:
+        run_for(sim, 0.01)
+        reported = sim.wheel_state().positions
+    return reported - start_reported, sim.data.qpos[sim._joint_qpos] - start_true
+
+
+def test_without_slip_encoders_report_the_true_rotation():
+    sim = make_sim()
+    drive(sim, 0.3, 0.2)
+    reported, true = wheel_travel(sim, 2.0)
+    np.testing.assert_array_equal(reported, true)
+
+
+def test_slip_makes_wheels_disagree_reproducibly_with_the_seed():
+    def travel(seed: int) -> tuple[np.ndarray, np.ndarray]:
+        path = find_world("empty")
+        spec, _ = load_world(path, model_paths(path))
+        sim = Simulation(spec, ROBOT, seed=seed, slip=SlipModel(0.05, 1.0))
+        drive(sim, 0.3, 0.0)
+        return wheel_travel(sim, 5.0)
+
+    (a, true_a), (b, _), (c, _) = travel(1), travel(1), travel(2)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+    wheels = [ROBOT_JOINTS.index(j) for j in ("left_wheel_joint", "right_wheel_joint")]
+    ratio = a[wheels] / true_a[wheels]
+    # Each wheel's reported travel is off by a slip fraction of the order of the standard deviation.
+    assert np.all(np.abs(ratio - 1.0) < 0.25)
+    assert abs(ratio[0] - ratio[1]) > 1e-4
+
+
+def test_slip_process_has_the_configured_spread_and_memory():
+    slip = WheelSlip(SlipModel(0.03, 0.5), np.array([True, True]), np.random.default_rng(7))
+    positions = np.zeros(2)
+    slip.apply(0.0, positions, positions)
+    samples = []
+    for k in range(1, 40001):
+        positions = positions + 0.1
+        slip.apply(k * 0.01, positions, positions)
+        samples.append(slip.slip[0])
+    s = np.array(samples[1000:])
+    assert abs(s.std() - 0.03) < 0.006
+    lag = 50  # one correlation time at 10 ms
+    correlation = np.corrcoef(s[:-lag], s[lag:])[0, 1]
+    assert abs(correlation - math.exp(-1.0)) < 0.1
+
+
+def test_slip_model_rejects_bad_settings():
+    with pytest.raises(ValueError, match="in \\[0, 0.5\\], not nan"):
+        SlipModel(float("nan"))
+    with pytest.raises(ValueError, match="positive number of seconds, not 0"):
+        SlipModel(0.01, 0.0)
+
+
+# ------------------------------------------------------------ collisions
+def test_driving_into_a_wall_is_one_collision_naming_it():
+    sim = make_sim(DATA / "box_room.sdf")
+    drive(sim, 0.4, 0.0)
+    run_for(sim, 2.0)
+    assert sim.take_collisions() == []  # the wheels and the caster on the ground are no collision
+    run_for(sim, 6.0)  # reaches the east wall (inner face at x = 2.0) and pushes on
+    collisions = sim.take_collisions()
+    assert len({c.obstacle for c in collisions}) >= 1
+    assert all(c.obstacle == "east" or "walls" in c.obstacle for c in collisions)
+    first = collisions[0]
+    assert abs(first.position[0] - 2.0) < 0.05
+    assert first.robot_part.startswith("ppp_bot/")
+    run_for(sim, 1.0)  # still pressed against it: the same episode, nothing new
+    assert sim.take_collisions() == []

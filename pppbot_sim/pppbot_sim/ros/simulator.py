@@ -1,6 +1,8 @@
 """``simulator``: the MuJoCo world as ROS 2 sees Gazebo plus its bridge.
 
-Publishes ``/clock``, ``/scan``, ``/imu``, ``/joint_states``, ``/ground_truth/odom``;
+Publishes ``/clock``, ``/scan``, ``/imu``, ``/joint_states``, ``/ground_truth/odom`` and
+``/ground_truth/collisions`` (a PointStamped in ``world`` where each contact episode
+between the robot and anything but the ground began);
 takes wheel velocity commands on ``/joint_commands`` (JointState, by name);
 services ``pause_physics``, ``unpause_physics``, ``reset_world`` (std_srvs/Empty)
 and ``step_physics`` (std_srvs/Trigger, ``step_count`` steps while paused).
@@ -18,6 +20,7 @@ from typing import Any
 
 import rclpy
 from builtin_interfaces.msg import Time as TimeMsg
+from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -35,6 +38,7 @@ from pppbot_sim.mj_build import SpawnPose
 from pppbot_sim.sdf_world import World
 from pppbot_sim.runner import PhysicsRunner, Reading
 from pppbot_sim.simulation import (
+    Collision,
     GroundTruth,
     ImuSample,
     LidarScan,
@@ -43,6 +47,7 @@ from pppbot_sim.simulation import (
     load_world,
     unsimulated_summary,
 )
+from pppbot_sim.wheel_slip import SlipModel
 from pppbot_sim.worlds import find_world, model_paths
 
 WARN_PERIOD_S = 5.0
@@ -62,7 +67,10 @@ class SimulatorParameters:
     z: float = param(0.05, "spawn z of the robot's root link (m); ppp_bot rests at 0.05")
     yaw: float = param(0.0, "spawn yaw (rad)")
     real_time_factor: float = param(1.0, "simulated seconds per wall second; 0 = as fast as possible")
-    seed: int = param(0, "seed of the sensor-noise generator")
+    seed: int = param(0, "seed of the sensor-noise and wheel-slip generators")
+    wheel_slip: float = param(0.0, "standard deviation of each wheel's slip fraction as its encoder reports it "
+                                   "(0.02 = 2 %); makes odometry drift; 0 = exact encoders")
+    wheel_slip_correlation: float = param(2.0, "how long a wheel's slip persists (sim s)")
     command_timeout: float = param(0.5, "wheels stop when no command came for this long (sim s); 0 = never")
     joint_states_rate: float = param(100.0, "/joint_states rate (Hz, sim time)")
     ground_truth_rate: float = param(50.0, "/ground_truth/odom rate (Hz, sim time)")
@@ -76,6 +84,8 @@ class SimulatorParameters:
             check_finite_range(name, getattr(self, name))
         check_finite_range("real_time_factor", self.real_time_factor, 0.0, 1000.0)
         check_finite_range("command_timeout", self.command_timeout, 0.0, 3600.0)
+        check_finite_range("wheel_slip", self.wheel_slip, 0.0, 0.5)
+        check_finite_range("wheel_slip_correlation", self.wheel_slip_correlation, 0.0, 3600.0, low_open=True)
         for name in ("joint_states_rate", "ground_truth_rate", "clock_rate"):
             check_finite_range(name, getattr(self, name), 0.0, 10000.0, low_open=True)
         if not 1 <= self.step_count <= 1_000_000:
@@ -99,13 +109,15 @@ class Simulator(Node):
         spec, world = load_world(world_file, model_paths(world_file))
         urdf, urdf_source = read_robot_description(p.robot_description)
         robot = parse_urdf(urdf, urdf_source)
-        self.sim = Simulation(spec, robot, SpawnPose(p.x, p.y, p.z, p.yaw), p.robot_name, p.seed)
+        self.sim = Simulation(spec, robot, SpawnPose(p.x, p.y, p.z, p.yaw), p.robot_name, p.seed,
+                              slip=SlipModel(p.wheel_slip, p.wheel_slip_correlation))
         self.root_frame = robot.root
         self._report_world(world_file, world)
 
         self.clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.joint_pub = self.create_publisher(JointState, "joint_states", 10)
         self.truth_pub = self.create_publisher(Odometry, "ground_truth/odom", 10)
+        self.collision_pub = self.create_publisher(PointStamped, "ground_truth/collisions", 100)
         self.scan_pubs = [self.create_publisher(LaserScan, lidar.spec.topic, 10) for lidar in self.sim.lidars]
         self.imu_pubs = [self.create_publisher(Imu, imu.spec.topic, 10) for imu in self.sim.imus]
         self.create_subscription(JointState, "joint_commands", guarded(self, self.on_joint_commands, "JointState"), 10)
@@ -129,6 +141,7 @@ class Simulator(Node):
     def _apply(self, params: SimulatorParameters) -> None:
         """Runtime updates: real_time_factor, command_timeout, step_count take effect now."""
         fixed = ("world", "robot_description", "robot_name", "x", "y", "z", "yaw", "seed",
+                 "wheel_slip", "wheel_slip_correlation",
                  "joint_states_rate", "ground_truth_rate", "clock_rate")
         changed = [n for n in fixed if getattr(params, n) != getattr(self.params, n)]
         if changed:
@@ -248,6 +261,8 @@ class Simulator(Node):
                 self._publish_scan(r.index, r.value)
             elif r.kind == "imu":
                 self._publish_imu(r.index, r.value)
+            elif r.kind == "collision":
+                self._publish_collision(r.value)
             self.published_s = r.stamp_s
 
     def _publish_joints(self, now_s: float, state: WheelState) -> None:
@@ -274,6 +289,15 @@ class Simulator(Node):
         set_stamp(msg.header.stamp, scan.stamp_s)
         msg.ranges = array.array("f", scan.ranges.tobytes())
         self.scan_pubs[index].publish(msg)
+
+    def _publish_collision(self, collision: Collision) -> None:
+        msg = PointStamped()
+        msg.header.frame_id = "world"
+        set_stamp(msg.header.stamp, collision.stamp_s)
+        msg.point.x, msg.point.y, msg.point.z = collision.position.tolist()
+        self.collision_pub.publish(msg)
+        self._warn("collision", f"collision at t = {collision.stamp_s:.2f} s: {collision.robot_part} touched "
+                                f"{collision.obstacle} at ({collision.position[0]:.2f}, {collision.position[1]:.2f})")
 
     def _publish_imu(self, index: int, sample: ImuSample) -> None:
         r, msg = sample.reading, self._imu_msgs[index]
