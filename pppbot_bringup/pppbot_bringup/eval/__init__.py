@@ -1,0 +1,1 @@
+"""Evaluation: scenarios, routes, metrics against the simulator's ground truth."""
