@@ -18,12 +18,12 @@ VERBS: dict[str, tuple[str, str]] = {
     "teleop": ("pppbot_bringup.teleop", "drive with the keyboard in this terminal (teleop_twist_keyboard's keys)"),
     "launch_sim": ("pppbot_bringup.ros.launch_sim", "the simulation bringup (name:=value arguments; --show-args)"),
     "bag": ("pppbot_bringup.bag.cli", "record, play, inspect and reindex rosbag2 (MCAP) bags (like `ros2 bag`)"),
+    "eval": ("pppbot_bringup.ros.eval", "run a headless scenario and measure it against ground truth"),
 }
 
 # Verbs of DESIGN.md that this checkout does not have yet: named, never faked.
 NOT_YET: dict[str, str] = {
     "map_saver": "saving /map as Nav2 YAML + PGM",
-    "eval": "evaluation scenarios",
 }
 
 # Handled by ./pppbot itself before Python starts; listed for --help.

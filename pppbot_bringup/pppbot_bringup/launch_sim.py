@@ -32,6 +32,8 @@ ARGUMENTS = [
     Argument("y", 0.0, "spawn y (m)"),
     Argument("z", 0.05, "spawn z of base_link (m); ppp_bot rests at 0.05"),
     Argument("yaw", 0.0, "spawn yaw (rad)"),
+    Argument("seed", 0, "seed of the simulator's sensor noise and wheel slip"),
+    Argument("wheel_slip", 0.0, "wheel slip as the encoders see it (0.02 = 2 %): odometry drifts like a real robot's"),
     Argument("log_level", "info", "log level of every node", choices=LOG_LEVELS),
     Argument("record", False, "record every topic (pppbot bag record -a, sim time) while the launch runs"),
     Argument("bag_path", "", "the bag directory for record:=true; default rosbag2_YYYY_MM_DD-HH_MM_SS here"),
@@ -77,6 +79,7 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
         NodeSpec("simulator", [resolve("pppbot_sim", "simulator"), *ros_args(level, {
             "world": world_file, "robot_description": urdf_file, "real_time_factor": values["real_time_factor"],
             "x": values["x"], "y": values["y"], "z": values["z"], "yaw": values["yaw"],
+            "seed": values["seed"], "wheel_slip": values["wheel_slip"],
             "viewer": not values["headless"]}, sim_time=False)],
             ready=ReadyCheck("a first /clock", probe("/clock", "rosgraph_msgs/msg/Clock", False)), required=True),
         NodeSpec("robot_state_publisher", [resolve("pppbot_description", "robot_state_publisher"),

@@ -114,6 +114,13 @@ def test_topic_hz_measures_the_rate(spawn, talker):
 
 
 def test_a_design_verb_not_built_yet_says_so_instead_of_pretending():
-    result = pppbot("eval", "drive")
+    result = pppbot("map_saver", "-f", "somewhere")
     assert result.returncode == 2
     assert "not built yet" in result.stderr and result.stdout == ""
+
+
+def test_an_eval_scenario_not_built_yet_names_what_it_needs():
+    result = pppbot("eval", "slam", "--json")
+    assert result.returncode == 2
+    assert "needs the SLAM node (pppbot_slam), which is not built yet" in result.stderr
+    assert result.stdout == ""

@@ -64,8 +64,8 @@ class RouteDriver:
     def _advance(self, xy: np.ndarray) -> None:
         """Move the route position to the closest point within the search window ahead."""
         s0, s1 = self.travelled_m, self.travelled_m + self.settings.search_window_m
-        first = int(max(np.searchsorted(self._cumulative, s0, side="right") - 1, 0))
-        last = int(min(np.searchsorted(self._cumulative, s1, side="right"), len(self._seg_len)))
+        first = max(int(np.searchsorted(self._cumulative, s0, side="right")) - 1, 0)
+        last = min(int(np.searchsorted(self._cumulative, s1, side="right")), len(self._seg_len))
         best_s, best_d = s0, math.inf
         for i in range(first, last):
             t = float(np.clip((xy - self.points[i]) @ self._seg_dir[i], 0.0, self._seg_len[i]))

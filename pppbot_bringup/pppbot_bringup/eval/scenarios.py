@@ -1,0 +1,101 @@
+"""Evaluation scenarios: what each one measures, from what a run recorded (no ROS here).
+
+A run records the simulator's ground truth, the estimate under test (a pose
+stream from TF), collisions and the route's progress into a :class:`Recording`;
+a scenario turns that into the report's metrics and plots.
+
+* ``drive``: drive a route with wheel slip; the estimate is wheel odometry
+  (``odom → base_link``), whose frame is the spawn pose: how far dead reckoning drifts.
+"""
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pppbot_bringup.eval.navigation import PPP_BOT_FOOTPRINT, clearance_along
+from pppbot_bringup.eval.report import plot_errors, plot_trajectories
+from pppbot_bringup.eval.routes import Route
+from pppbot_bringup.eval.trajectory import PoseSeries, absolute_trajectory_error, relative_pose_error
+from pppbot_common.maps import OccupancyGrid
+
+
+class Scenario(enum.Enum):
+    DRIVE = "drive"
+    SLAM = "slam"
+    LOCALIZATION = "localization"
+    NAVIGATION = "navigation"
+
+
+#: Scenarios whose stack is not in this checkout yet: named, never faked.
+NOT_BUILT = {
+    Scenario.SLAM: "the SLAM node (pppbot_slam)",
+    Scenario.LOCALIZATION: "map_server and AMCL (pppbot_nav)",
+    Scenario.NAVIGATION: "the planner, controller and navigator (pppbot_nav)",
+}
+
+@dataclass(frozen=True)
+class Estimate:
+    """Where the pose under test comes from: an Odometry ``topic``, or else the TF chain ``parent → child``."""
+
+    parent: str
+    child: str
+    topic: str | None = None
+
+
+#: The estimate each scenario measures. Wheel odometry is read from /odom, which carries
+#: the same pose as the odom → base_link transform: /tf also carries every wheel
+#: transform at the joint-state rate, which is a lot to listen to at 10× real time.
+ESTIMATES = {Scenario.DRIVE: Estimate("odom", "base_link", topic="/odom")}
+
+
+@dataclass
+class Recording:
+    """What a run saw; times are sim seconds."""
+
+    truth_rows: list[tuple[float, float, float, float]] = field(default_factory=list)
+    estimate_rows: list[tuple[float, float, float, float]] = field(default_factory=list)
+    collisions: list[tuple[float, float, float]] = field(default_factory=list)  # t, x, y
+    route_progress: float = 0.0
+    route_finished: bool = False
+    start_sim_s: float = 0.0
+    end_sim_s: float = 0.0
+    wall_seconds: float = 0.0
+    drive_wall_seconds: float = 0.0  # wall time of the scenario itself (without start and stop)
+    failure: str | None = None
+
+    @property
+    def sim_seconds(self) -> float:
+        return max(0.0, self.end_sim_s - self.start_sim_s)
+
+
+def drive_metrics(recording: Recording, route: Route, truth_map: OccupancyGrid, out: Path,
+                  title: str) -> dict[str, Any]:
+    """Odometry drift along the route: ATE, RPE, final error, clearance, collisions; writes the plots."""
+    truth = PoseSeries.from_rows(recording.truth_rows)
+    estimate = PoseSeries.from_rows(recording.estimate_rows)
+    metrics: dict[str, Any] = {
+        "route": route.name,
+        "route_length_m": round(route.length_m, 3),
+        "route_completed": recording.route_finished,
+        "route_progress": round(recording.route_progress, 4),
+        "distance_m": round(truth.path_length_m(), 3) if len(truth) else 0.0,
+        "collisions": len(recording.collisions),
+    }
+    if len(truth):
+        clearance = clearance_along(truth, truth_map, PPP_BOT_FOOTPRINT)
+        metrics["min_clearance_m"] = round(float(clearance.min()), 3)
+    if len(truth) < 2 or len(estimate) < 2:
+        metrics["failure_detail"] = f"too little data: {len(truth)} true poses, {len(estimate)} estimated poses"
+        return metrics
+    ate = absolute_trajectory_error(estimate, truth, route.start)
+    rpe = relative_pose_error(estimate, truth, route.start)
+    metrics.update(ate.as_dict("ate"))
+    metrics.update(rpe.as_dict("rpe"))
+    metrics["final_position_error_m"] = float(ate.position_error_m[-1])
+    metrics["final_yaw_error_rad"] = float(ate.yaw_error_rad[-1])
+    plot_trajectories(out / "trajectory.png", truth_map, truth, estimate.transformed(route.start),
+                      "wheel odometry", [(x, y) for _, x, y in recording.collisions], title)
+    plot_errors(out / "error.png", ate, title + " — odometry error")
+    return metrics

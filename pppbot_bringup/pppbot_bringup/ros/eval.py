@@ -1,0 +1,392 @@
+"""``pppbot eval <scenario>``: a headless scenario run against ground truth, with a report.
+
+    ./pppbot eval drive --world maze [--route coverage] [--real-time-factor 10] [--seed 0]
+                        [--wheel-slip 0.02] [--speed 0.3] [--out DIR] [--json]
+
+The stack starts through the same supervisor and node plan as ``launch_sim``
+(no teleop, no RViz, no viewer), spawned at the route's start. A route driver
+in this process follows the route on ground truth through ``/cmd_vel_teleop``
+(twist_mux's teleop input) while this process records ``/ground_truth/odom``,
+the estimate under test from ``/tf`` and ``/ground_truth/collisions``. Then the
+stack stops and the report is written: ``report.json`` and PNG plots in
+``--out``; with ``--json`` the last line of stdout is the report as one JSON
+object. Exit code 0 when the scenario succeeded, 1 when not, 2 for bad arguments.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from geometry_msgs.msg import PointStamped, Twist
+from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+from tf2_msgs.msg import TFMessage
+
+from pppbot_bringup.eval.driver import DriverSettings, RouteDriver
+from pppbot_bringup.eval.progress import Progress
+from pppbot_bringup.eval.report import write_json
+from pppbot_bringup.eval.routes import Route, RouteError, load_routes, routes_file, select_route
+from pppbot_bringup.eval.scenarios import ESTIMATES, NOT_BUILT, Estimate, Recording, Scenario, drive_metrics
+from pppbot_bringup.launch_sim import ARGUMENTS, plan
+from pppbot_bringup.ros.graph_probe import GraphProbe
+from pppbot_bringup.run import RunError, find_executable
+from pppbot_bringup.supervisor import Output, Supervisor
+from pppbot_common.launch_args import ArgumentError
+from pppbot_common.maps import OccupancyGrid
+from pppbot_common.ros.qos import DEFAULT, LATCHED
+from pppbot_common.se2 import yaw_from_quaternion
+from pppbot_common.transforms import TransformBuffer, TransformError
+from pppbot_description.errors import DescriptionError
+from pppbot_description.xacro_model import process_xacro
+from pppbot_sim.errors import WorldError
+from pppbot_sim.ground_truth import Bounds, ground_truth_map
+from pppbot_sim.simulation import load_world
+from pppbot_sim.worlds import find_world, model_paths
+
+READY_TIMEOUT_S = 120.0
+#: Wall seconds without a ground-truth message before the run is declared stuck.
+STALL_TIMEOUT_S = 30.0
+GROUND_TRUTH_RESOLUTION_M = 0.05
+LIDAR_HEIGHT_M = 0.2
+EMPTY_MARGIN_M = 3.0
+#: The route driver commands at 20 Hz of sim time, a teleop's or a controller's rate
+#: (every ground-truth message would be 500 commands a wall second at 10× real time).
+COMMAND_PERIOD_S = 0.05
+
+
+class EvalNode:
+    """Records ground truth, the estimate and collisions; drives the route on ground truth."""
+
+    def __init__(self, estimate: Estimate, driver: RouteDriver, recording: Recording) -> None:
+        self.context = rclpy.Context()
+        rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("pppbot_eval", context=self.context, start_parameter_services=False)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.estimate = estimate
+        self.driver = driver
+        self.recording = recording
+        self.tf = TransformBuffer(cache_s=30.0)
+        self.driving = False
+        self._next_command_s = 0.0
+        self.last_truth_wall_s = time.monotonic()
+        self.sim_now_s: float | None = None
+        self.cmd_pub = self.node.create_publisher(Twist, "/cmd_vel_teleop", DEFAULT)
+        self.node.create_subscription(Odometry, "/ground_truth/odom", self._on_truth, 100)
+        if estimate.topic is not None:
+            self.node.create_subscription(Odometry, estimate.topic, self._on_estimate, 100)
+        else:
+            self.node.create_subscription(TFMessage, "/tf", self._on_tf, 200)
+            self.node.create_subscription(TFMessage, "/tf_static", self._on_tf_static, LATCHED)
+        self.node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100)
+
+    def _on_truth(self, msg: Odometry) -> None:
+        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
+        self.sim_now_s = t
+        self.last_truth_wall_s = time.monotonic()
+        if not self.driving:
+            return
+        self.recording.truth_rows.append((t, p.x, p.y, yaw))
+        if t < self._next_command_s and not self.driver.finished:
+            return
+        self._next_command_s = t + COMMAND_PERIOD_S
+        v, w = self.driver.command(p.x, p.y, yaw)
+        self.cmd_pub.publish(Twist(linear=_vector(v), angular=_vector(0.0, 0.0, w)))
+        self.recording.route_progress = self.driver.progress
+        self.recording.route_finished = self.driver.finished
+
+    def _on_estimate(self, msg: Odometry) -> None:
+        if self.driving:
+            q = msg.pose.pose.orientation
+            self.recording.estimate_rows.append((msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9,
+                                                 msg.pose.pose.position.x, msg.pose.pose.position.y,
+                                                 yaw_from_quaternion(q.x, q.y, q.z, q.w)))
+
+    def _store(self, msg: TFMessage, static: bool) -> list[tuple[str, float]]:
+        children = []
+        for transform in msg.transforms:
+            parent = transform.header.frame_id.lstrip("/")
+            child = transform.child_frame_id.lstrip("/")
+            stamp = transform.header.stamp.sec + transform.header.stamp.nanosec * 1e-9
+            tr, q = transform.transform.translation, transform.transform.rotation
+            try:
+                self.tf.set_transform(parent, child, stamp, (tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)),
+                                      static)
+            except ValueError:
+                continue  # a non-finite transform is nobody's estimate
+            children.append((child, stamp))
+        return children
+
+    def _on_tf(self, msg: TFMessage) -> None:
+        for child, stamp in self._store(msg, static=False):
+            if self.driving and child == self.estimate.child:
+                try:
+                    x, y, yaw = self.tf.lookup(self.estimate.parent, child, stamp)
+                except TransformError:
+                    continue
+                self.recording.estimate_rows.append((stamp, x, y, yaw))
+
+    def _on_tf_static(self, msg: TFMessage) -> None:
+        self._store(msg, static=True)
+
+    def _on_collision(self, msg: PointStamped) -> None:
+        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        self.recording.collisions.append((t, msg.point.x, msg.point.y))
+
+    def stop_robot(self) -> None:
+        self.driving = False
+        for _ in range(3):
+            self.cmd_pub.publish(Twist())
+
+    def spin_once(self, timeout_s: float) -> None:
+        self.executor.spin_once(timeout_sec=timeout_s)
+
+    def close(self) -> None:
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def _vector(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Any:
+    from geometry_msgs.msg import Vector3
+    return Vector3(x=float(x), y=float(y), z=float(z))
+
+
+class Run:
+    """One scenario run: the stack under a supervisor thread, the eval node in this thread."""
+
+    def __init__(self, args: argparse.Namespace, scenario: Scenario, world_file: Path, route: Route,
+                 out: Path) -> None:
+        self.args = args
+        self.scenario = scenario
+        self.world_file = world_file
+        self.route = route
+        self.out = out
+        self.recording = Recording()
+        self.interrupted = False
+
+    def _values(self) -> dict[str, Any]:
+        values = {a.name: a.default for a in ARGUMENTS}
+        x, y, yaw = self.route.start
+        values.update(world=str(self.world_file), x=x, y=y, yaw=yaw, use_teleop=False, use_rviz=False,
+                      headless=True, record=False, real_time_factor=self.args.real_time_factor,
+                      seed=self.args.seed, wheel_slip=self.args.wheel_slip, log_level=self.args.log_level)
+        return values
+
+    def execute(self, progress: Progress) -> None:
+        urdf_file = self.out / "logs" / "robot.urdf"
+        urdf_file.parent.mkdir(parents=True, exist_ok=True)
+        urdf_file.write_text(process_xacro())
+        probe = GraphProbe()
+        try:
+            the_plan = plan(self._values(), self.world_file, urdf_file, lambda p, e: str(find_executable(p, e)),
+                            lambda topic, type_name, latched: probe.first_message(
+                                topic, type_name, LATCHED if latched else DEFAULT),
+                            terminal=False, rviz=None)
+            supervisor = Supervisor(the_plan.nodes, Output(sys.stderr, log_dir=self.out / "logs"))
+            self._run_stack(supervisor, [n.name for n in the_plan.nodes], probe, progress)
+        finally:
+            probe.close()
+
+    def _run_stack(self, supervisor: Supervisor, names: list[str], probe: GraphProbe, progress: Progress) -> None:
+        stop = threading.Event()
+        thread = threading.Thread(target=supervisor.run, kwargs={"until": stop.is_set}, name="supervisor")
+
+        def on_signal(signum: int, frame: object) -> None:
+            self.interrupted = True
+            stop.set()
+
+        previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+        driver = RouteDriver(self.route.points, DriverSettings(speed_mps=self.args.speed))
+        node = EvalNode(ESTIMATES[self.scenario], driver, self.recording)
+        wall0 = time.monotonic()
+        thread.start()
+        try:
+            progress.message(f"starting the stack in '{self.world_file.stem}' (logs in {self.out / 'logs'})")
+            if not self._wait_ready(supervisor, names, thread, node):
+                return
+            probe.close()
+            self._drive(node, thread, progress)
+        finally:
+            node.stop_robot()
+            node.spin_once(0.0)
+            self.recording.wall_seconds = time.monotonic() - wall0
+            stop.set()
+            thread.join()
+            node.close()
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+            progress.finish()
+
+    def _wait_ready(self, supervisor: Supervisor, names: list[str], thread: threading.Thread,
+                    node: EvalNode) -> bool:
+        deadline = time.monotonic() + READY_TIMEOUT_S
+        while not all(supervisor.is_ready(n) for n in names) or node.sim_now_s is None:
+            if self.interrupted:
+                self.recording.failure = "interrupted"
+                return False
+            if not thread.is_alive():
+                self.recording.failure = f"the stack stopped while starting (see {self.out / 'logs'})"
+                return False
+            if time.monotonic() > deadline:
+                waiting = [n for n in names if not supervisor.is_ready(n)] or ["/ground_truth/odom"]
+                self.recording.failure = f"not ready after {READY_TIMEOUT_S:.0f} s: {', '.join(waiting)}"
+                return False
+            node.spin_once(0.05)
+        return True
+
+    def _drive(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> None:
+        rec = self.recording
+        assert node.sim_now_s is not None
+        rec.start_sim_s = rec.end_sim_s = node.sim_now_s
+        limit_s = self.args.timeout or 2.5 * self.route.length_m / self.args.speed + 60.0
+        node.driving = True
+        drive_wall0 = time.monotonic()
+        while not node.driver.finished:
+            node.spin_once(0.05)
+            if node.sim_now_s is not None:
+                rec.end_sim_s = node.sim_now_s
+            elapsed = rec.sim_seconds
+            rtf = elapsed / max(time.monotonic() - drive_wall0, 1e-6)
+            progress.update(node.driver.progress, f"sim {elapsed:6.1f} s, {rtf:4.1f}x, "
+                                                  f"{node.driver.travelled_m:5.1f}/{node.driver.length_m:.1f} m")
+            rec.drive_wall_seconds = time.monotonic() - drive_wall0
+            if self.interrupted:
+                rec.failure = "interrupted"
+                return
+            if not thread.is_alive():
+                rec.failure = f"the stack stopped during the run (see {self.out / 'logs'})"
+                return
+            if elapsed > limit_s:
+                rec.failure = f"route not finished within {limit_s:.0f} sim seconds"
+                return
+            if time.monotonic() - node.last_truth_wall_s > STALL_TIMEOUT_S:
+                rec.failure = f"no ground truth for {STALL_TIMEOUT_S:.0f} s (the simulator stalled)"
+                return
+        progress.update(1.0, f"sim {rec.sim_seconds:6.1f} s")
+
+
+def truth_map_of(world_file: Path, route: Route) -> OccupancyGrid:
+    """The world's ground-truth grid; a world with nothing at lidar height gets the route's surroundings."""
+    spec, _ = load_world(world_file, model_paths(world_file))
+    model = spec.compile()
+    try:
+        return ground_truth_map(model, GROUND_TRUTH_RESOLUTION_M, LIDAR_HEIGHT_M)
+    except ValueError:
+        (x0, y0), (x1, y1) = route.points.min(axis=0) - EMPTY_MARGIN_M, route.points.max(axis=0) + EMPTY_MARGIN_M
+        return ground_truth_map(model, GROUND_TRUTH_RESOLUTION_M, LIDAR_HEIGHT_M, Bounds(x0, y0, x1, y1))
+
+
+def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
+    rec = run.recording
+    title = f"{run.scenario.value} in {run.world_file.stem}, route {run.route.name}"
+    metrics = drive_metrics(rec, run.route, truth_map, run.out, title) if rec.truth_rows else {}
+    failure = rec.failure
+    if failure is None and not rec.route_finished:
+        failure = "route not finished"
+    if failure is None and metrics.get("collisions", 0):
+        failure = f"{metrics['collisions']} collision(s)"
+    if failure is None and "failure_detail" in metrics:
+        failure = metrics.pop("failure_detail")
+    drive_wall = rec.drive_wall_seconds
+    result: dict[str, Any] = {
+        "scenario": run.scenario.value,
+        "world": run.world_file.stem,
+        "ok": failure is None,
+        "failure": failure,
+        "sim_seconds": round(rec.sim_seconds, 3),
+        "wall_seconds": round(rec.wall_seconds, 3),
+        "real_time_factor": round(rec.sim_seconds / drive_wall, 3) if drive_wall > 0 else None,
+        "target_real_time_factor": run.args.real_time_factor,
+        "seed": run.args.seed,
+        "wheel_slip": run.args.wheel_slip,
+        "speed_mps": run.args.speed,
+        **metrics,
+        "out": str(run.out),
+        "plots": sorted(p.name for p in run.out.glob("*.png")),
+    }
+    return result
+
+
+# ------------------------------------------------------------ command line
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.description = __doc__.strip().splitlines()[0]
+    parser.add_argument("scenario", choices=[s.value for s in Scenario],
+                        help="drive: odometry drift along a route; slam, localization, navigation: "
+                             "as their parts land")
+    parser.add_argument("--world", default="maze", help="world name or path (default maze)")
+    parser.add_argument("--route", default=None, help="route name in the world's routes file (default: the first)")
+    parser.add_argument("--route-file", type=Path, default=None,
+                        help="routes YAML (default <world>.routes.yaml next to the world)")
+    parser.add_argument("--real-time-factor", type=float, default=3.0,
+                        help="sim seconds per wall second (default 3: what the 100 Hz control loop keeps up "
+                             "with on 2 cores; 0 = as fast as possible)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of sensor noise and wheel slip (default 0)")
+    parser.add_argument("--wheel-slip", type=float, default=0.01,
+                        help="wheel slip standard deviation, fraction of travel (default 0.01)")
+    parser.add_argument("--speed", type=float, default=0.3, help="route driving speed in m/s (default 0.3)")
+    parser.add_argument("--timeout", type=float, default=None,
+                        help="give up after this many sim seconds (default 2.5 × route time + 60)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="report directory (default eval_<scenario>_<world>_YYYY_MM_DD-HH_MM_SS)")
+    parser.add_argument("--json", action="store_true", help="print the report as one JSON object on the last line")
+    parser.add_argument("--log-level", default="info", choices=("debug", "info", "warn", "error", "fatal"),
+                        help="log level of the stack's nodes (default info; their output goes to the log "
+                             "directory, warnings and errors also to stderr; below info, twist_mux's "
+                             "readiness line is not printed)")
+
+
+def _check(args: argparse.Namespace) -> None:
+    if not (math.isfinite(args.real_time_factor) and 0.0 <= args.real_time_factor <= 1000.0):
+        raise ArgumentError(f"--real-time-factor {args.real_time_factor}: must be in [0, 1000]")
+    if not (math.isfinite(args.speed) and 0.0 < args.speed <= 2.0):
+        raise ArgumentError(f"--speed {args.speed}: must be in (0, 2] m/s (the controller's limit)")
+    if not (math.isfinite(args.wheel_slip) and 0.0 <= args.wheel_slip <= 0.5):
+        raise ArgumentError(f"--wheel-slip {args.wheel_slip}: must be in [0, 0.5]")
+    if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
+        raise ArgumentError(f"--timeout {args.timeout}: must be a positive number of sim seconds")
+
+
+def main(args: argparse.Namespace) -> int:
+    scenario = Scenario(args.scenario)
+    if scenario in NOT_BUILT:
+        print(f"pppbot eval {scenario.value}: needs {NOT_BUILT[scenario]}, which is not built yet in this "
+              "checkout (README.md, 'Status')", file=sys.stderr)
+        return 2
+    try:
+        _check(args)
+        world_file = find_world(args.world)
+        route_path = args.route_file or routes_file(world_file)
+        route = select_route(load_routes(route_path), args.route, route_path)
+        out = args.out or Path(f"eval_{scenario.value}_{world_file.stem}_{time.strftime('%Y_%m_%d-%H_%M_%S')}")
+        if out.exists() and any(out.iterdir()):
+            raise ArgumentError(f"--out {out}: exists and is not empty; a report is never overwritten")
+        truth_map = truth_map_of(world_file, route)
+        find_executable("pppbot_sim", "simulator")
+    except (ArgumentError, RouteError, WorldError, DescriptionError, RunError, ValueError) as exc:
+        print(f"pppbot eval: {exc}", file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
+    os.environ["PYTHONUNBUFFERED"] = "1"
+    progress = Progress(sys.stderr, f"{scenario.value} {world_file.stem}/{route.name}")
+    run = Run(args, scenario, world_file, route, out)
+    run.execute(progress)
+    result = report(run, truth_map)
+    line = write_json(out / "report.json", result)
+    if args.json:
+        print(line)
+    else:
+        for key, value in result.items():
+            print(f"{key:>26}: {value}")
+    return 0 if result["ok"] else 1

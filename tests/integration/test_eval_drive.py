@@ -1,0 +1,61 @@
+"""``pppbot eval drive`` end to end in the box room: the real stack over DDS, its report read back."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any, Callable
+
+from PIL import Image
+
+from pppbot_common.process import ChildProcess
+
+ROOT = Path(__file__).resolve().parents[2]
+PPPBOT = str(ROOT / "pppbot")
+BOX_ROOM = str(ROOT / "tests" / "pppbot_sim" / "data" / "box_room.sdf")
+
+
+def run_eval(spawn: Callable[..., ChildProcess], out: Path, *extra: str) -> tuple[int, dict[str, Any], str]:
+    child = spawn([PPPBOT, "eval", "drive", "--world", BOX_ROOM, "--out", str(out), "--json", *extra], name="eval")
+    code = child.wait(timeout_s=240)
+    last_line = child.output.strip().splitlines()[-1]
+    return code, json.loads(last_line), child.output
+
+
+def test_drive_scenario_reports_odometry_drift_against_ground_truth(spawn, tmp_path: Path):
+    out = tmp_path / "report"
+    code, report, output = run_eval(spawn, out, "--seed", "3", "--wheel-slip", "0.03")
+    assert code == 0, output
+    # The last line of stdout is the whole report, as report.json holds it.
+    assert report == json.loads((out / "report.json").read_text())
+    assert report["scenario"] == "drive" and report["world"] == "box_room" and report["route"] == "loop"
+    assert report["ok"] is True and report["failure"] is None
+    assert report["route_completed"] is True and report["collisions"] == 0
+    # The 6.4 m loop at 0.3 m/s with turns on the spot: about 25 sim seconds.
+    assert 6.4 / 0.3 < report["sim_seconds"] < 120
+    assert report["wall_seconds"] > 0 and report["real_time_factor"] > 0
+    assert abs(report["distance_m"] - report["route_length_m"]) < 0.15 * report["route_length_m"]
+    # 1.2 m from every wall, less the chassis and the tracking error.
+    assert 0.6 < report["min_clearance_m"] < 1.2
+    # Slipping wheels: odometry drifts (not zero), but stays in the tens of centimetres.
+    assert 0.005 < report["ate_rms_m"] <= report["ate_max_m"] < 1.0
+    assert 0.0 < report["ate_yaw_rms_rad"] <= report["ate_yaw_max_rad"] < 1.0
+    assert report["rpe_segments"] > 100 and 0.0 < report["rpe_trans_mean_m_per_m"] < 0.5
+    assert math.isfinite(report["final_position_error_m"])
+    assert report["plots"] == ["error.png", "trajectory.png"]
+    for name in report["plots"]:
+        with Image.open(out / name) as image:
+            assert image.format == "PNG" and image.width > 400 and image.height > 300
+    assert (out / "logs" / "simulator-1.log").read_text().count("spawned at x=-0.8 y=-0.8") == 1
+    assert "process has died" not in output
+
+
+def test_driving_into_a_wall_counts_a_collision_and_fails(spawn, tmp_path: Path):
+    routes = tmp_path / "into_wall.routes.yaml"
+    routes.write_text("routes:\n  wall:\n    start: {x: 1.0, y: 0.0, yaw: 0.0}\n    waypoints: [[3.0, 0.0]]\n")
+    code, report, output = run_eval(spawn, tmp_path / "report", "--route-file", str(routes), "--timeout", "15")
+    assert code == 1, output
+    assert report["ok"] is False and report["route_completed"] is False
+    assert report["collisions"] >= 1
+    assert report["failure"].startswith("route not finished within 15")
+    assert report["min_clearance_m"] == 0.0
