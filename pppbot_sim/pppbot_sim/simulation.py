@@ -194,8 +194,7 @@ class Simulation:
         ground = np.isin(self.model.geom_type, (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD))
         self._robot_geom = robot_geoms
         self._obstacle_geom = ~robot_geoms & ~ground
-        # (robot body, obstacle geom) → last time seen touching (sim s); bounded by the pairs that exist
-        self._touching: dict[tuple[int, int], float] = {}
+        self._last_contact_s = -math.inf  # last time the robot touched an obstacle (sim s)
         self.collisions: list[Collision] = []
         # Views into MjData's buffers (each attribute access would build a new one).
         self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
@@ -244,26 +243,29 @@ class Simulation:
         return self.schedule.due(self.time_s, self.step_s)
 
     def _track_collisions(self) -> None:
-        """Append a :class:`Collision` for each (robot body, obstacle geom) pair that started touching.
+        """Append a :class:`Collision` when the robot starts touching anything but the ground.
 
-        Contacts of a robot pushing on a wall flicker from step to step; an episode ends
-        only after :data:`COLLISION_GAP_S` without contact.
+        One crash is one collision, however many bodies and walls it involves at once
+        (a corner is two walls); contacts of a robot pushing on a wall flicker from step
+        to step, so an episode ends only after :data:`COLLISION_GAP_S` without contact.
         """
         count = int(self.data.ncon)
+        if not count:
+            return
+        geoms = self.data.contact.geom[:count]
+        g1, g2 = geoms[:, 0], geoms[:, 1]
+        robot_first = self._robot_geom[g1] & self._obstacle_geom[g2]
+        hits = np.flatnonzero(robot_first | (self._robot_geom[g2] & self._obstacle_geom[g1]))
+        if not len(hits):
+            return
         now = self.time_s
-        if count:
-            contacts = self.data.contact
-            geoms = contacts.geom[:count]
-            g1, g2 = geoms[:, 0], geoms[:, 1]
-            robot_first = self._robot_geom[g1] & self._obstacle_geom[g2]
-            robot_second = self._robot_geom[g2] & self._obstacle_geom[g1]
-            for i in np.flatnonzero(robot_first | robot_second):
-                robot, obstacle = (g1[i], g2[i]) if robot_first[i] else (g2[i], g1[i])
-                key = (int(self.model.geom_bodyid[robot]), int(obstacle))
-                if now - self._touching.get(key, -math.inf) > COLLISION_GAP_S:
-                    self.collisions.append(Collision(now, contacts.pos[i].copy(),
-                                                     self.model.body(key[0]).name, self._geom_label(key[1])))
-                self._touching[key] = now
+        if now - self._last_contact_s > COLLISION_GAP_S:
+            i = int(hits[0])
+            robot, obstacle = (g1[i], g2[i]) if robot_first[i] else (g2[i], g1[i])
+            self.collisions.append(Collision(now, self.data.contact.pos[i].copy(),
+                                             self.model.body(int(self.model.geom_bodyid[robot])).name,
+                                             self._geom_label(int(obstacle))))
+        self._last_contact_s = now
 
     def _geom_label(self, geom: int) -> str:
         name = self.model.geom(geom).name
@@ -344,7 +346,7 @@ class Simulation:
         self.data.qacc_warmstart[:] = 0.0
         self.stop_wheels()
         self.slip.reset()
-        self._touching.clear()
+        self._last_contact_s = -math.inf
         mujoco.mj_forward(self.model, self.data)
 
     def reset_all(self) -> None:
@@ -354,7 +356,7 @@ class Simulation:
         self.data.qpos[:] = self._spawn_qpos
         self.data.time = time_s
         self.slip.reset()
-        self._touching.clear()
+        self._last_contact_s = -math.inf
         mujoco.mj_forward(self.model, self.data)
 
 

@@ -18,6 +18,10 @@ from dataclasses import dataclass
 import numpy as np
 
 
+#: Beyond this a wheel would now and then seem to turn backwards (1 + s < 0 at 5 sigma).
+MAX_SLIP_STDDEV = 0.2
+
+
 @dataclass(frozen=True)
 class SlipModel:
     """``slip_stddev``: standard deviation of the slip fraction (0.02 = 2 % of wheel travel);
@@ -27,8 +31,8 @@ class SlipModel:
     correlation_s: float = 2.0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.slip_stddev) and 0.0 <= self.slip_stddev <= 0.5):
-            raise ValueError(f"wheel slip standard deviation must be in [0, 0.5], not {self.slip_stddev}")
+        if not (math.isfinite(self.slip_stddev) and 0.0 <= self.slip_stddev <= MAX_SLIP_STDDEV):
+            raise ValueError(f"wheel slip standard deviation must be in [0, {MAX_SLIP_STDDEV}], not {self.slip_stddev}")
         if not (math.isfinite(self.correlation_s) and self.correlation_s > 0.0):
             raise ValueError(f"wheel slip correlation time must be a positive number of seconds, "
                              f"not {self.correlation_s}")

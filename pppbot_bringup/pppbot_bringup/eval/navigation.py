@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
+from shapely.geometry import box
+from shapely.ops import unary_union
 
 from pppbot_bringup.eval.map_quality import cells_of, grid_coordinates, in_grid, occupied_cells
 from pppbot_bringup.eval.trajectory import PoseLike, PoseSeries, se2_apply, wrap_angles
@@ -90,7 +92,19 @@ class Footprint:
 
 
 #: ppp_bot's chassis in base_link: x −0.1 … 0.2 m, y −0.15 … 0.15 m.
-PPP_BOT_FOOTPRINT = Footprint.rectangle(-0.1, 0.2, -0.15, 0.15)
+def _ppp_bot_outline() -> Footprint:
+    """ppp_bot seen from above in base_link: the chassis box and the two wheels sticking out of its sides."""
+    chassis = box(-0.1, -0.15, 0.2, 0.15)
+    # The 5 mm between chassis and wheel (y 0.15 to 0.155) is filled: one outline, nothing fits there.
+    wheels = [box(-0.05, 0.15, 0.05, 0.195), box(-0.05, -0.195, 0.05, -0.15)]
+    outline = unary_union([chassis, *wheels])
+    return Footprint(np.asarray(outline.exterior.coords)[:-1])
+
+
+#: chassis 0.3 × 0.3 m from x = −0.1 to 0.2, wheels r 0.05 m, 0.04 m wide at y = ±0.175
+PPP_BOT_FOOTPRINT = _ppp_bot_outline()
+#: Poses per batch in :func:`clearance_along` (bounds memory on long runs).
+CLEARANCE_BATCH = 4096
 
 
 def clearance_along(poses: PoseSeries, truth: OccupancyGrid, footprint: Footprint,
@@ -110,7 +124,14 @@ def clearance_along(poses: PoseSeries, truth: OccupancyGrid, footprint: Footprin
     if not occupied.any():
         return np.full(len(poses), np.inf)
     distance_m = ndimage.distance_transform_edt(~occupied, sampling=truth.resolution)
-    points = se2_apply(poses.poses[:, None, :], footprint.perimeter_points(spacing_m)[None, :, :])  # (N, M, 2)
+    outline = footprint.perimeter_points(spacing_m)
+    return np.concatenate([_clearance(poses.poses[i:i + CLEARANCE_BATCH], outline, truth, occupied, distance_m)
+                           for i in range(0, len(poses), CLEARANCE_BATCH)])
+
+
+def _clearance(poses: np.ndarray, outline: np.ndarray, truth: OccupancyGrid, occupied: np.ndarray,
+               distance_m: np.ndarray) -> np.ndarray:
+    points = se2_apply(poses[:, None, :], outline[None, :, :])  # (N, M, 2)
     row, col = grid_coordinates(truth, points)
     sampled = ndimage.map_coordinates(distance_m, [row.ravel() - 0.5, col.ravel() - 0.5], order=1, mode="nearest")
     clearance = np.clip(sampled.reshape(row.shape) - truth.resolution / 2.0, 0.0, None)

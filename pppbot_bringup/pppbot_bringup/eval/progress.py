@@ -20,8 +20,9 @@ class Progress:
         self._next_plain = 0.0
         self._open_line = False
 
-    def update(self, fraction: float, detail: str = "") -> None:
-        """Show ``fraction`` (0–1) done; throttled, so it can be called on every message."""
+    def update(self, fraction: float, detail: str | Callable[[], str] = "") -> None:
+        """Show ``fraction`` (0–1) done; throttled, so it can be called on every message
+        (``detail`` may be a callable, formatted only when something is drawn)."""
         fraction = min(max(fraction, 0.0), 1.0)
         if self.terminal:
             now = self.clock()
@@ -30,10 +31,10 @@ class Progress:
             self._drawn_at = now
             filled = int(round(fraction * BAR_WIDTH))
             bar = "#" * filled + "." * (BAR_WIDTH - filled)
-            self._write(f"\r{self.label} [{bar}] {fraction * 100:5.1f}% {detail}\033[K")
+            self._write(f"\r{self.label} [{bar}] {fraction * 100:5.1f}% {_text(detail)}\033[K")
             self._open_line = True
         elif fraction >= self._next_plain:
-            self._write(f"{self.label}: {fraction * 100:.0f}% {detail}\n")
+            self._write(f"{self.label}: {fraction * 100:.0f}% {_text(detail)}\n")
             self._next_plain = (int(fraction / PLAIN_STEP + 1e-9) + 1) * PLAIN_STEP
 
     def message(self, text: str) -> None:
@@ -53,3 +54,7 @@ class Progress:
             self.stream.flush()
         except (OSError, ValueError):
             pass
+
+
+def _text(detail: str | Callable[[], str]) -> str:
+    return detail() if callable(detail) else detail

@@ -79,7 +79,10 @@ def _route(name: str, body: Any, where: str) -> Route:
         if not isinstance(point, list) or len(point) != 2:
             raise RouteError(f"{where}.waypoints[{i}]: must be [x, y], not {point!r}")
         rows.append([_number(v, f"{where}.waypoints[{i}]") for v in point])
-    return Route(name, (pose[0], pose[1], pose[2]), np.array(rows), str(body.get("description", "")))
+    route = Route(name, (pose[0], pose[1], pose[2]), np.array(rows), str(body.get("description", "")))
+    if route.length_m <= 1e-9:
+        raise RouteError(f"{where}.waypoints: every waypoint is the start; a route must go somewhere")
+    return route
 
 
 def load_routes(path: Path) -> list[Route]:

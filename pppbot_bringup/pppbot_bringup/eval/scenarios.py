@@ -17,7 +17,12 @@ from typing import Any
 from pppbot_bringup.eval.navigation import PPP_BOT_FOOTPRINT, clearance_along
 from pppbot_bringup.eval.report import plot_errors, plot_trajectories
 from pppbot_bringup.eval.routes import Route
-from pppbot_bringup.eval.trajectory import PoseSeries, absolute_trajectory_error, relative_pose_error
+from pppbot_bringup.eval.trajectory import (
+    PoseSeries,
+    absolute_trajectory_error,
+    compose_chain,
+    relative_pose_error,
+)
 from pppbot_common.maps import OccupancyGrid
 
 
@@ -37,17 +42,20 @@ NOT_BUILT = {
 
 @dataclass(frozen=True)
 class Estimate:
-    """Where the pose under test comes from: an Odometry ``topic``, or else the TF chain ``parent → child``."""
+    """Where the pose under test comes from: an Odometry ``topic``, or else the TF chain ``frames``
+    (e.g. map, odom, base_link), whose edges are recorded from /tf and composed afterwards."""
 
-    parent: str
-    child: str
+    frames: tuple[str, ...]
     topic: str | None = None
+
+    def edges(self) -> list[tuple[str, str]]:
+        return list(zip(self.frames[:-1], self.frames[1:]))
 
 
 #: The estimate each scenario measures. Wheel odometry is read from /odom, which carries
 #: the same pose as the odom → base_link transform: /tf also carries every wheel
 #: transform at the joint-state rate, which is a lot to listen to at 10× real time.
-ESTIMATES = {Scenario.DRIVE: Estimate("odom", "base_link", topic="/odom")}
+ESTIMATES = {Scenario.DRIVE: Estimate(("odom", "base_link"), topic="/odom")}
 
 
 @dataclass
@@ -55,7 +63,8 @@ class Recording:
     """What a run saw; times are sim seconds."""
 
     truth_rows: list[tuple[float, float, float, float]] = field(default_factory=list)
-    estimate_rows: list[tuple[float, float, float, float]] = field(default_factory=list)
+    estimate_rows: list[tuple[float, float, float, float]] = field(default_factory=list)  # from a topic
+    edge_rows: dict[tuple[str, str], list[tuple[float, float, float, float]]] = field(default_factory=dict)  # /tf
     collisions: list[tuple[float, float, float]] = field(default_factory=list)  # t, x, y
     route_progress: float = 0.0
     route_finished: bool = False
@@ -70,11 +79,32 @@ class Recording:
         return max(0.0, self.end_sim_s - self.start_sim_s)
 
 
+def estimate_series(recording: Recording, estimate: Estimate) -> PoseSeries:
+    """The estimated pose stream: the topic's poses, or the TF chain composed at the innermost edge's stamps.
+
+    Raises:
+        PoseSeriesError: an edge of the chain was never received.
+    """
+    if estimate.topic is not None:
+        return PoseSeries.from_rows(recording.estimate_rows)
+    edges = [PoseSeries.from_rows(recording.edge_rows.get(edge, [])) for edge in estimate.edges()]
+    series = edges[-1]
+    for outer in reversed(edges[:-1]):
+        series = compose_chain(outer, series)
+    return series
+
+
 def drive_metrics(recording: Recording, route: Route, truth_map: OccupancyGrid, out: Path,
-                  title: str) -> dict[str, Any]:
-    """Odometry drift along the route: ATE, RPE, final error, clearance, collisions; writes the plots."""
+                  title: str) -> tuple[dict[str, Any], str | None]:
+    """Odometry drift along the route: ATE, RPE, final error, clearance, collisions; writes the plots.
+
+    Returns the metrics and what kept some of them from being measured (None: nothing).
+
+    Raises:
+        PoseSeriesError: the recorded streams do not overlap in time.
+    """
     truth = PoseSeries.from_rows(recording.truth_rows)
-    estimate = PoseSeries.from_rows(recording.estimate_rows)
+    estimate = estimate_series(recording, ESTIMATES[Scenario.DRIVE])
     metrics: dict[str, Any] = {
         "route": route.name,
         "route_length_m": round(route.length_m, 3),
@@ -87,8 +117,7 @@ def drive_metrics(recording: Recording, route: Route, truth_map: OccupancyGrid, 
         clearance = clearance_along(truth, truth_map, PPP_BOT_FOOTPRINT)
         metrics["min_clearance_m"] = round(float(clearance.min()), 3)
     if len(truth) < 2 or len(estimate) < 2:
-        metrics["failure_detail"] = f"too little data: {len(truth)} true poses, {len(estimate)} estimated poses"
-        return metrics
+        return metrics, f"too little data: {len(truth)} true poses, {len(estimate)} estimated poses"
     ate = absolute_trajectory_error(estimate, truth, route.start)
     rpe = relative_pose_error(estimate, truth, route.start)
     metrics.update(ate.as_dict("ate"))
@@ -98,4 +127,4 @@ def drive_metrics(recording: Recording, route: Route, truth_map: OccupancyGrid, 
     plot_trajectories(out / "trajectory.png", truth_map, truth, estimate.transformed(route.start),
                       "wheel odometry", [(x, y) for _, x, y in recording.collisions], title)
     plot_errors(out / "error.png", ate, title + " — odometry error")
-    return metrics
+    return metrics, None

@@ -258,6 +258,29 @@ class TrajectoryError:
                 f"{prefix}_samples": self.samples}
 
 
+def compose_chain(outer: PoseSeries, inner: PoseSeries) -> PoseSeries:
+    """``outer ∘ inner`` at the inner series' stamps: e.g. map → odom composed with odom → base_link.
+
+    The outer transform is interpolated at each inner stamp within its span (a single
+    outer sample holds for all times, like a static transform); inner samples outside the
+    outer span are left out, as tf2 refuses to extrapolate.
+
+    Raises:
+        PoseSeriesError: either series is empty.
+    """
+    if not len(outer) or not len(inner):
+        raise PoseSeriesError(f"cannot compose an empty series ({len(outer)} outer, {len(inner)} inner poses)")
+    if len(outer) == 1:
+        t = inner.t_s
+        at = np.repeat(outer.poses, len(t), axis=0)
+    else:
+        t = inner.t_s[(inner.t_s >= outer.t_s[0]) & (inner.t_s <= outer.t_s[-1])]
+        at = outer.interpolate(t).poses
+    keep = np.isin(inner.t_s, t)
+    composed = se2_compose(at, inner.poses[keep])
+    return PoseSeries(t, composed[:, :2], composed[:, 2])
+
+
 def absolute_trajectory_error(estimate: PoseSeries, truth: PoseSeries, estimate_to_world: PoseLike = (0.0, 0.0, 0.0),
                               max_gap_s: float = 0.1) -> TrajectoryError:
     """ATE of ``estimate`` (in its own frame) against ``truth`` (in the world), without alignment.

@@ -7,7 +7,8 @@ The stack starts through the same supervisor and node plan as ``launch_sim``
 (no teleop, no RViz, no viewer), spawned at the route's start. A route driver
 in this process follows the route on ground truth through ``/cmd_vel_teleop``
 (twist_mux's teleop input) while this process records ``/ground_truth/odom``,
-the estimate under test from ``/tf`` and ``/ground_truth/collisions``. Then the
+the estimate under test (``/odom`` for ``drive``; a ``/tf`` chain such as map → odom →
+base_link for mapping and localization) and ``/ground_truth/collisions``. Then the
 stack stops and the report is written: ``report.json`` and PNG plots in
 ``--out``; with ``--json`` the last line of stdout is the report as one JSON
 object. Exit code 0 when the scenario succeeded, 1 when not, 2 for bad arguments.
@@ -25,7 +26,8 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
-from geometry_msgs.msg import PointStamped, Twist
+from builtin_interfaces.msg import Time as TimeMsg
+from geometry_msgs.msg import PointStamped, Twist, Vector3
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
@@ -40,16 +42,17 @@ from pppbot_bringup.launch_sim import ARGUMENTS, plan
 from pppbot_bringup.ros.graph_probe import GraphProbe
 from pppbot_bringup.run import RunError, find_executable
 from pppbot_bringup.supervisor import Output, Supervisor
+from pppbot_common.errors import PppbotError
 from pppbot_common.launch_args import ArgumentError
 from pppbot_common.maps import OccupancyGrid
 from pppbot_common.ros.qos import DEFAULT, LATCHED
 from pppbot_common.se2 import yaw_from_quaternion
-from pppbot_common.transforms import TransformBuffer, TransformError
 from pppbot_description.errors import DescriptionError
 from pppbot_description.xacro_model import process_xacro
 from pppbot_sim.errors import WorldError
 from pppbot_sim.ground_truth import Bounds, ground_truth_map
 from pppbot_sim.simulation import load_world
+from pppbot_sim.wheel_slip import MAX_SLIP_STDDEV
 from pppbot_sim.worlds import find_world, model_paths
 
 READY_TIMEOUT_S = 120.0
@@ -61,6 +64,7 @@ EMPTY_MARGIN_M = 3.0
 #: The route driver commands at 20 Hz of sim time, a teleop's or a controller's rate
 #: (every ground-truth message would be 500 commands a wall second at 10× real time).
 COMMAND_PERIOD_S = 0.05
+MAX_CALLBACKS_PER_SPIN = 100
 
 
 class EvalNode:
@@ -75,7 +79,7 @@ class EvalNode:
         self.estimate = estimate
         self.driver = driver
         self.recording = recording
-        self.tf = TransformBuffer(cache_s=30.0)
+        self.wanted_edges = set(estimate.edges())
         self.driving = False
         self._next_command_s = 0.0
         self.last_truth_wall_s = time.monotonic()
@@ -86,11 +90,11 @@ class EvalNode:
             self.node.create_subscription(Odometry, estimate.topic, self._on_estimate, 100)
         else:
             self.node.create_subscription(TFMessage, "/tf", self._on_tf, 200)
-            self.node.create_subscription(TFMessage, "/tf_static", self._on_tf_static, LATCHED)
+            self.node.create_subscription(TFMessage, "/tf_static", self._keep_edges, LATCHED)
         self.node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100)
 
     def _on_truth(self, msg: Odometry) -> None:
-        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        t = stamp_seconds(msg.header.stamp)
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
         self.sim_now_s = t
@@ -109,39 +113,25 @@ class EvalNode:
     def _on_estimate(self, msg: Odometry) -> None:
         if self.driving:
             q = msg.pose.pose.orientation
-            self.recording.estimate_rows.append((msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9,
-                                                 msg.pose.pose.position.x, msg.pose.pose.position.y,
+            p = msg.pose.pose.position
+            self.recording.estimate_rows.append((stamp_seconds(msg.header.stamp), p.x, p.y,
                                                  yaw_from_quaternion(q.x, q.y, q.z, q.w)))
 
-    def _store(self, msg: TFMessage, static: bool) -> list[tuple[str, float]]:
-        children = []
-        for transform in msg.transforms:
-            parent = transform.header.frame_id.lstrip("/")
-            child = transform.child_frame_id.lstrip("/")
-            stamp = transform.header.stamp.sec + transform.header.stamp.nanosec * 1e-9
-            tr, q = transform.transform.translation, transform.transform.rotation
-            try:
-                self.tf.set_transform(parent, child, stamp, (tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)),
-                                      static)
-            except ValueError:
-                continue  # a non-finite transform is nobody's estimate
-            children.append((child, stamp))
-        return children
-
     def _on_tf(self, msg: TFMessage) -> None:
-        for child, stamp in self._store(msg, static=False):
-            if self.driving and child == self.estimate.child:
-                try:
-                    x, y, yaw = self.tf.lookup(self.estimate.parent, child, stamp)
-                except TransformError:
-                    continue
-                self.recording.estimate_rows.append((stamp, x, y, yaw))
+        if self.driving:
+            self._keep_edges(msg)
 
-    def _on_tf_static(self, msg: TFMessage) -> None:
-        self._store(msg, static=True)
+    def _keep_edges(self, msg: TFMessage) -> None:
+        """Keep the estimate chain's edges; they are composed after the run (no extrapolation)."""
+        for transform in msg.transforms:
+            edge = (transform.header.frame_id.lstrip("/"), transform.child_frame_id.lstrip("/"))
+            if edge in self.wanted_edges:
+                tr, q = transform.transform.translation, transform.transform.rotation
+                self.recording.edge_rows.setdefault(edge, []).append(
+                    (stamp_seconds(transform.header.stamp), tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)))
 
     def _on_collision(self, msg: PointStamped) -> None:
-        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        t = stamp_seconds(msg.header.stamp)
         self.recording.collisions.append((t, msg.point.x, msg.point.y))
 
     def stop_robot(self) -> None:
@@ -152,14 +142,26 @@ class EvalNode:
     def spin_once(self, timeout_s: float) -> None:
         self.executor.spin_once(timeout_sec=timeout_s)
 
+    def spin_pending(self, timeout_s: float, limit: int = MAX_CALLBACKS_PER_SPIN) -> None:
+        """Wait up to ``timeout_s`` for work, then run what is ready (one callback per spin_once)."""
+        self.executor.spin_once(timeout_sec=timeout_s)
+        for _ in range(limit):
+            before = self.sim_now_s, len(self.recording.estimate_rows), len(self.recording.collisions)
+            self.executor.spin_once(timeout_sec=0.0)
+            if (self.sim_now_s, len(self.recording.estimate_rows), len(self.recording.collisions)) == before:
+                break
+
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
 
 
-def _vector(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Any:
-    from geometry_msgs.msg import Vector3
+def stamp_seconds(stamp: TimeMsg) -> float:
+    return float(stamp.sec) + stamp.nanosec * 1e-9
+
+
+def _vector(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Vector3:
     return Vector3(x=float(x), y=float(y), z=float(z))
 
 
@@ -175,6 +177,12 @@ class Run:
         self.out = out
         self.recording = Recording()
         self.interrupted = False
+        self.stop = threading.Event()
+
+    def interrupt(self, signum: int, frame: object) -> None:
+        """Signal handler (installed by :func:`main` for the whole run): stop, then report."""
+        self.interrupted = True
+        self.stop.set()
 
     def _values(self) -> dict[str, Any]:
         values = {a.name: a.default for a in ARGUMENTS}
@@ -190,24 +198,22 @@ class Run:
         urdf_file.write_text(process_xacro())
         probe = GraphProbe()
         try:
-            the_plan = plan(self._values(), self.world_file, urdf_file, lambda p, e: str(find_executable(p, e)),
-                            lambda topic, type_name, latched: probe.first_message(
-                                topic, type_name, LATCHED if latched else DEFAULT),
-                            terminal=False, rviz=None)
+            try:
+                the_plan = plan(self._values(), self.world_file, urdf_file,
+                                lambda p, e: str(find_executable(p, e)),
+                                lambda topic, type_name, latched: probe.first_message(
+                                    topic, type_name, LATCHED if latched else DEFAULT),
+                                terminal=False, rviz=None)
+            except (ArgumentError, RunError) as exc:
+                self.recording.failure = f"cannot start the stack: {exc}"
+                return
             supervisor = Supervisor(the_plan.nodes, Output(sys.stderr, log_dir=self.out / "logs"))
             self._run_stack(supervisor, [n.name for n in the_plan.nodes], probe, progress)
         finally:
             probe.close()
 
     def _run_stack(self, supervisor: Supervisor, names: list[str], probe: GraphProbe, progress: Progress) -> None:
-        stop = threading.Event()
-        thread = threading.Thread(target=supervisor.run, kwargs={"until": stop.is_set}, name="supervisor")
-
-        def on_signal(signum: int, frame: object) -> None:
-            self.interrupted = True
-            stop.set()
-
-        previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+        thread = threading.Thread(target=supervisor.run, kwargs={"until": self.stop.is_set}, name="supervisor")
         driver = RouteDriver(self.route.points, DriverSettings(speed_mps=self.args.speed))
         node = EvalNode(ESTIMATES[self.scenario], driver, self.recording)
         wall0 = time.monotonic()
@@ -222,11 +228,9 @@ class Run:
             node.stop_robot()
             node.spin_once(0.0)
             self.recording.wall_seconds = time.monotonic() - wall0
-            stop.set()
+            self.stop.set()
             thread.join()
             node.close()
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
             progress.finish()
 
     def _wait_ready(self, supervisor: Supervisor, names: list[str], thread: threading.Thread,
@@ -248,19 +252,18 @@ class Run:
 
     def _drive(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> None:
         rec = self.recording
-        assert node.sim_now_s is not None
-        rec.start_sim_s = rec.end_sim_s = node.sim_now_s
+        rec.start_sim_s = rec.end_sim_s = node.sim_now_s or 0.0
         limit_s = self.args.timeout or 2.5 * self.route.length_m / self.args.speed + 60.0
         node.driving = True
         drive_wall0 = time.monotonic()
         while not node.driver.finished:
-            node.spin_once(0.05)
+            node.spin_pending(0.05)
             if node.sim_now_s is not None:
                 rec.end_sim_s = node.sim_now_s
             elapsed = rec.sim_seconds
             rtf = elapsed / max(time.monotonic() - drive_wall0, 1e-6)
-            progress.update(node.driver.progress, f"sim {elapsed:6.1f} s, {rtf:4.1f}x, "
-                                                  f"{node.driver.travelled_m:5.1f}/{node.driver.length_m:.1f} m")
+            progress.update(node.driver.progress, lambda: f"sim {elapsed:6.1f} s, {rtf:4.1f}x, "
+                            f"{node.driver.travelled_m:5.1f}/{node.driver.length_m:.1f} m")
             rec.drive_wall_seconds = time.monotonic() - drive_wall0
             if self.interrupted:
                 rec.failure = "interrupted"
@@ -291,14 +294,19 @@ def truth_map_of(world_file: Path, route: Route) -> OccupancyGrid:
 def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     rec = run.recording
     title = f"{run.scenario.value} in {run.world_file.stem}, route {run.route.name}"
-    metrics = drive_metrics(rec, run.route, truth_map, run.out, title) if rec.truth_rows else {}
+    metrics: dict[str, Any] = {}
+    problem = None
+    if rec.truth_rows:
+        try:
+            metrics, problem = drive_metrics(rec, run.route, truth_map, run.out, title)
+        except (PppbotError, ValueError, OSError) as exc:
+            problem = f"metrics: {exc}"
     failure = rec.failure
     if failure is None and not rec.route_finished:
         failure = "route not finished"
     if failure is None and metrics.get("collisions", 0):
         failure = f"{metrics['collisions']} collision(s)"
-    if failure is None and "failure_detail" in metrics:
-        failure = metrics.pop("failure_detail")
+    failure = failure or problem
     drive_wall = rec.drive_wall_seconds
     result: dict[str, Any] = {
         "scenario": run.scenario.value,
@@ -352,8 +360,10 @@ def _check(args: argparse.Namespace) -> None:
         raise ArgumentError(f"--real-time-factor {args.real_time_factor}: must be in [0, 1000]")
     if not (math.isfinite(args.speed) and 0.0 < args.speed <= 2.0):
         raise ArgumentError(f"--speed {args.speed}: must be in (0, 2] m/s (the controller's limit)")
-    if not (math.isfinite(args.wheel_slip) and 0.0 <= args.wheel_slip <= 0.5):
-        raise ArgumentError(f"--wheel-slip {args.wheel_slip}: must be in [0, 0.5]")
+    if not (math.isfinite(args.wheel_slip) and 0.0 <= args.wheel_slip <= MAX_SLIP_STDDEV):
+        raise ArgumentError(f"--wheel-slip {args.wheel_slip}: must be in [0, {MAX_SLIP_STDDEV}]")
+    if args.seed < 0:
+        raise ArgumentError(f"--seed {args.seed}: must be a non-negative integer")
     if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
         raise ArgumentError(f"--timeout {args.timeout}: must be a positive number of sim seconds")
 
@@ -370,23 +380,33 @@ def main(args: argparse.Namespace) -> int:
         route_path = args.route_file or routes_file(world_file)
         route = select_route(load_routes(route_path), args.route, route_path)
         out = args.out or Path(f"eval_{scenario.value}_{world_file.stem}_{time.strftime('%Y_%m_%d-%H_%M_%S')}")
-        if out.exists() and any(out.iterdir()):
-            raise ArgumentError(f"--out {out}: exists and is not empty; a report is never overwritten")
+        if out.exists() and (not out.is_dir() or any(out.iterdir())):
+            raise ArgumentError(f"--out {out}: exists and is not an empty directory; a report is never overwritten")
         truth_map = truth_map_of(world_file, route)
-        find_executable("pppbot_sim", "simulator")
-    except (ArgumentError, RouteError, WorldError, DescriptionError, RunError, ValueError) as exc:
+        out.mkdir(parents=True, exist_ok=True)
+    except (ArgumentError, RouteError, WorldError, DescriptionError, ValueError) as exc:
         print(f"pppbot eval: {exc}", file=sys.stderr)
         return 2
-    out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"pppbot eval: --out {exc.filename or out}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
     os.environ["PYTHONUNBUFFERED"] = "1"
     progress = Progress(sys.stderr, f"{scenario.value} {world_file.stem}/{route.name}")
     run = Run(args, scenario, world_file, route, out)
-    run.execute(progress)
-    result = report(run, truth_map)
-    line = write_json(out / "report.json", result)
+    # Ctrl-C, SIGTERM, SIGHUP: stop the stack and still write the report.
+    previous = {s: signal.signal(s, run.interrupt) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    try:
+        run.execute(progress)
+        result = report(run, truth_map)
+        line = write_json(out / "report.json", result)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     if args.json:
         print(line)
     else:
         for key, value in result.items():
             print(f"{key:>26}: {value}")
+    if run.interrupted:
+        return 130
     return 0 if result["ok"] else 1

@@ -47,7 +47,7 @@ from pppbot_sim.simulation import (
     load_world,
     unsimulated_summary,
 )
-from pppbot_sim.wheel_slip import SlipModel
+from pppbot_sim.wheel_slip import MAX_SLIP_STDDEV, SlipModel
 from pppbot_sim.worlds import find_world, model_paths
 
 WARN_PERIOD_S = 5.0
@@ -84,7 +84,7 @@ class SimulatorParameters:
             check_finite_range(name, getattr(self, name))
         check_finite_range("real_time_factor", self.real_time_factor, 0.0, 1000.0)
         check_finite_range("command_timeout", self.command_timeout, 0.0, 3600.0)
-        check_finite_range("wheel_slip", self.wheel_slip, 0.0, 0.5)
+        check_finite_range("wheel_slip", self.wheel_slip, 0.0, MAX_SLIP_STDDEV)
         check_finite_range("wheel_slip_correlation", self.wheel_slip_correlation, 0.0, 3600.0, low_open=True)
         for name in ("joint_states_rate", "ground_truth_rate", "clock_rate"):
             check_finite_range(name, getattr(self, name), 0.0, 10000.0, low_open=True)

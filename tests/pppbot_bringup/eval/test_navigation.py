@@ -47,9 +47,14 @@ def test_circle_perimeter_is_on_the_circle():
     assert np.allclose(np.linalg.norm(points, axis=1), 0.2, atol=1e-5)
 
 
-def test_ppp_bot_footprint_is_its_chassis():
-    assert PPP_BOT_FOOTPRINT.vertices_xy.min(axis=0).tolist() == [-0.1, -0.15]
-    assert PPP_BOT_FOOTPRINT.vertices_xy.max(axis=0).tolist() == [0.2, 0.15]
+def test_ppp_bot_footprint_is_its_chassis_and_wheels():
+    vertices = PPP_BOT_FOOTPRINT.vertices_xy
+    assert vertices.min(axis=0) == pytest.approx([-0.1, -0.195])
+    assert vertices.max(axis=0) == pytest.approx([0.2, 0.195])
+    # The wheels stick out of the chassis' sides between x = -0.05 and 0.05 only.
+    corners = {(round(x, 3), round(y, 3)) for x, y in vertices}
+    assert {(0.05, 0.195), (-0.05, -0.195), (0.2, 0.15), (-0.1, -0.15)} <= corners
+    assert (0.2, 0.195) not in corners
 
 
 @pytest.mark.parametrize("make", [lambda: Footprint.circle(0.0), lambda: Footprint.rectangle(0.2, 0.1, 0.0, 1.0),
@@ -68,7 +73,8 @@ def test_clearance_of_the_chassis_depends_on_heading():
     truth = wall_at_2_5m()
     clearance = clearance_along(poses((2.0, 1.5, 0.0), (2.0, 1.5, math.pi), (2.0, 1.5, math.pi / 2)), truth,
                                 PPP_BOT_FOOTPRINT)
-    assert clearance == pytest.approx([0.3, 0.4, 0.35], abs=RES / 2)
+    # Facing the wall: the chassis front; away: its back; sideways: a wheel (0.195 m out).
+    assert clearance == pytest.approx([0.3, 0.4, 0.305], abs=RES / 2)
 
 
 def test_overlapping_a_wall_is_zero_clearance():

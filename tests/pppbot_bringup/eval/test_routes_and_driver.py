@@ -99,6 +99,7 @@ def test_routes_file_round_trip(tmp_path: Path):
     ("routes: {a: {start: {x: 0, y: 0}, waypoints: [[1, 2, 3]]}}", "waypoints\\[0\\]: must be \\[x, y\\]"),
     ("routes: {a: {start: {x: 0, y: 0}, waypoints: [[1, 2]], speed: 3}}", "unknown key\\(s\\) speed"),
     ("routes: [", "unreadable routes file"),
+    ("routes: {a: {start: {x: 1, y: 2}, waypoints: [[1, 2]]}}", "every waypoint is the start"),
 ])
 def test_bad_routes_files_name_the_field(tmp_path: Path, text: str, message: str):
     path = tmp_path / "w.routes.yaml"

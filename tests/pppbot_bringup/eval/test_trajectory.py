@@ -211,3 +211,19 @@ def test_rpe_shorter_than_a_segment_is_none():
 def test_rpe_segment_must_be_positive():
     with pytest.raises(PoseSeriesError, match="segment_m"):
         relative_pose_error(straight_line(), straight_line(), segment_m=0.0)
+
+
+def test_compose_chain_interpolates_the_outer_transform_at_inner_stamps():
+    from pppbot_bringup.eval.trajectory import compose_chain
+    # map → odom drifts from (0, 0, 0) at t=1 to (1, 0, π/2) at t=3 (published rarely).
+    outer = PoseSeries.from_rows([(1.0, 0.0, 0.0, 0.0), (3.0, 1.0, 0.0, math.pi / 2)])
+    # odom → base_link: the robot 1 m ahead in odom, at 10 Hz from t=0 to t=4.
+    inner = PoseSeries.from_rows([(k / 10, 1.0, 0.0, 0.0) for k in range(41)])
+    chain = compose_chain(outer, inner)
+    assert chain.t_s[0] == pytest.approx(1.0) and chain.t_s[-1] == pytest.approx(3.0)  # no extrapolation
+    i = int(np.argmin(np.abs(chain.t_s - 3.0)))
+    assert chain.xy[i] == pytest.approx([1.0, 1.0]) and chain.yaw_rad[i] == pytest.approx(math.pi / 2)
+    j = int(np.argmin(np.abs(chain.t_s - 2.0)))  # halfway: (0.5, 0, π/4) ∘ (1, 0, 0)
+    assert chain.xy[j] == pytest.approx([0.5 + math.cos(math.pi / 4), math.sin(math.pi / 4)])
+    static = compose_chain(PoseSeries.from_rows([(0.0, 2.0, 0.0, 0.0)]), inner)
+    assert len(static) == len(inner) and static.xy[:, 0] == pytest.approx(3.0)
