@@ -1,7 +1,17 @@
-"""Planar pose helpers: angles in (−π, π] and yaw ↔ quaternion (x, y, z, w)."""
+"""Planar pose helpers: angles in (−π, π], yaw ↔ quaternion (x, y, z, w), and SE(2) on arrays.
+
+Poses are (x, y, yaw) in m, m, rad. ``a ∘ b`` (:func:`se2_compose`) is the pose ``b``,
+given in frame ``a``, expressed in ``a``'s parent; yaw is kept in (−π, π]. The array
+functions broadcast like numpy over (..., 3) poses.
+"""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+
+import numpy as np
+
+PoseLike = Sequence[float] | np.ndarray
 
 
 def wrap_angle(angle: float) -> float:
@@ -20,3 +30,42 @@ def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
 def quaternion_from_yaw(yaw: float) -> tuple[float, float, float, float]:
     """(x, y, z, w) of a rotation by ``yaw`` rad about z."""
     return 0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)
+
+
+
+def wrap_angles(angle_rad: np.ndarray | float) -> np.ndarray:
+    """Angles (rad) wrapped into (−π, π], element-wise."""
+    return math.pi - np.mod(math.pi - np.asarray(angle_rad, dtype=float), 2.0 * math.pi)
+
+
+def se2_compose(a: PoseLike, b: PoseLike) -> np.ndarray:
+    """``a ∘ b`` for (..., 3) arrays of (x, y, yaw), broadcasting like numpy."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
+    y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
+    return np.stack([x, y, wrap_angles(a[..., 2] + b[..., 2])], axis=-1)
+
+
+def se2_inverse(a: PoseLike) -> np.ndarray:
+    """``a⁻¹`` for a (..., 3) array of (x, y, yaw): ``a ∘ a⁻¹`` is the identity."""
+    a = np.asarray(a, dtype=float)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = -c * a[..., 0] - s * a[..., 1]
+    y = s * a[..., 0] - c * a[..., 1]
+    return np.stack([x, y, wrap_angles(-a[..., 2])], axis=-1)
+
+
+def se2_relative(a: PoseLike, b: PoseLike) -> np.ndarray:
+    """``a⁻¹ ∘ b``: the pose ``b`` seen from ``a`` (both in the same frame)."""
+    return se2_compose(se2_inverse(a), b)
+
+
+def se2_apply(pose: PoseLike, points_xy: np.ndarray) -> np.ndarray:
+    """Points (..., 2), given in the frame ``pose``, expressed in ``pose``'s parent (m)."""
+    pose = np.asarray(pose, dtype=float)
+    points_xy = np.asarray(points_xy, dtype=float)
+    c, s = np.cos(pose[..., 2]), np.sin(pose[..., 2])
+    x = pose[..., 0] + c * points_xy[..., 0] - s * points_xy[..., 1]
+    y = pose[..., 1] + s * points_xy[..., 0] + c * points_xy[..., 1]
+    return np.stack([x, y], axis=-1)

@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass, field
 
 from pppbot_common.errors import PppbotError
-from pppbot_common.se2 import wrap_angle
+from pppbot_common.se2 import se2_compose, se2_inverse, wrap_angle
 
 Pose2D = tuple[float, float, float]
 
@@ -24,16 +24,14 @@ class TransformError(PppbotError, LookupError):
 
 
 def compose(a: Pose2D, b: Pose2D) -> Pose2D:
-    """``a ∘ b``: the pose ``b`` (given in frame ``a``) in ``a``'s parent."""
-    ax, ay, ayaw = a
-    c, s = math.cos(ayaw), math.sin(ayaw)
-    return ax + c * b[0] - s * b[1], ay + s * b[0] + c * b[1], wrap_angle(ayaw + b[2])
+    """``a ∘ b`` as a tuple (:func:`pppbot_common.se2.se2_compose`)."""
+    x, y, yaw = se2_compose(a, b).tolist()
+    return x, y, yaw
 
 
 def inverse(a: Pose2D) -> Pose2D:
-    x, y, yaw = a
-    c, s = math.cos(yaw), math.sin(yaw)
-    return -c * x - s * y, s * x - c * y, wrap_angle(-yaw)
+    x, y, yaw = se2_inverse(a).tolist()
+    return x, y, yaw
 
 
 @dataclass

@@ -29,8 +29,8 @@ def alive(pid: int) -> bool:
 def test_sigint_is_enough_for_a_well_behaved_child():
     child = ChildProcess(python("""
         import time
-        print('up', flush=True)
         try:
+            print('up', flush=True)  # inside the try: a SIGINT right after it is handled too
             time.sleep(60)
         except KeyboardInterrupt:
             print('interrupted', flush=True)

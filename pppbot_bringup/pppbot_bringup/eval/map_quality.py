@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from pppbot_bringup.eval.trajectory import PoseLike, se2_apply, se2_compose, se2_inverse
+from pppbot_common.se2 import PoseLike, se2_apply, se2_compose, se2_inverse
 from pppbot_common.errors import PppbotError
 from pppbot_common.maps import OccupancyGrid
 

@@ -18,7 +18,8 @@ from shapely.geometry import box
 from shapely.ops import unary_union
 
 from pppbot_bringup.eval.map_quality import cells_of, grid_coordinates, in_grid, occupied_cells
-from pppbot_bringup.eval.trajectory import PoseLike, PoseSeries, se2_apply, wrap_angles
+from pppbot_bringup.eval.trajectory import PoseSeries
+from pppbot_common.se2 import PoseLike, se2_apply, wrap_angles
 from pppbot_common.errors import PppbotError
 from pppbot_common.maps import OccupancyGrid
 

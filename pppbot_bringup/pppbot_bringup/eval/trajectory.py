@@ -1,7 +1,6 @@
 """Trajectory accuracy against ground truth: absolute and relative pose error in SE(2).
 
-Poses are (x, y, yaw) in m, m, rad. ``a ∘ b`` (:func:`se2_compose`) is the pose ``b``,
-given in frame ``a``, expressed in ``a``'s parent; yaw is kept in (−π, π].
+Poses are (x, y, yaw) in m, m, rad (SE(2) helpers: ``pppbot_common.se2``).
 
 The estimate's frame relation to the world is known (for SLAM the map frame is the
 robot's spawn pose), so nothing is fitted: the estimate is moved into the world by
@@ -20,9 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pppbot_common.errors import PppbotError
+from pppbot_common.se2 import PoseLike, se2_compose, se2_inverse, se2_relative, wrap_angles
 
-Pose2D = tuple[float, float, float]
-PoseLike = Sequence[float] | np.ndarray
 
 
 class PoseSeriesError(PppbotError, ValueError):
@@ -31,47 +29,6 @@ class PoseSeriesError(PppbotError, ValueError):
 
 class NoOverlapError(PoseSeriesError):
     """No estimate sample lies within the truth's time span; the message gives both spans."""
-
-
-# --- SE(2) on (..., 3) arrays -------------------------------------------------------------------
-
-
-def wrap_angles(angle_rad: np.ndarray | float) -> np.ndarray:
-    """Angles (rad) wrapped into (−π, π], element-wise."""
-    return math.pi - np.mod(math.pi - np.asarray(angle_rad, dtype=float), 2.0 * math.pi)
-
-
-def se2_compose(a: PoseLike, b: PoseLike) -> np.ndarray:
-    """``a ∘ b`` for (..., 3) arrays of (x, y, yaw), broadcasting like numpy."""
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
-    x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
-    y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
-    return np.stack([x, y, wrap_angles(a[..., 2] + b[..., 2])], axis=-1)
-
-
-def se2_inverse(a: PoseLike) -> np.ndarray:
-    """``a⁻¹`` for a (..., 3) array of (x, y, yaw): ``a ∘ a⁻¹`` is the identity."""
-    a = np.asarray(a, dtype=float)
-    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
-    x = -c * a[..., 0] - s * a[..., 1]
-    y = s * a[..., 0] - c * a[..., 1]
-    return np.stack([x, y, wrap_angles(-a[..., 2])], axis=-1)
-
-
-def se2_relative(a: PoseLike, b: PoseLike) -> np.ndarray:
-    """``a⁻¹ ∘ b``: the pose ``b`` seen from ``a`` (both in the same frame)."""
-    return se2_compose(se2_inverse(a), b)
-
-
-def se2_apply(pose: PoseLike, points_xy: np.ndarray) -> np.ndarray:
-    """Points (..., 2), given in the frame ``pose``, expressed in ``pose``'s parent (m)."""
-    pose = np.asarray(pose, dtype=float)
-    points_xy = np.asarray(points_xy, dtype=float)
-    c, s = np.cos(pose[..., 2]), np.sin(pose[..., 2])
-    x = pose[..., 0] + c * points_xy[..., 0] - s * points_xy[..., 1]
-    y = pose[..., 1] + s * points_xy[..., 0] + c * points_xy[..., 1]
-    return np.stack([x, y], axis=-1)
 
 
 def _pose_tuple(pose: PoseLike, name: str) -> np.ndarray:

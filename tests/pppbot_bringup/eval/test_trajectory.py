@@ -13,11 +13,8 @@ from pppbot_bringup.eval.trajectory import (
     PoseSeriesError,
     absolute_trajectory_error,
     relative_pose_error,
-    se2_apply,
-    se2_compose,
-    se2_inverse,
-    wrap_angles,
 )
+from pppbot_common.se2 import se2_apply, se2_compose, se2_inverse, wrap_angles
 
 
 def straight_line(speed_mps: float = 0.5, duration_s: float = 10.0, dt_s: float = 0.05) -> PoseSeries:
