@@ -30,7 +30,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Callable, Mapping, Sequence
+from typing import IO, Callable, Mapping, Protocol, Sequence
 
 from pppbot_common.process import die_with_parent
 
@@ -63,10 +63,15 @@ class NodeSpec:
     env: Mapping[str, str] | None = None
 
 
+class TextSink(Protocol):
+    def write(self, text: str, /) -> int: ...
+    def flush(self) -> None: ...
+
+
 class Output:
     """Where the launch's and the nodes' lines go."""
 
-    def __init__(self, stream: IO[str] = sys.stdout, log_dir: Path | None = None) -> None:
+    def __init__(self, stream: TextSink = sys.stdout, log_dir: Path | None = None) -> None:
         self.stream = stream
         self.log_dir = log_dir
         self._lock = threading.RLock()

@@ -16,16 +16,21 @@ BOX_ROOM = str(ROOT / "tests" / "pppbot_sim" / "data" / "box_room.sdf")
 
 
 def run_eval(spawn: Callable[..., ChildProcess], out: Path, *extra: str) -> tuple[int, dict[str, Any], str]:
-    child = spawn([PPPBOT, "eval", "drive", "--world", BOX_ROOM, "--out", str(out), "--json", *extra], name="eval")
+    """Exit code, the report from stdout, and stderr (progress, node warnings)."""
+    stderr = out.parent / f"{out.name}.stderr"
+    child = spawn(["bash", "-c", f'exec "$0" "$@" 2>"{stderr}"', PPPBOT, "eval", "drive", "--world", BOX_ROOM,
+                   "--out", str(out), "--json", *extra], name="eval")
     code = child.wait(timeout_s=240)
-    last_line = child.output.strip().splitlines()[-1]
-    return code, json.loads(last_line), child.output
+    stdout_lines = child.output.strip().splitlines()
+    assert len(stdout_lines) == 1, child.output  # with --json, stdout is the report alone
+    return code, json.loads(stdout_lines[0]), stderr.read_text()
 
 
 def test_drive_scenario_reports_odometry_drift_against_ground_truth(spawn, tmp_path: Path):
     out = tmp_path / "report"
     code, report, output = run_eval(spawn, out, "--seed", "3", "--wheel-slip", "0.03")
     assert code == 0, output
+    assert "drive box_room/loop: 100%" in output  # plain progress lines without a terminal
     # The last line of stdout is the whole report, as report.json holds it.
     assert report == json.loads((out / "report.json").read_text())
     assert report["scenario"] == "drive" and report["world"] == "box_room" and report["route"] == "loop"

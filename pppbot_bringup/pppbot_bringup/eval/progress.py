@@ -1,6 +1,7 @@
 """Progress of a scenario: a bar redrawn in place on a terminal, plain lines otherwise."""
 from __future__ import annotations
 
+import threading
 import time
 from typing import IO, Callable
 
@@ -19,6 +20,7 @@ class Progress:
         self._drawn_at = -float("inf")
         self._next_plain = 0.0
         self._open_line = False
+        self._lock = threading.RLock()  # other threads' lines (the supervisor's) go through :meth:`lines`
 
     def update(self, fraction: float, detail: str | Callable[[], str] = "") -> None:
         """Show ``fraction`` (0–1) done; throttled, so it can be called on every message
@@ -48,12 +50,31 @@ class Progress:
             self._open_line = False
             self._drawn_at = -float("inf")
 
+    def lines(self) -> "_LinesAbove":
+        """A text stream for other output: each write ends the bar's line first, so lines never mix."""
+        return _LinesAbove(self)
+
     def _write(self, text: str) -> None:
-        try:
-            self.stream.write(text)
-            self.stream.flush()
-        except (OSError, ValueError):
-            pass
+        with self._lock:
+            try:
+                self.stream.write(text)
+                self.stream.flush()
+            except (OSError, ValueError):
+                pass
+
+
+class _LinesAbove:
+    def __init__(self, progress: Progress) -> None:
+        self.progress = progress
+
+    def write(self, text: str) -> int:
+        with self.progress._lock:
+            self.progress.finish()
+            self.progress._write(text)
+        return len(text)
+
+    def flush(self) -> None:
+        pass
 
 
 def _text(detail: str | Callable[[], str]) -> str:

@@ -4,6 +4,7 @@ A run records the simulator's ground truth, the estimate under test (a pose
 stream from TF), collisions and the route's progress into a :class:`Recording`;
 a scenario turns that into the report's metrics and plots.
 
+* ``map``: no run; a saved map (Nav2 YAML) scored against the world's ground truth.
 * ``drive``: drive a route with wheel slip; the estimate is wheel odometry
   (``odom → base_link``), whose frame is the spawn pose: how far dead reckoning drifts.
 """
@@ -15,7 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from pppbot_bringup.eval.navigation import PPP_BOT_FOOTPRINT, clearance_along
-from pppbot_bringup.eval.report import plot_errors, plot_trajectories
+from pppbot_bringup.eval.map_quality import compare_maps
+from pppbot_bringup.eval.report import plot_errors, plot_map_overlay, plot_trajectories
 from pppbot_bringup.eval.routes import Route
 from pppbot_bringup.eval.trajectory import (
     PoseSeries,
@@ -27,6 +29,7 @@ from pppbot_common.maps import OccupancyGrid
 
 
 class Scenario(enum.Enum):
+    MAP = "map"
     DRIVE = "drive"
     SLAM = "slam"
     LOCALIZATION = "localization"
@@ -77,6 +80,21 @@ class Recording:
     @property
     def sim_seconds(self) -> float:
         return max(0.0, self.end_sim_s - self.start_sim_s)
+
+
+def map_metrics(estimate: OccupancyGrid, truth: OccupancyGrid, map_to_world: tuple[float, float, float],
+                out: Path, title: str) -> dict[str, Any]:
+    """A map against the ground truth (its frame placed at ``map_to_world``); writes ``map.png``.
+
+    The reference free space is what is reachable from the map frame's origin (the spawn
+    point, where mapping started).
+
+    Raises:
+        MapQualityError: the origin is not in free space, or the truth has no walls there.
+    """
+    quality = compare_maps(estimate, truth, map_to_world, reachable_from=map_to_world[:2])
+    plot_map_overlay(out / "map.png", truth, quality.true_walls, quality.matched_walls, quality.false_walls, title)
+    return {**quality.as_dict(), "map_resolution_m": estimate.resolution}
 
 
 def estimate_series(recording: Recording, estimate: Estimate) -> PoseSeries:

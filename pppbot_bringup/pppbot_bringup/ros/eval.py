@@ -37,14 +37,23 @@ from pppbot_bringup.eval.driver import DriverSettings, RouteDriver
 from pppbot_bringup.eval.progress import Progress
 from pppbot_bringup.eval.report import write_json
 from pppbot_bringup.eval.routes import Route, RouteError, load_routes, routes_file, select_route
-from pppbot_bringup.eval.scenarios import ESTIMATES, NOT_BUILT, Estimate, Recording, Scenario, drive_metrics
+from pppbot_bringup.eval.map_quality import MapQualityError
+from pppbot_bringup.eval.scenarios import (
+    ESTIMATES,
+    NOT_BUILT,
+    Estimate,
+    Recording,
+    Scenario,
+    drive_metrics,
+    map_metrics,
+)
 from pppbot_bringup.launch_sim import ARGUMENTS, plan
 from pppbot_bringup.ros.graph_probe import GraphProbe
 from pppbot_bringup.run import RunError, find_executable
 from pppbot_bringup.supervisor import Output, Supervisor
 from pppbot_common.errors import PppbotError
 from pppbot_common.launch_args import ArgumentError
-from pppbot_common.maps import OccupancyGrid
+from pppbot_common.maps import MapFileError, OccupancyGrid, load_map
 from pppbot_common.ros.qos import DEFAULT, LATCHED
 from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_description.errors import DescriptionError
@@ -207,7 +216,8 @@ class Run:
             except (ArgumentError, RunError) as exc:
                 self.recording.failure = f"cannot start the stack: {exc}"
                 return
-            supervisor = Supervisor(the_plan.nodes, Output(sys.stderr, log_dir=self.out / "logs"))
+            output = Output(progress.lines(), log_dir=self.out / "logs")
+            supervisor = Supervisor(the_plan.nodes, output)
             self._run_stack(supervisor, [n.name for n in the_plan.nodes], probe, progress)
         finally:
             probe.close()
@@ -280,15 +290,33 @@ class Run:
         progress.update(1.0, f"sim {rec.sim_seconds:6.1f} s")
 
 
-def truth_map_of(world_file: Path, route: Route) -> OccupancyGrid:
+def truth_map_of(world_file: Path, route: Route, resolution_m: float = GROUND_TRUTH_RESOLUTION_M) -> OccupancyGrid:
     """The world's ground-truth grid; a world with nothing at lidar height gets the route's surroundings."""
     spec, _ = load_world(world_file, model_paths(world_file))
     model = spec.compile()
     try:
-        return ground_truth_map(model, GROUND_TRUTH_RESOLUTION_M, LIDAR_HEIGHT_M)
+        return ground_truth_map(model, resolution_m, LIDAR_HEIGHT_M)
     except ValueError:
         (x0, y0), (x1, y1) = route.points.min(axis=0) - EMPTY_MARGIN_M, route.points.max(axis=0) + EMPTY_MARGIN_M
-        return ground_truth_map(model, GROUND_TRUTH_RESOLUTION_M, LIDAR_HEIGHT_M, Bounds(x0, y0, x1, y1))
+        return ground_truth_map(model, resolution_m, LIDAR_HEIGHT_M, Bounds(x0, y0, x1, y1))
+
+
+def score_map(args: argparse.Namespace, world_file: Path, out: Path) -> dict[str, Any]:
+    """The ``map`` scenario: a saved map against the ground truth at the map's resolution.
+
+    Raises:
+        MapFileError: the map cannot be read.
+        MapQualityError: the map's origin pose is not in the world's free space.
+    """
+    wall0 = time.monotonic()
+    estimate, _ = load_map(args.map)
+    spec, _ = load_world(world_file, model_paths(world_file))
+    truth = ground_truth_map(spec.compile(), estimate.resolution, LIDAR_HEIGHT_M)
+    pose = (args.map_pose[0], args.map_pose[1], args.map_pose[2])
+    metrics = map_metrics(estimate, truth, pose, out, f"{Path(args.map).name} in {world_file.stem}")
+    return {"scenario": Scenario.MAP.value, "world": world_file.stem, "ok": True, "failure": None,
+            "sim_seconds": 0.0, "wall_seconds": round(time.monotonic() - wall0, 3), "map": str(args.map),
+            "map_pose": list(pose), **metrics, "out": str(out), "plots": ["map.png"]}
 
 
 def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
@@ -331,8 +359,8 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.description = __doc__.strip().splitlines()[0]
     parser.add_argument("scenario", choices=[s.value for s in Scenario],
-                        help="drive: odometry drift along a route; slam, localization, navigation: "
-                             "as their parts land")
+                        help="map: score a saved map; drive: odometry drift along a route; slam, "
+                             "localization, navigation: as their parts land")
     parser.add_argument("--world", default="maze", help="world name or path (default maze)")
     parser.add_argument("--route", default=None, help="route name in the world's routes file (default: the first)")
     parser.add_argument("--route-file", type=Path, default=None,
@@ -348,6 +376,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="give up after this many sim seconds (default 2.5 × route time + 60)")
     parser.add_argument("--out", type=Path, default=None,
                         help="report directory (default eval_<scenario>_<world>_YYYY_MM_DD-HH_MM_SS)")
+    parser.add_argument("--map", type=Path, default=None, help="map: the Nav2 map YAML to score")
+    parser.add_argument("--map-pose", type=float, nargs=3, default=(0.0, 0.0, 0.0), metavar=("X", "Y", "YAW"),
+                        help="map: where the map's frame is in the world (default 0 0 0: the spawn pose "
+                             "where mapping started)")
     parser.add_argument("--json", action="store_true", help="print the report as one JSON object on the last line")
     parser.add_argument("--log-level", default="info", choices=("debug", "info", "warn", "error", "fatal"),
                         help="log level of the stack's nodes (default info; their output goes to the log "
@@ -362,10 +394,46 @@ def _check(args: argparse.Namespace) -> None:
         raise ArgumentError(f"--speed {args.speed}: must be in (0, 2] m/s (the controller's limit)")
     if not (math.isfinite(args.wheel_slip) and 0.0 <= args.wheel_slip <= MAX_SLIP_STDDEV):
         raise ArgumentError(f"--wheel-slip {args.wheel_slip}: must be in [0, {MAX_SLIP_STDDEV}]")
+    if not all(math.isfinite(v) for v in args.map_pose):
+        raise ArgumentError(f"--map-pose {' '.join(map(str, args.map_pose))}: must be three finite numbers")
+    if (args.scenario == Scenario.MAP.value) != (args.map is not None):
+        raise ArgumentError("--map: the map scenario needs it, and only the map scenario takes it")
     if args.seed < 0:
         raise ArgumentError(f"--seed {args.seed}: must be a non-negative integer")
     if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
         raise ArgumentError(f"--timeout {args.timeout}: must be a positive number of sim seconds")
+
+
+def _output_dir(args: argparse.Namespace, scenario: Scenario, world_file: Path) -> Path:
+    """``--out`` or a new name; an existing file or non-empty directory is refused.
+
+    Raises:
+        ArgumentError: ``--out`` exists and is not an empty directory.
+    """
+    out: Path = args.out or Path(f"eval_{scenario.value}_{world_file.stem}_{time.strftime('%Y_%m_%d-%H_%M_%S')}")
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ArgumentError(f"--out {out}: exists and is not an empty directory; a report is never overwritten")
+    return out
+
+
+def _print_report(result: dict[str, Any], line: str, as_json: bool) -> None:
+    if as_json:
+        print(line)
+    else:
+        for key, value in result.items():
+            print(f"{key:>26}: {value}")
+
+
+def _score_map(args: argparse.Namespace, world_file: Path) -> int:
+    out = _output_dir(args, Scenario.MAP, world_file)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        result = score_map(args, world_file, out)
+    except (MapFileError, MapQualityError) as exc:
+        print(f"pppbot eval map: {exc}", file=sys.stderr)
+        return 2
+    _print_report(result, write_json(out / "report.json", result), args.json)
+    return 0
 
 
 def main(args: argparse.Namespace) -> int:
@@ -377,18 +445,18 @@ def main(args: argparse.Namespace) -> int:
     try:
         _check(args)
         world_file = find_world(args.world)
+        if scenario is Scenario.MAP:
+            return _score_map(args, world_file)
         route_path = args.route_file or routes_file(world_file)
         route = select_route(load_routes(route_path), args.route, route_path)
-        out = args.out or Path(f"eval_{scenario.value}_{world_file.stem}_{time.strftime('%Y_%m_%d-%H_%M_%S')}")
-        if out.exists() and (not out.is_dir() or any(out.iterdir())):
-            raise ArgumentError(f"--out {out}: exists and is not an empty directory; a report is never overwritten")
+        out = _output_dir(args, scenario, world_file)
         truth_map = truth_map_of(world_file, route)
         out.mkdir(parents=True, exist_ok=True)
     except (ArgumentError, RouteError, WorldError, DescriptionError, ValueError) as exc:
         print(f"pppbot eval: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:
-        print(f"pppbot eval: --out {exc.filename or out}: {exc.strerror or exc}", file=sys.stderr)
+        print(f"pppbot eval: --out {exc.filename or args.out}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     os.environ["PYTHONUNBUFFERED"] = "1"
     progress = Progress(sys.stderr, f"{scenario.value} {world_file.stem}/{route.name}")
@@ -402,11 +470,7 @@ def main(args: argparse.Namespace) -> int:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    if args.json:
-        print(line)
-    else:
-        for key, value in result.items():
-            print(f"{key:>26}: {value}")
+    _print_report(result, line, args.json)
     if run.interrupted:
         return 130
     return 0 if result["ok"] else 1

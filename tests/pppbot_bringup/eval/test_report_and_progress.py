@@ -82,3 +82,13 @@ def test_progress_on_a_terminal_redraws_one_line_and_throttles():
     text = stream.getvalue()
     assert text.count("\r") == 3 and text.endswith("\n")
     assert "[" + "#" * 15 + "." * 15 + "]  50.0% half" in text
+
+
+def test_other_output_ends_the_bar_line_first():
+    stream = io.StringIO()
+    progress = Progress(stream, "run", terminal=True, clock=lambda: 0.0)
+    progress.update(0.3)
+    progress.lines().write("[WARN] [simulator-1]: something\n")
+    progress.update(1.0)
+    lines = stream.getvalue().split("\n")
+    assert lines[0].startswith("\rrun [") and lines[1] == "[WARN] [simulator-1]: something"
