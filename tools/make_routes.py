@@ -111,10 +111,9 @@ def coverage_route(world: str, settings: Coverage) -> Route:
     # Where the stricter mask refused shortcuts the path keeps every cell: simplify it
     # (Douglas–Peucker, at most SIMPLIFY_M off the path; the tests check the clearance).
     waypoints = np.asarray(LineString(np.vstack(points)).simplify(SIMPLIFY_M).coords)[1:]
-    route = Route("coverage", (0.0, 0.0, 0.0), waypoints)
+    length_m = float(np.linalg.norm(np.diff(np.vstack([[0.0, 0.0], waypoints]), axis=0), axis=1).sum())
     description = (f"visits {len(targets)} targets {settings.spacing_m} m apart over the free space at least "
-                   f"{settings.clearance_m} m from walls, nearest first, and returns to the start "
-                   f"({route.length_m:.0f} m)")
+                   f"{settings.clearance_m} m from walls, nearest first, and returns to the start ({length_m:.0f} m)")
     return Route("coverage", (0.0, 0.0, 0.0), waypoints, description)
 
 
