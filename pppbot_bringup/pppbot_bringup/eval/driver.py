@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pppbot_bringup.eval.errors import RouteError
 from pppbot_common.se2 import wrap_angle
 
 
@@ -32,7 +33,7 @@ class DriverSettings:
                      "heading_gain", "search_window_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive number, not {value}")
+                raise RouteError(f"route driver: {name} must be a positive number, not {value}")
 
 
 class RouteDriver:
@@ -42,7 +43,7 @@ class RouteDriver:
         keep = np.concatenate([[True], np.linalg.norm(np.diff(points, axis=0), axis=1) > 1e-9])
         self.points = points[keep]
         if len(self.points) < 2:
-            raise ValueError("a route needs at least two distinct points")
+            raise RouteError("a route needs at least two distinct points")
         self.settings = settings
         segments = np.diff(self.points, axis=0)
         self._seg_len = np.linalg.norm(segments, axis=1)

@@ -24,7 +24,7 @@ import numpy as np
 from scipy import ndimage
 
 from pppbot_common.se2 import PoseLike, se2_apply, se2_compose, se2_inverse
-from pppbot_common.errors import PppbotError
+from pppbot_bringup.eval.errors import MapQualityError
 from pppbot_common.maps import OccupancyGrid
 
 #: A cell is occupied when its value (percent) is at least this (Nav2's occupied_thresh 0.65).
@@ -34,9 +34,6 @@ FREE_BELOW = 25
 #: 8-connectivity: the eight neighbours of a cell and the cell itself.
 EIGHT_CONNECTED = np.ones((3, 3), dtype=bool)
 
-
-class MapQualityError(PppbotError, ValueError):
-    """Two grids can't be compared as asked; the message names the bad value."""
 
 
 # --- cells of a grid --------------------------------------------------------------------------

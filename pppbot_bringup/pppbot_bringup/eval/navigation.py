@@ -20,15 +20,12 @@ from shapely.ops import unary_union
 from pppbot_bringup.eval.map_quality import cells_of, grid_coordinates, in_grid, occupied_cells
 from pppbot_bringup.eval.trajectory import PoseSeries
 from pppbot_common.se2 import PoseLike, se2_apply, wrap_angles
-from pppbot_common.errors import PppbotError
+from pppbot_bringup.eval.errors import NavigationMetricError
 from pppbot_common.maps import OccupancyGrid
 
 #: Vertices of a circle footprint's polygon (its outline is within 4e-5·radius of the circle).
 CIRCLE_VERTICES = 360
 
-
-class NavigationMetricError(PppbotError, ValueError):
-    """A bad footprint, tolerance or speed; the message names the value."""
 
 
 def _positive(value: float, name: str) -> float:

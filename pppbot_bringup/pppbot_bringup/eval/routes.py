@@ -21,11 +21,8 @@ from typing import Any
 import numpy as np
 import yaml
 
-from pppbot_common.errors import PppbotError
+from pppbot_bringup.eval.errors import RouteError
 
-
-class RouteError(PppbotError, ValueError):
-    """A routes file is missing or malformed, or a route name is unknown; names file and field."""
 
 
 @dataclass(frozen=True)

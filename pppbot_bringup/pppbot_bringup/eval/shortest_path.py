@@ -19,7 +19,7 @@ from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 
 from pppbot_bringup.eval.map_quality import cell_centers_xy, cells_of, free_cells, in_grid, occupied_cells
-from pppbot_common.errors import PppbotError
+from pppbot_bringup.eval.errors import GoalBlocked, NoPath, PathError, StartBlocked
 from pppbot_common.maps import OccupancyGrid
 
 #: Samples along a line-of-sight check are at most this many cells apart.
@@ -28,20 +28,8 @@ SIGHT_STEP_CELLS = 0.5
 _SIGHT_BATCH_POINTS = 2_000_000
 
 
-class PathError(PppbotError, ValueError):
-    """No path for the robot; the message gives the coordinates."""
 
 
-class StartBlocked(PathError):
-    """The start is not in free space and no free cell lies within twice the robot radius."""
-
-
-class GoalBlocked(PathError):
-    """The goal is outside the grid or not in free space."""
-
-
-class NoPath(PathError):
-    """Start and goal are in free space that is not connected."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -18,17 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pppbot_common.errors import PppbotError
+from pppbot_bringup.eval.errors import NoOverlapError, PoseSeriesError
 from pppbot_common.se2 import PoseLike, se2_compose, se2_inverse, se2_relative, wrap_angles
 
 
 
-class PoseSeriesError(PppbotError, ValueError):
-    """A pose series is malformed or two series can't be compared; the message names the value."""
-
-
-class NoOverlapError(PoseSeriesError):
-    """No estimate sample lies within the truth's time span; the message gives both spans."""
 
 
 def _pose_tuple(pose: PoseLike, name: str) -> np.ndarray:
