@@ -11,6 +11,7 @@ a scenario turns that into the report's metrics and plots.
 from __future__ import annotations
 
 import enum
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,14 @@ from pppbot_bringup.eval.trajectory import (
     compose_chain,
     relative_pose_error,
 )
-from pppbot_common.maps import OccupancyGrid
+from pppbot_common.maps import OccupancyGrid, load_map
+from pppbot_sim.ground_truth import Bounds, ground_truth_map
+from pppbot_sim.simulation import load_world
+from pppbot_sim.worlds import model_paths
+
+GROUND_TRUTH_RESOLUTION_M = 0.05
+LIDAR_HEIGHT_M = 0.2  # where ppp_bot's lidar cuts the world
+EMPTY_MARGIN_M = 3.0
 
 
 class Scenario(enum.Enum):
@@ -146,3 +154,40 @@ def drive_metrics(recording: Recording, route: Route, truth_map: OccupancyGrid, 
                       "wheel odometry", [(x, y) for _, x, y in recording.collisions], title)
     plot_errors(out / "error.png", ate, title + " — odometry error")
     return metrics, None
+
+
+def world_truth(world_file: Path, route: Route | None = None,
+                resolution_m: float = GROUND_TRUTH_RESOLUTION_M) -> OccupancyGrid:
+    """The world's ground-truth grid at the lidar's height; a world with nothing at that height
+    (``empty``) gets the route's surroundings.
+
+    Raises:
+        WorldError: the world file cannot be loaded.
+        ValueError: nothing to map and no route to bound it.
+    """
+    spec, _ = load_world(world_file, model_paths(world_file))
+    model = spec.compile()
+    try:
+        return ground_truth_map(model, resolution_m, LIDAR_HEIGHT_M)
+    except ValueError:
+        if route is None:
+            raise
+        (x0, y0), (x1, y1) = route.points.min(axis=0) - EMPTY_MARGIN_M, route.points.max(axis=0) + EMPTY_MARGIN_M
+        return ground_truth_map(model, resolution_m, LIDAR_HEIGHT_M, Bounds(x0, y0, x1, y1))
+
+
+def score_saved_map(map_file: Path, world_file: Path, map_to_world: tuple[float, float, float],
+                    out: Path) -> dict[str, Any]:
+    """The ``map`` scenario's report: a saved map against the ground truth at the map's resolution.
+
+    Raises:
+        MapFileError: the map cannot be read.
+        MapQualityError: the map's origin pose is not in the world's free space.
+    """
+    wall0 = time.monotonic()
+    estimate, _ = load_map(map_file)
+    truth = world_truth(world_file, resolution_m=estimate.resolution)
+    metrics = map_metrics(estimate, truth, map_to_world, out, f"{map_file.name} in {world_file.stem}")
+    return {"scenario": Scenario.MAP.value, "world": world_file.stem, "ok": True, "failure": None,
+            "sim_seconds": 0.0, "wall_seconds": round(time.monotonic() - wall0, 3), "map": str(map_file),
+            "map_pose": list(map_to_world), **metrics, "out": str(out), "plots": ["map.png"]}

@@ -25,153 +25,38 @@ import time
 from pathlib import Path
 from typing import Any
 
-import rclpy
-from builtin_interfaces.msg import Time as TimeMsg
-from geometry_msgs.msg import PointStamped, Twist, Vector3
-from nav_msgs.msg import Odometry
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.signals import SignalHandlerOptions
-from tf2_msgs.msg import TFMessage
-
 from pppbot_bringup.eval.driver import DriverSettings, RouteDriver
 from pppbot_bringup.eval.progress import Progress
 from pppbot_bringup.eval.report import write_json
-from pppbot_bringup.eval.routes import Route, RouteError, load_routes, routes_file, select_route
-from pppbot_bringup.eval.map_quality import MapQualityError
+from pppbot_bringup.eval.errors import MapQualityError, RouteError
+from pppbot_bringup.eval.routes import Route, load_routes, routes_file, select_route
 from pppbot_bringup.eval.scenarios import (
     ESTIMATES,
     NOT_BUILT,
-    Estimate,
     Recording,
     Scenario,
     drive_metrics,
-    map_metrics,
+    score_saved_map,
+    world_truth,
 )
 from pppbot_bringup.launch_sim import ARGUMENTS, plan
+from pppbot_bringup.ros.eval_node import EvalNode
 from pppbot_bringup.ros.graph_probe import GraphProbe
 from pppbot_bringup.run import RunError, find_executable
 from pppbot_bringup.supervisor import Output, Supervisor
 from pppbot_common.errors import PppbotError
 from pppbot_common.launch_args import ArgumentError
-from pppbot_common.maps import MapFileError, OccupancyGrid, load_map
+from pppbot_common.maps import MapFileError, OccupancyGrid
 from pppbot_common.ros.qos import DEFAULT, LATCHED
-from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_description.errors import DescriptionError
 from pppbot_description.xacro_model import process_xacro
 from pppbot_sim.errors import WorldError
-from pppbot_sim.ground_truth import Bounds, ground_truth_map
-from pppbot_sim.simulation import load_world
 from pppbot_sim.wheel_slip import MAX_SLIP_STDDEV
-from pppbot_sim.worlds import find_world, model_paths
+from pppbot_sim.worlds import find_world
 
 READY_TIMEOUT_S = 120.0
 #: Wall seconds without a ground-truth message before the run is declared stuck.
 STALL_TIMEOUT_S = 30.0
-GROUND_TRUTH_RESOLUTION_M = 0.05
-LIDAR_HEIGHT_M = 0.2
-EMPTY_MARGIN_M = 3.0
-#: The route driver commands at 20 Hz of sim time, a teleop's or a controller's rate
-#: (every ground-truth message would be 500 commands a wall second at 10× real time).
-COMMAND_PERIOD_S = 0.05
-MAX_CALLBACKS_PER_SPIN = 100
-
-
-class EvalNode:
-    """Records ground truth, the estimate and collisions; drives the route on ground truth."""
-
-    def __init__(self, estimate: Estimate, driver: RouteDriver, recording: Recording) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node("pppbot_eval", context=self.context, start_parameter_services=False)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.estimate = estimate
-        self.driver = driver
-        self.recording = recording
-        self.wanted_edges = set(estimate.edges())
-        self.driving = False
-        self._next_command_s = 0.0
-        self.last_truth_wall_s = time.monotonic()
-        self.sim_now_s: float | None = None
-        self.cmd_pub = self.node.create_publisher(Twist, "/cmd_vel_teleop", DEFAULT)
-        self.node.create_subscription(Odometry, "/ground_truth/odom", self._on_truth, 100)
-        if estimate.topic is not None:
-            self.node.create_subscription(Odometry, estimate.topic, self._on_estimate, 100)
-        else:
-            self.node.create_subscription(TFMessage, "/tf", self._on_tf, 200)
-            self.node.create_subscription(TFMessage, "/tf_static", self._keep_edges, LATCHED)
-        self.node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100)
-
-    def _on_truth(self, msg: Odometry) -> None:
-        t = stamp_seconds(msg.header.stamp)
-        p, q = msg.pose.pose.position, msg.pose.pose.orientation
-        yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
-        self.sim_now_s = t
-        self.last_truth_wall_s = time.monotonic()
-        if not self.driving:
-            return
-        self.recording.truth_rows.append((t, p.x, p.y, yaw))
-        if t < self._next_command_s and not self.driver.finished:
-            return
-        self._next_command_s = t + COMMAND_PERIOD_S
-        v, w = self.driver.command(p.x, p.y, yaw)
-        self.cmd_pub.publish(Twist(linear=_vector(v), angular=_vector(0.0, 0.0, w)))
-        self.recording.route_progress = self.driver.progress
-        self.recording.route_finished = self.driver.finished
-
-    def _on_estimate(self, msg: Odometry) -> None:
-        if self.driving:
-            q = msg.pose.pose.orientation
-            p = msg.pose.pose.position
-            self.recording.estimate_rows.append((stamp_seconds(msg.header.stamp), p.x, p.y,
-                                                 yaw_from_quaternion(q.x, q.y, q.z, q.w)))
-
-    def _on_tf(self, msg: TFMessage) -> None:
-        if self.driving:
-            self._keep_edges(msg)
-
-    def _keep_edges(self, msg: TFMessage) -> None:
-        """Keep the estimate chain's edges; they are composed after the run (no extrapolation)."""
-        for transform in msg.transforms:
-            edge = (transform.header.frame_id.lstrip("/"), transform.child_frame_id.lstrip("/"))
-            if edge in self.wanted_edges:
-                tr, q = transform.transform.translation, transform.transform.rotation
-                self.recording.edge_rows.setdefault(edge, []).append(
-                    (stamp_seconds(transform.header.stamp), tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)))
-
-    def _on_collision(self, msg: PointStamped) -> None:
-        t = stamp_seconds(msg.header.stamp)
-        self.recording.collisions.append((t, msg.point.x, msg.point.y))
-
-    def stop_robot(self) -> None:
-        self.driving = False
-        for _ in range(3):
-            self.cmd_pub.publish(Twist())
-
-    def spin_once(self, timeout_s: float) -> None:
-        self.executor.spin_once(timeout_sec=timeout_s)
-
-    def spin_pending(self, timeout_s: float, limit: int = MAX_CALLBACKS_PER_SPIN) -> None:
-        """Wait up to ``timeout_s`` for work, then run what is ready (one callback per spin_once)."""
-        self.executor.spin_once(timeout_sec=timeout_s)
-        for _ in range(limit):
-            before = self.sim_now_s, len(self.recording.estimate_rows), len(self.recording.collisions)
-            self.executor.spin_once(timeout_sec=0.0)
-            if (self.sim_now_s, len(self.recording.estimate_rows), len(self.recording.collisions)) == before:
-                break
-
-    def close(self) -> None:
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-
-
-def stamp_seconds(stamp: TimeMsg) -> float:
-    return float(stamp.sec) + stamp.nanosec * 1e-9
-
-
-def _vector(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Vector3:
-    return Vector3(x=float(x), y=float(y), z=float(z))
 
 
 class Run:
@@ -290,35 +175,6 @@ class Run:
         progress.update(1.0, f"sim {rec.sim_seconds:6.1f} s")
 
 
-def truth_map_of(world_file: Path, route: Route, resolution_m: float = GROUND_TRUTH_RESOLUTION_M) -> OccupancyGrid:
-    """The world's ground-truth grid; a world with nothing at lidar height gets the route's surroundings."""
-    spec, _ = load_world(world_file, model_paths(world_file))
-    model = spec.compile()
-    try:
-        return ground_truth_map(model, resolution_m, LIDAR_HEIGHT_M)
-    except ValueError:
-        (x0, y0), (x1, y1) = route.points.min(axis=0) - EMPTY_MARGIN_M, route.points.max(axis=0) + EMPTY_MARGIN_M
-        return ground_truth_map(model, resolution_m, LIDAR_HEIGHT_M, Bounds(x0, y0, x1, y1))
-
-
-def score_map(args: argparse.Namespace, world_file: Path, out: Path) -> dict[str, Any]:
-    """The ``map`` scenario: a saved map against the ground truth at the map's resolution.
-
-    Raises:
-        MapFileError: the map cannot be read.
-        MapQualityError: the map's origin pose is not in the world's free space.
-    """
-    wall0 = time.monotonic()
-    estimate, _ = load_map(args.map)
-    spec, _ = load_world(world_file, model_paths(world_file))
-    truth = ground_truth_map(spec.compile(), estimate.resolution, LIDAR_HEIGHT_M)
-    pose = (args.map_pose[0], args.map_pose[1], args.map_pose[2])
-    metrics = map_metrics(estimate, truth, pose, out, f"{Path(args.map).name} in {world_file.stem}")
-    return {"scenario": Scenario.MAP.value, "world": world_file.stem, "ok": True, "failure": None,
-            "sim_seconds": 0.0, "wall_seconds": round(time.monotonic() - wall0, 3), "map": str(args.map),
-            "map_pose": list(pose), **metrics, "out": str(out), "plots": ["map.png"]}
-
-
 def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     rec = run.recording
     title = f"{run.scenario.value} in {run.world_file.stem}, route {run.route.name}"
@@ -428,7 +284,8 @@ def _score_map(args: argparse.Namespace, world_file: Path) -> int:
     out = _output_dir(args, Scenario.MAP, world_file)
     try:
         out.mkdir(parents=True, exist_ok=True)
-        result = score_map(args, world_file, out)
+        pose = (args.map_pose[0], args.map_pose[1], args.map_pose[2])
+        result = score_saved_map(args.map, world_file, pose, out)
     except (MapFileError, MapQualityError) as exc:
         print(f"pppbot eval map: {exc}", file=sys.stderr)
         return 2
@@ -450,7 +307,7 @@ def main(args: argparse.Namespace) -> int:
         route_path = args.route_file or routes_file(world_file)
         route = select_route(load_routes(route_path), args.route, route_path)
         out = _output_dir(args, scenario, world_file)
-        truth_map = truth_map_of(world_file, route)
+        truth_map = world_truth(world_file, route)
         out.mkdir(parents=True, exist_ok=True)
     except (ArgumentError, RouteError, WorldError, DescriptionError, ValueError) as exc:
         print(f"pppbot eval: {exc}", file=sys.stderr)

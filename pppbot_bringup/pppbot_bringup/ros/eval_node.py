@@ -1,0 +1,125 @@
+"""The evaluation's own node: records ground truth, the estimate and collisions, and drives the route.
+
+Commands go to ``/cmd_vel_teleop`` (twist_mux's teleop input) at :data:`COMMAND_PERIOD_S` of
+sim time, computed from ground truth by the route driver.
+"""
+from __future__ import annotations
+
+import time
+
+import rclpy
+from builtin_interfaces.msg import Time as TimeMsg
+from geometry_msgs.msg import PointStamped, Twist, Vector3
+from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+from tf2_msgs.msg import TFMessage
+
+from pppbot_bringup.eval.driver import RouteDriver
+from pppbot_bringup.eval.scenarios import Estimate, Recording
+from pppbot_common.ros.qos import DEFAULT, LATCHED
+from pppbot_common.se2 import yaw_from_quaternion
+
+#: The route driver commands at 20 Hz of sim time, a teleop's or a controller's rate
+#: (every ground-truth message would be 500 commands a wall second at 10× real time).
+COMMAND_PERIOD_S = 0.05
+MAX_CALLBACKS_PER_SPIN = 100
+
+
+class EvalNode:
+    """Records ground truth, the estimate and collisions; drives the route on ground truth."""
+
+    def __init__(self, estimate: Estimate, driver: RouteDriver, recording: Recording) -> None:
+        self.context = rclpy.Context()
+        rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("pppbot_eval", context=self.context, start_parameter_services=False)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.estimate = estimate
+        self.driver = driver
+        self.recording = recording
+        self.wanted_edges = set(estimate.edges())
+        self.driving = False
+        self._next_command_s = 0.0
+        self.last_truth_wall_s = time.monotonic()
+        self.sim_now_s: float | None = None
+        self.cmd_pub = self.node.create_publisher(Twist, "/cmd_vel_teleop", DEFAULT)
+        self.node.create_subscription(Odometry, "/ground_truth/odom", self._on_truth, 100)
+        if estimate.topic is not None:
+            self.node.create_subscription(Odometry, estimate.topic, self._on_estimate, 100)
+        else:
+            self.node.create_subscription(TFMessage, "/tf", self._on_tf, 200)
+            self.node.create_subscription(TFMessage, "/tf_static", self._keep_edges, LATCHED)
+        self.node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100)
+
+    def _on_truth(self, msg: Odometry) -> None:
+        t = stamp_seconds(msg.header.stamp)
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
+        self.sim_now_s = t
+        self.last_truth_wall_s = time.monotonic()
+        if not self.driving:
+            return
+        self.recording.truth_rows.append((t, p.x, p.y, yaw))
+        if t < self._next_command_s and not self.driver.finished:
+            return
+        self._next_command_s = t + COMMAND_PERIOD_S
+        v, w = self.driver.command(p.x, p.y, yaw)
+        self.cmd_pub.publish(Twist(linear=_vector(v), angular=_vector(0.0, 0.0, w)))
+        self.recording.route_progress = self.driver.progress
+        self.recording.route_finished = self.driver.finished
+
+    def _on_estimate(self, msg: Odometry) -> None:
+        if self.driving:
+            q = msg.pose.pose.orientation
+            p = msg.pose.pose.position
+            self.recording.estimate_rows.append((stamp_seconds(msg.header.stamp), p.x, p.y,
+                                                 yaw_from_quaternion(q.x, q.y, q.z, q.w)))
+
+    def _on_tf(self, msg: TFMessage) -> None:
+        if self.driving:
+            self._keep_edges(msg)
+
+    def _keep_edges(self, msg: TFMessage) -> None:
+        """Keep the estimate chain's edges; they are composed after the run (no extrapolation)."""
+        for transform in msg.transforms:
+            edge = (transform.header.frame_id.lstrip("/"), transform.child_frame_id.lstrip("/"))
+            if edge in self.wanted_edges:
+                tr, q = transform.transform.translation, transform.transform.rotation
+                self.recording.edge_rows.setdefault(edge, []).append(
+                    (stamp_seconds(transform.header.stamp), tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)))
+
+    def _on_collision(self, msg: PointStamped) -> None:
+        t = stamp_seconds(msg.header.stamp)
+        self.recording.collisions.append((t, msg.point.x, msg.point.y))
+
+    def stop_robot(self) -> None:
+        self.driving = False
+        for _ in range(3):
+            self.cmd_pub.publish(Twist())
+
+    def spin_once(self, timeout_s: float) -> None:
+        self.executor.spin_once(timeout_sec=timeout_s)
+
+    def spin_pending(self, timeout_s: float, limit: int = MAX_CALLBACKS_PER_SPIN) -> None:
+        """Wait up to ``timeout_s`` for work, then run what is ready (one callback per spin_once)."""
+        self.executor.spin_once(timeout_sec=timeout_s)
+        for _ in range(limit):
+            before = self.sim_now_s, len(self.recording.estimate_rows), len(self.recording.collisions)
+            self.executor.spin_once(timeout_sec=0.0)
+            if (self.sim_now_s, len(self.recording.estimate_rows), len(self.recording.collisions)) == before:
+                break
+
+    def close(self) -> None:
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def stamp_seconds(stamp: TimeMsg) -> float:
+    return float(stamp.sec) + stamp.nanosec * 1e-9
+
+
+def _vector(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Vector3:
+    return Vector3(x=float(x), y=float(y), z=float(z))
+
