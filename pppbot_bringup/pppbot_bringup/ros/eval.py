@@ -277,7 +277,7 @@ def _print_report(result: dict[str, Any], line: str, as_json: bool) -> None:
         print(line)
     else:
         for key, value in result.items():
-            print(f"{key:>26}: {value}")
+            print(f"{key:>26}: {value:.4g}" if isinstance(value, float) else f"{key:>26}: {value}")
 
 
 def _score_map(args: argparse.Namespace, world_file: Path) -> int:
