@@ -97,7 +97,8 @@ class LikelihoodField:
         # Each hit cell keeps the mean of its points, and distances are measured to that
         # point, not to the cell: rasterising alone would shift walls by up to half a cell.
         mean = np.stack([np.bincount(flat, points[:, k], height * width) for k in (0, 1)], axis=-1)
-        mean[count > 0] /= count[count > 0, None]
+        has = count > 0
+        mean[has] = mean[has] / count[has, None]
         nearest = ndimage.distance_transform_edt(~hit, return_distances=False, return_indices=True)
         rows, cols = np.indices((height, width))
         centres = self.origin + (np.stack([cols, rows], axis=-1) + 0.5) * resolution_m
@@ -179,8 +180,8 @@ class ScanMatcher:
         fine = self._fine(points, prior_pose, coarse)
         refined = self._refine(points, prior_pose, fine)
         raw = self.response(points, refined)
-        penalised = raw * float(_penalty(*(refined - prior_pose)[:2], wrap_angles(refined[2] - prior_pose[2]),
-                                         self.settings))
+        offset = refined - prior_pose
+        penalised = raw * float(_penalty(offset[0], offset[1], wrap_angles(offset[2]), self.settings))
         return MatchResult(refined, penalised, raw, self._covariance(candidates, responses))
 
     def _coarse(self, points: np.ndarray, prior: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
