@@ -1,0 +1,120 @@
+"""The SLAM pose graph: keyframe poses, odometry/matching and loop-closure edges, optimised by GTSAM.
+
+GTSAM (Georgia Tech Smoothing and Mapping) is a well-kept factor-graph library
+with Python wheels: each edge is a ``BetweenFactorPose2`` with the matcher's
+covariance, the first keyframe is anchored by a tight prior (the map frame is
+where mapping started), and Levenberg–Marquardt solves the graph, as
+slam_toolbox's Ceres back end does. Loop-closure edges get a Huber kernel, so a
+wrong one bends the graph much less than it would with plain least squares.
+No ROS here.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from pppbot_common.errors import PppbotError
+from pppbot_common.se2 import PoseLike, se2_compose, se2_inverse
+
+#: Standard deviation of the anchor on the first keyframe (m, m, rad).
+ANCHOR_SIGMAS = (1e-6, 1e-6, 1e-8)
+#: Huber threshold on loop-closure edges, in standard deviations.
+LOOP_HUBER_K = 1.345
+
+
+class PoseGraphError(PppbotError, ValueError):
+    """A bad node index, pose or covariance; the message names the value."""
+
+
+@dataclass(frozen=True)
+class Edge:
+    source: int
+    target: int
+    relative: np.ndarray  # target's pose in the source's frame (x, y, yaw)
+    covariance: np.ndarray  # (3, 3) in x, y, yaw
+    loop: bool = False
+
+
+def _pose(value: PoseLike, what: str) -> np.ndarray:
+    array = np.asarray(value, dtype=float)
+    if array.shape != (3,) or not np.isfinite(array).all():
+        raise PoseGraphError(f"{what} must be a finite (x, y, yaw), not {value!r}")
+    return array
+
+
+def _covariance(value: np.ndarray, what: str) -> np.ndarray:
+    array = np.asarray(value, dtype=float)
+    if array.shape != (3, 3) or not np.isfinite(array).all() or not np.allclose(array, array.T):
+        raise PoseGraphError(f"{what} covariance must be a finite symmetric 3×3 matrix, not {value!r}")
+    if np.linalg.eigvalsh(array).min() <= 0:
+        raise PoseGraphError(f"{what} covariance must be positive definite (eigenvalues "
+                             f"{np.linalg.eigvalsh(array).round(12).tolist()})")
+    return array
+
+
+class PoseGraph:
+    def __init__(self) -> None:
+        self.poses: list[np.ndarray] = []  # current estimate of every node, map frame
+        self.edges: list[Edge] = []
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    @property
+    def loop_closures(self) -> int:
+        return sum(e.loop for e in self.edges)
+
+    def add_node(self, pose: PoseLike) -> int:
+        """A keyframe at ``pose`` (its initial estimate); returns its index."""
+        self.poses.append(_pose(pose, f"node {len(self.poses)}'s pose").copy())
+        return len(self.poses) - 1
+
+    def add_edge(self, source: int, target: int, relative: PoseLike, covariance: np.ndarray,
+                 loop: bool = False) -> Edge:
+        """A constraint: ``target``'s pose seen from ``source`` is ``relative``, with ``covariance``.
+
+        Raises:
+            PoseGraphError: unknown node, a self-edge, or a bad pose or covariance.
+        """
+        for name, index in (("source", source), ("target", target)):
+            if not 0 <= index < len(self.poses):
+                raise PoseGraphError(f"edge {name} {index} is not a node (the graph has {len(self.poses)})")
+        if source == target:
+            raise PoseGraphError(f"an edge needs two different nodes, not {source} and {target}")
+        edge = Edge(source, target, _pose(relative, "edge relative pose"), _covariance(covariance, "edge"), loop)
+        self.edges.append(edge)
+        return edge
+
+    def relative(self, source: int, target: int) -> np.ndarray:
+        """``target``'s current pose in ``source``'s frame."""
+        return np.asarray(se2_compose(se2_inverse(self.poses[source]), self.poses[target]))
+
+    def optimize(self, max_iterations: int = 100) -> float:
+        """Solve the graph (Levenberg–Marquardt) and update :attr:`poses`; returns the final error.
+
+        The first node stays where it is (anchored).
+        """
+        if len(self.poses) < 2 or not self.edges:
+            return 0.0
+        graph = gtsam.NonlinearFactorGraph()
+        anchor = gtsam.noiseModel.Diagonal.Sigmas(np.array(ANCHOR_SIGMAS))
+        graph.add(gtsam.PriorFactorPose2(0, gtsam.Pose2(*self.poses[0]), anchor))
+        huber = gtsam.noiseModel.mEstimator.Huber.Create(LOOP_HUBER_K)
+        for edge in self.edges:
+            noise: gtsam.noiseModel.Base = gtsam.noiseModel.Gaussian.Covariance(edge.covariance)
+            if edge.loop:
+                noise = gtsam.noiseModel.Robust.Create(huber, noise)
+            graph.add(gtsam.BetweenFactorPose2(edge.source, edge.target, gtsam.Pose2(*edge.relative), noise))
+        initial = gtsam.Values()
+        for i, pose in enumerate(self.poses):
+            initial.insert(i, gtsam.Pose2(*pose))
+        params = gtsam.LevenbergMarquardtParams()
+        params.setMaxIterations(max_iterations)
+        result = gtsam.LevenbergMarquardtOptimizer(graph, initial, params).optimize()
+        for i in range(len(self.poses)):
+            solved = result.atPose2(i)
+            self.poses[i] = np.array([solved.x(), solved.y(), math.remainder(solved.theta(), 2 * math.pi)])
+        return float(graph.error(result))
