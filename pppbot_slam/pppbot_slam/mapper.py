@@ -1,0 +1,243 @@
+"""Online grid SLAM: keyframes by travel, scan-to-map matching, a pose graph with loop closures.
+
+The flow of slam_toolbox's (Karto's) mapper, with its parameter names:
+
+* A scan becomes a keyframe when the robot travelled ``minimum_travel_distance``
+  or turned ``minimum_travel_heading`` since the last one (the first scan always).
+* Its pose is predicted from odometry (the last keyframe's map pose composed with
+  the odometry motion since) and corrected by matching against the running buffer:
+  the hits of the last ``scan_buffer_size`` keyframes within
+  ``scan_buffer_maximum_scan_distance``. A match below
+  ``link_match_minimum_response_fine`` keeps the prediction.
+* An edge joins it to the previous keyframe, with the matcher's covariance.
+* Loop closure: keyframes older than the running chain within
+  ``loop_search_maximum_distance``, in chains of at least
+  ``loop_match_minimum_chain_size`` consecutive keyframes, are matched in a large
+  window (coarse response ≥ ``loop_match_minimum_response_coarse`` and variance ≤
+  ``loop_match_maximum_variance_coarse``), then finely (response ≥
+  ``loop_match_minimum_response_fine``); an accepted match adds a loop edge and the
+  graph is optimised.
+* ``map → odom`` is the latest keyframe's map pose composed with the inverse of its
+  odometry pose; the grid is rebuilt from the optimised poses on request.
+
+Poses of the robot are of its base frame; the lidar sits at ``sensor_offset`` in it.
+No ROS here.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pppbot_common.errors import PppbotError
+from pppbot_common.maps import OccupancyGrid
+from pppbot_common.se2 import PoseLike, se2_apply, se2_compose, se2_inverse, wrap_angles
+from pppbot_slam.matcher import MatcherSettings, MatchResult, ScanMatcher
+from pppbot_slam.occupancy import LogOddsGrid, OccupancySettings, ScanRays
+from pppbot_slam.pose_graph import PoseGraph
+
+#: Covariance of an edge whose scan could not be matched: odometry alone (m², m², rad²).
+ODOMETRY_ONLY_COVARIANCE = np.diag([0.1 ** 2, 0.1 ** 2, 0.05 ** 2])
+
+
+class MapperError(PppbotError, ValueError):
+    """A bad mapper setting; the message names it and its value."""
+
+
+@dataclass(frozen=True)
+class MapperSettings:
+    """slam_toolbox's parameter names and ppp_bot's values (mapper_params_online_async.yaml)."""
+
+    resolution: float = 0.05
+    max_laser_range: float = 20.0
+    minimum_travel_distance: float = 0.5
+    minimum_travel_heading: float = 0.5
+    scan_buffer_size: int = 10
+    scan_buffer_maximum_scan_distance: float = 10.0
+    link_match_minimum_response_fine: float = 0.1
+    do_loop_closing: bool = True
+    loop_search_maximum_distance: float = 3.0
+    loop_match_minimum_chain_size: int = 10
+    loop_match_maximum_variance_coarse: float = 3.0
+    loop_match_minimum_response_coarse: float = 0.35
+    loop_match_minimum_response_fine: float = 0.45
+    matcher: MatcherSettings = MatcherSettings()
+    # loop_search_space_dimension 8.0 and its smear 0.03; searched coarsely at 0.1 m
+    loop_matcher: MatcherSettings = MatcherSettings(search_size_m=8.0, coarse_resolution_m=0.1, smear_m=0.03,
+                                                    coarse_points=100)
+
+    def __post_init__(self) -> None:
+        for name in ("resolution", "max_laser_range", "scan_buffer_maximum_scan_distance",
+                     "loop_search_maximum_distance", "loop_match_maximum_variance_coarse"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise MapperError(f"{name} must be a positive number, not {value}")
+        for name in ("minimum_travel_distance", "minimum_travel_heading"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise MapperError(f"{name} must be a number >= 0, not {value}")
+        for name in ("scan_buffer_size", "loop_match_minimum_chain_size"):
+            if getattr(self, name) < 1:
+                raise MapperError(f"{name} must be at least 1, not {getattr(self, name)}")
+        for name in ("link_match_minimum_response_fine", "loop_match_minimum_response_coarse",
+                     "loop_match_minimum_response_fine"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0 <= value <= 1):
+                raise MapperError(f"{name} must be in [0, 1], not {value}")
+
+
+@dataclass
+class Keyframe:
+    index: int
+    stamp_s: float
+    odom_pose: np.ndarray  # base in the odom frame when the scan was taken
+    rays: ScanRays  # in the sensor frame
+    points: np.ndarray  # (K, 2) hits in the base frame
+
+
+@dataclass
+class LoopClosure:
+    source: int  # the older keyframe
+    target: int  # the new one
+    response: float
+
+
+@dataclass
+class Mapper:
+    settings: MapperSettings = MapperSettings()
+    sensor_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))  # lidar in the base frame
+    keyframes: list[Keyframe] = field(default_factory=list)
+    graph: PoseGraph = field(default_factory=PoseGraph)
+    loop_closures: list[LoopClosure] = field(default_factory=list)
+    last_response: float = 0.0
+
+    # ------------------------------------------------------------------ poses
+    def map_pose(self, index: int) -> np.ndarray:
+        return self.graph.poses[index]
+
+    def map_to_odom(self) -> np.ndarray:
+        """The map → odom transform: identity until the first keyframe."""
+        if not self.keyframes:
+            return np.zeros(3)
+        last = self.keyframes[-1]
+        return np.asarray(se2_compose(self.map_pose(last.index), se2_inverse(last.odom_pose)))
+
+    def predict(self, odom_pose: PoseLike) -> np.ndarray:
+        """The base's map pose for an odometry pose, through the current map → odom."""
+        return np.asarray(se2_compose(self.map_to_odom(), np.asarray(odom_pose, dtype=float)))
+
+    def hit_points(self, rays: ScanRays) -> np.ndarray:
+        """The scan's hits within max_laser_range, in the base frame."""
+        classes = rays.classify(self.settings.max_laser_range)
+        sensor_xy = rays.directions[classes.hit] * rays.ranges_m[classes.hit, None]
+        return np.asarray(se2_apply(self.sensor_offset, sensor_xy))
+
+    # -------------------------------------------------------------- keyframes
+    def needs_keyframe(self, odom_pose: PoseLike) -> bool:
+        if not self.keyframes:
+            return True
+        motion = se2_compose(se2_inverse(self.keyframes[-1].odom_pose), np.asarray(odom_pose, dtype=float))
+        s = self.settings
+        return bool(math.hypot(motion[0], motion[1]) >= s.minimum_travel_distance
+                    or abs(float(wrap_angles(motion[2]))) >= s.minimum_travel_heading)
+
+    def process(self, stamp_s: float, odom_pose: PoseLike, rays: ScanRays) -> Keyframe | None:
+        """Take a scan with its odometry pose; a new keyframe when the robot moved enough.
+
+        Scans with fewer than 3 hits are not keyframes (nothing to match).
+        """
+        if not self.needs_keyframe(odom_pose):
+            return None
+        points = self.hit_points(rays)
+        if len(points) < 3:
+            return None
+        odom = np.asarray(odom_pose, dtype=float).copy()
+        predicted = self.predict(odom)
+        index = len(self.keyframes)
+        if index == 0:
+            self.graph.add_node(predicted)
+            self.keyframes.append(Keyframe(0, stamp_s, odom, rays, points))
+            self.last_response = 1.0
+            return self.keyframes[0]
+        result = self._match_running(points, predicted)
+        accepted = result is not None and result.response >= self.settings.link_match_minimum_response_fine
+        pose = result.pose if accepted and result is not None else predicted
+        covariance = result.covariance if accepted and result is not None else ODOMETRY_ONLY_COVARIANCE
+        self.last_response = result.response if result is not None else 0.0
+        previous = index - 1
+        self.graph.add_node(pose)
+        self.keyframes.append(Keyframe(index, stamp_s, odom, rays, points))
+        self.graph.add_edge(previous, index, self.graph.relative(previous, index),
+                            _in_frame_of(covariance, self.map_pose(previous)[2]))
+        if self.settings.do_loop_closing:
+            self._close_loops(index)
+        return self.keyframes[-1]
+
+    def _world_points(self, indices: list[int]) -> np.ndarray:
+        return np.vstack([se2_apply(self.map_pose(i), self.keyframes[i].points) for i in indices])
+
+    def _running_buffer(self, pose: np.ndarray) -> list[int]:
+        s = self.settings
+        recent = range(max(0, len(self.keyframes) - s.scan_buffer_size), len(self.keyframes))
+        return [i for i in recent
+                if np.hypot(*(self.map_pose(i)[:2] - pose[:2])) <= s.scan_buffer_maximum_scan_distance]
+
+    def _match_running(self, points: np.ndarray, predicted: np.ndarray) -> MatchResult | None:
+        buffer = self._running_buffer(predicted)
+        if not buffer:
+            return None
+        return ScanMatcher(self._world_points(buffer), self.settings.matcher).match(points, predicted)
+
+    # ----------------------------------------------------------- loop closure
+    def loop_candidates(self, index: int) -> list[list[int]]:
+        """Chains of consecutive older keyframes near keyframe ``index`` (outside its running chain)."""
+        s = self.settings
+        pose = self.map_pose(index)
+        old = index - s.scan_buffer_size
+        near = [i for i in range(max(0, old))
+                if np.hypot(*(self.map_pose(i)[:2] - pose[:2])) <= s.loop_search_maximum_distance]
+        chains: list[list[int]] = []
+        for i in near:
+            if chains and i == chains[-1][-1] + 1:
+                chains[-1].append(i)
+            else:
+                chains.append([i])
+        return [c for c in chains if len(c) >= s.loop_match_minimum_chain_size]
+
+    def _close_loops(self, index: int) -> None:
+        s = self.settings
+        points = self.keyframes[index].points
+        for chain in self.loop_candidates(index):
+            world = self._world_points(chain)
+            coarse = ScanMatcher(world, s.loop_matcher).match(points, self.map_pose(index))
+            if (coarse.response < s.loop_match_minimum_response_coarse
+                    or max(coarse.covariance[0, 0], coarse.covariance[1, 1]) > s.loop_match_maximum_variance_coarse):
+                continue
+            fine = ScanMatcher(world, s.matcher).match(points, coarse.pose)
+            if fine.response < s.loop_match_minimum_response_fine:
+                continue
+            nearest = min(chain, key=lambda i: float(np.hypot(*(self.map_pose(i)[:2] - fine.pose[:2]))))
+            relative = se2_compose(se2_inverse(self.map_pose(nearest)), fine.pose)
+            self.graph.add_edge(nearest, index, relative, _in_frame_of(fine.covariance, self.map_pose(nearest)[2]),
+                                loop=True)
+            self.loop_closures.append(LoopClosure(nearest, index, fine.response))
+            self.graph.optimize()
+
+    # -------------------------------------------------------------------- map
+    def occupancy(self, occupancy: OccupancySettings | None = None) -> LogOddsGrid:
+        """The log-odds grid rebuilt from every keyframe at its optimised pose."""
+        settings = occupancy or OccupancySettings(resolution_m=self.settings.resolution,
+                                                  max_range_m=self.settings.max_laser_range)
+        sensor_poses = [se2_compose(self.map_pose(k.index), self.sensor_offset) for k in self.keyframes]
+        return LogOddsGrid.build(settings, sensor_poses, [k.rays for k in self.keyframes])
+
+    def grid(self, frame_id: str = "map") -> OccupancyGrid:
+        return self.occupancy().to_occupancy_grid(frame_id)
+
+
+def _in_frame_of(covariance: np.ndarray, yaw: float) -> np.ndarray:
+    """A map-frame (x, y, yaw) covariance expressed in a frame rotated by ``yaw``."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    rotation = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    return np.asarray(rotation @ covariance @ rotation.T)
