@@ -17,6 +17,8 @@ setup(
     description="Online asynchronous grid SLAM with loop closure for ppp_bot (slam_toolbox's role).",
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [],
+        'console_scripts': [
+            'slam = pppbot_slam.ros.slam:main',
+        ],
     },
 )

@@ -24,6 +24,7 @@ ARGUMENTS = [
     Argument("world", "cones", "world name (worlds/<name>.sdf) or path to an SDF or MJCF file"),
     Argument("localization", False, "localize on a saved map (map_server + AMCL) instead of mapping (SLAM)"),
     Argument("map", "", "map YAML for localization; default maps/<world>.yaml"),
+    Argument("use_slam", True, "with localization:=false, map with the SLAM node (false: drive on odometry only)"),
     Argument("use_teleop", True, "keyboard teleop in this terminal (other nodes' output goes to log files)"),
     Argument("use_rviz", True, "start rviz2 with config/ppp_bot.rviz when rviz2 is on PATH"),
     Argument("headless", True, "no MuJoCo viewer window (false opens one; needs a display)"),
@@ -112,7 +113,11 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
             raise ArgumentError(f"localization:=true needs a map; {map_file} does not exist "
                                 f"(save one while mapping, or give map:=path/to/map.yaml)")
         raise ArgumentError("localization:=true needs map_server and amcl, which are not built yet in this checkout")
-    notes.append("mapping (SLAM) is not built yet in this checkout: no /map, and no map → odom transform")
+    if values["use_slam"]:
+        nodes.append(NodeSpec("slam_toolbox", [resolve("pppbot_slam", "slam"), *ros_args(
+            level, params_file=config / "mapper_params_online_async.yaml")],
+            after=("diff_drive_base_controller",), required=True,
+            ready=ReadyCheck("its start", output_pattern=r"mapping: ")))
     if values["use_rviz"]:
         if rviz is None:
             notes.append("rviz2 is not on PATH: no RViz (use_rviz:=false silences this); "

@@ -39,6 +39,8 @@ from pppbot_slam.pose_graph import PoseGraph
 
 #: Covariance of an edge whose scan could not be matched: odometry alone (m², m², rad²).
 ODOMETRY_ONLY_COVARIANCE = np.diag([0.1 ** 2, 0.1 ** 2, 0.05 ** 2])
+#: Fewer hits than this and a scan is not matched (open space): odometry places it.
+MIN_MATCH_POINTS = 10
 
 
 class MapperError(PppbotError, ValueError):
@@ -145,13 +147,12 @@ class Mapper:
     def process(self, stamp_s: float, odom_pose: PoseLike, rays: ScanRays) -> Keyframe | None:
         """Take a scan with its odometry pose; a new keyframe when the robot moved enough.
 
-        Scans with fewer than 3 hits are not keyframes (nothing to match).
+        A scan with fewer than :data:`MIN_MATCH_POINTS` hits (open space) is placed by
+        odometry alone; its free space still goes into the map.
         """
         if not self.needs_keyframe(odom_pose):
             return None
         points = self.hit_points(rays)
-        if len(points) < 3:
-            return None
         odom = np.asarray(odom_pose, dtype=float).copy()
         predicted = self.predict(odom)
         index = len(self.keyframes)
@@ -184,8 +185,8 @@ class Mapper:
                 if np.hypot(*(self.map_pose(i)[:2] - pose[:2])) <= s.scan_buffer_maximum_scan_distance]
 
     def _match_running(self, points: np.ndarray, predicted: np.ndarray) -> MatchResult | None:
-        buffer = self._running_buffer(predicted)
-        if not buffer:
+        buffer = [i for i in self._running_buffer(predicted) if len(self.keyframes[i].points)]
+        if not buffer or len(points) < MIN_MATCH_POINTS:
             return None
         return ScanMatcher(self._world_points(buffer), self.settings.matcher).match(points, predicted)
 
@@ -208,7 +209,11 @@ class Mapper:
     def _close_loops(self, index: int) -> None:
         s = self.settings
         points = self.keyframes[index].points
+        if len(points) < MIN_MATCH_POINTS:
+            return
         for chain in self.loop_candidates(index):
+            if sum(len(self.keyframes[i].points) for i in chain) < MIN_MATCH_POINTS:
+                continue
             world = self._world_points(chain)
             coarse = ScanMatcher(world, s.loop_matcher).match(points, self.map_pose(index))
             if (coarse.response < s.loop_match_minimum_response_coarse
@@ -225,12 +230,15 @@ class Mapper:
             self.graph.optimize()
 
     # -------------------------------------------------------------------- map
-    def occupancy(self, occupancy: OccupancySettings | None = None) -> LogOddsGrid:
+    def grid_inputs(self) -> tuple[OccupancySettings, list[np.ndarray], list[ScanRays]]:
+        """What :meth:`LogOddsGrid.build` needs: settings, sensor poses in the map, scans (a snapshot)."""
+        settings = OccupancySettings(resolution_m=self.settings.resolution, max_range_m=self.settings.max_laser_range)
+        sensor_poses = [np.asarray(se2_compose(self.map_pose(k.index), self.sensor_offset)) for k in self.keyframes]
+        return settings, sensor_poses, [k.rays for k in self.keyframes]
+
+    def occupancy(self) -> LogOddsGrid:
         """The log-odds grid rebuilt from every keyframe at its optimised pose."""
-        settings = occupancy or OccupancySettings(resolution_m=self.settings.resolution,
-                                                  max_range_m=self.settings.max_laser_range)
-        sensor_poses = [se2_compose(self.map_pose(k.index), self.sensor_offset) for k in self.keyframes]
-        return LogOddsGrid.build(settings, sensor_poses, [k.rays for k in self.keyframes])
+        return LogOddsGrid.build(*self.grid_inputs())
 
     def grid(self, frame_id: str = "map") -> OccupancyGrid:
         return self.occupancy().to_occupancy_grid(frame_id)

@@ -1,4 +1,4 @@
-"""``pppbot eval drive`` end to end in the box room: the real stack over DDS, its report read back."""
+"""``pppbot eval drive`` and ``eval slam`` end to end in the box room: the real stack over DDS, reports read back."""
 from __future__ import annotations
 
 import json
@@ -6,6 +6,7 @@ import math
 from pathlib import Path
 from typing import Any, Callable
 
+import numpy as np
 from PIL import Image
 
 from pppbot_common.process import ChildProcess
@@ -15,10 +16,11 @@ PPPBOT = str(ROOT / "pppbot")
 BOX_ROOM = str(ROOT / "tests" / "pppbot_sim" / "data" / "box_room.sdf")
 
 
-def run_eval(spawn: Callable[..., ChildProcess], out: Path, *extra: str) -> tuple[int, dict[str, Any], str]:
+def run_eval(spawn: Callable[..., ChildProcess], out: Path, *extra: str,
+             scenario: str = "drive") -> tuple[int, dict[str, Any], str]:
     """Exit code, the report from stdout, and stderr (progress, node warnings)."""
     stderr = out.parent / f"{out.name}.stderr"
-    child = spawn(["bash", "-c", f'exec "$0" "$@" 2>"{stderr}"', PPPBOT, "eval", "drive", "--world", BOX_ROOM,
+    child = spawn(["bash", "-c", f'exec "$0" "$@" 2>"{stderr}"', PPPBOT, "eval", scenario, "--world", BOX_ROOM,
                    "--out", str(out), "--json", *extra], name="eval")
     code = child.wait(timeout_s=240)
     stdout_lines = child.output.strip().splitlines()
@@ -64,3 +66,19 @@ def test_driving_into_a_wall_counts_a_collision_and_fails(spawn, tmp_path: Path)
     assert report["collisions"] >= 1
     assert report["failure"].startswith("route not finished within 15")
     assert report["min_clearance_m"] == 0.0
+
+
+def test_slam_scenario_maps_the_room_and_tracks_the_robot(spawn, tmp_path: Path):
+    out = tmp_path / "slam"
+    code, report, output = run_eval(spawn, out, "--seed", "2", "--wheel-slip", "0.03", scenario="slam")
+    assert code == 0, output
+    assert report["scenario"] == "slam" and report["ok"] is True and report["collisions"] == 0
+    # SLAM against ground truth (issue 9's targets): the map and the trajectory.
+    assert report["map_f1"] >= 0.95 and report["map_precision"] >= 0.95 and report["map_recall"] >= 0.95
+    assert report["ate_rms_m"] <= 0.05
+    assert report["map_free_coverage"] > 0.9
+    assert report["plots"] == ["error.png", "map.png", "trajectory.png"]
+    # The map → odom chain was recorded and moved: SLAM corrected the slipping odometry.
+    with np.load(out / "recording.npz") as recording:
+        map_to_odom = recording["tf_map__odom"]
+    assert len(np.unique(map_to_odom[:, 1:].round(4), axis=0)) > 3

@@ -120,7 +120,7 @@ def test_a_design_verb_not_built_yet_says_so_instead_of_pretending():
 
 
 def test_an_eval_scenario_not_built_yet_names_what_it_needs():
-    result = pppbot("eval", "slam", "--json")
+    result = pppbot("eval", "localization", "--json")
     assert result.returncode == 2
-    assert "needs the SLAM node (pppbot_slam), which is not built yet" in result.stderr
+    assert "needs map_server and AMCL (pppbot_nav), which is not built yet" in result.stderr
     assert result.stdout == ""

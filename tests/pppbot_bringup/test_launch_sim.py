@@ -85,12 +85,15 @@ def test_plan_follows_ppp_bots_order_and_wiring():
     p, probes = fake_plan("world:=maze", "real_time_factor:=3", terminal=True, rviz="/usr/bin/rviz2")
     names = [n.name for n in p.nodes]
     assert names == ["simulator", "robot_state_publisher", "diff_drive_base_controller", "twist_mux",
-                     "rviz2", "teleop_keyboard"]
+                     "slam_toolbox", "rviz2", "teleop_keyboard"]
     by_name = {n.name: n for n in p.nodes}
     assert by_name["robot_state_publisher"].after == ("simulator",)
     assert by_name["twist_mux"].after == ("diff_drive_base_controller",)
     assert set(by_name["teleop_keyboard"].after) == {"simulator", "robot_state_publisher",
-                                                     "diff_drive_base_controller", "twist_mux"}
+                                                     "diff_drive_base_controller", "twist_mux", "slam_toolbox"}
+    slam = " ".join(by_name["slam_toolbox"].cmd)
+    assert slam.startswith("/bin/pppbot_slam/slam ") and "mapper_params_online_async.yaml" in slam
+    assert "use_sim_time:=true" in slam and by_name["slam_toolbox"].after == ("diff_drive_base_controller",)
     assert by_name["teleop_keyboard"].terminal and not by_name["simulator"].terminal
     sim = " ".join(by_name["simulator"].cmd)
     assert "world:=" in sim and "maze.sdf" in sim and "real_time_factor:=3.0" in sim and "use_sim_time" not in sim
@@ -101,13 +104,13 @@ def test_plan_follows_ppp_bots_order_and_wiring():
 
 
 def test_plan_without_terminal_rviz_or_mapping_says_so():
-    p, _ = fake_plan()
+    p, _ = fake_plan("use_slam:=false")
     assert [n.name for n in p.nodes][-1] == "twist_mux"
     notes = " ".join(p.notes)
     assert "run ./pppbot teleop in another terminal" in notes
     assert "rviz2 is not on PATH" in notes
-    assert "mapping (SLAM) is not built yet" in notes
     assert "bag_record" not in [n.name for n in p.nodes]
+    assert [n.name for n in fake_plan()[0].nodes][-1] == "slam_toolbox"
 
 
 def test_record_adds_a_recorder_right_after_the_simulator(tmp_path):
@@ -128,7 +131,7 @@ def test_end_to_end_headless_drive_record_and_clean_sigint(ros_node, spawn, tmp_
                     "real_time_factor:=2.0", "record:=true", f"bag_path:={bag}"], name="launch_sim")
     launch.wait_for_output(r"ppp_bot is up in 'empty'", 60)
     pids = [int(p) for p in re.findall(r"process started with pid \[(\d+)\]", launch.output)]
-    assert len(pids) == 5
+    assert len(pids) == 6  # simulator, bag_record, robot_state_publisher, controller, twist_mux, slam_toolbox
     truths: list[Odometry] = []
     ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
     pub = ros_node.create_publisher(Twist, "/cmd_vel_teleop", 10)
@@ -143,7 +146,7 @@ def test_end_to_end_headless_drive_record_and_clean_sigint(ros_node, spawn, tmp_
     os.kill(launch.pid, signal.SIGINT)
     assert launch.wait(15) == 0
     assert time.monotonic() - t0 < 15
-    assert launch.output.count("process has finished cleanly") == 5
+    assert launch.output.count("process has finished cleanly") == 6
     for pid in pids:
         assert not os.path.exists(f"/proc/{pid}") or open(f"/proc/{pid}/stat").read().rsplit(")", 1)[-1].split()[0] == "Z"
     # Stopping the launch finished the bag: the drive and the latched description are in it.
@@ -213,7 +216,7 @@ def test_in_a_terminal_the_teleop_drives_and_ctrl_c_ends_everything(ros_node):
                 break
             screen.extend(chunk)
         text = screen.decode(errors="replace")
-        assert text.count("process has finished cleanly") == 5
+        assert text.count("process has finished cleanly") == 6  # with slam_toolbox
         assert (log_dir / "simulator-1.log").read_text().count("lidar 'laser'") == 1
     finally:
         stop_process_group(proc)

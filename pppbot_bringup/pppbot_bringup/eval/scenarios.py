@@ -7,6 +7,8 @@ a scenario turns that into the report's metrics and plots.
 * ``map``: no run; a saved map (Nav2 YAML) scored against the world's ground truth.
 * ``drive``: drive a route with wheel slip; the estimate is wheel odometry
   (``odom → base_link``), whose frame is the spawn pose: how far dead reckoning drifts.
+* ``slam``: the same with the SLAM node; the estimate is ``map → odom → base_link``
+  from TF, and the last ``/map`` is scored against the ground truth.
 """
 from __future__ import annotations
 
@@ -16,8 +18,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pppbot_bringup.eval.navigation import PPP_BOT_FOOTPRINT, clearance_along
+import numpy as np
+
 from pppbot_bringup.eval.map_quality import compare_maps
+from pppbot_bringup.eval.navigation import PPP_BOT_FOOTPRINT, clearance_along
 from pppbot_bringup.eval.report import plot_errors, plot_map_overlay, plot_trajectories
 from pppbot_bringup.eval.routes import Route
 from pppbot_bringup.eval.trajectory import (
@@ -46,7 +50,6 @@ class Scenario(enum.Enum):
 
 #: Scenarios whose stack is not in this checkout yet: named, never faked.
 NOT_BUILT = {
-    Scenario.SLAM: "the SLAM node (pppbot_slam)",
     Scenario.LOCALIZATION: "map_server and AMCL (pppbot_nav)",
     Scenario.NAVIGATION: "the planner, controller and navigator (pppbot_nav)",
 }
@@ -66,7 +69,10 @@ class Estimate:
 #: The estimate each scenario measures. Wheel odometry is read from /odom, which carries
 #: the same pose as the odom → base_link transform: /tf also carries every wheel
 #: transform at the joint-state rate, which is a lot to listen to at 10× real time.
-ESTIMATES = {Scenario.DRIVE: Estimate(("odom", "base_link"), topic="/odom")}
+ESTIMATES = {Scenario.DRIVE: Estimate(("odom", "base_link"), topic="/odom"),
+             Scenario.SLAM: Estimate(("map", "odom", "base_link"))}
+#: How each scenario's estimate is labelled in plots.
+ESTIMATE_LABELS = {Scenario.DRIVE: "wheel odometry", Scenario.SLAM: "SLAM (map → base_link)"}
 
 
 @dataclass
@@ -84,6 +90,8 @@ class Recording:
     wall_seconds: float = 0.0
     drive_wall_seconds: float = 0.0  # wall time of the scenario itself (without start and stop)
     failure: str | None = None
+    final_map: OccupancyGrid | None = None  # the last /map, for scenarios that map
+    final_map_stamp_s: float = -1.0
 
     @property
     def sim_seconds(self) -> float:
@@ -105,6 +113,17 @@ def map_metrics(estimate: OccupancyGrid, truth: OccupancyGrid, map_to_world: tup
     return {**quality.as_dict(), "map_resolution_m": estimate.resolution}
 
 
+def save_recording(path: Path, recording: Recording) -> None:
+    """The raw streams as numpy arrays (t, x, y, yaw rows): ``truth``, ``estimate``, ``collisions``
+    (t, x, y) and one ``tf_<parent>__<child>`` per recorded TF edge, to re-plot or re-score later."""
+    arrays = {"truth": np.array(recording.truth_rows).reshape(-1, 4),
+              "estimate": np.array(recording.estimate_rows).reshape(-1, 4),
+              "collisions": np.array(recording.collisions).reshape(-1, 3)}
+    for (parent, child), rows in recording.edge_rows.items():
+        arrays[f"tf_{parent}__{child}"] = np.array(rows).reshape(-1, 4)
+    np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
+
+
 def estimate_series(recording: Recording, estimate: Estimate) -> PoseSeries:
     """The estimated pose stream: the topic's poses, or the TF chain composed at the innermost edge's stamps.
 
@@ -120,9 +139,11 @@ def estimate_series(recording: Recording, estimate: Estimate) -> PoseSeries:
     return series
 
 
-def drive_metrics(recording: Recording, route: Route, truth_map: OccupancyGrid, out: Path,
+def route_metrics(scenario: Scenario, recording: Recording, route: Route, truth_map: OccupancyGrid, out: Path,
                   title: str) -> tuple[dict[str, Any], str | None]:
-    """Odometry drift along the route: ATE, RPE, final error, clearance, collisions; writes the plots.
+    """The estimate's error along the route (ATE, RPE, final error), clearance and collisions;
+    writes the trajectory and error plots. For ``drive`` the estimate is wheel odometry,
+    for ``slam`` the map → base_link chain (the map frame is the spawn pose).
 
     Returns the metrics and what kept some of them from being measured (None: nothing).
 
@@ -130,7 +151,7 @@ def drive_metrics(recording: Recording, route: Route, truth_map: OccupancyGrid, 
         PoseSeriesError: the recorded streams do not overlap in time.
     """
     truth = PoseSeries.from_rows(recording.truth_rows)
-    estimate = estimate_series(recording, ESTIMATES[Scenario.DRIVE])
+    estimate = estimate_series(recording, ESTIMATES[scenario])
     metrics: dict[str, Any] = {
         "route": route.name,
         "route_length_m": round(route.length_m, 3),
@@ -150,9 +171,10 @@ def drive_metrics(recording: Recording, route: Route, truth_map: OccupancyGrid, 
     metrics.update(rpe.as_dict("rpe"))
     metrics["final_position_error_m"] = float(ate.position_error_m[-1])
     metrics["final_yaw_error_rad"] = float(ate.yaw_error_rad[-1])
+    label = ESTIMATE_LABELS[scenario]
     plot_trajectories(out / "trajectory.png", truth_map, truth, estimate.transformed(route.start),
-                      "wheel odometry", [(x, y) for _, x, y in recording.collisions], title)
-    plot_errors(out / "error.png", ate, title + " — odometry error")
+                      label, [(x, y) for _, x, y in recording.collisions], title)
+    plot_errors(out / "error.png", ate, f"{title} — {label} error")
     return metrics, None
 
 

@@ -35,7 +35,9 @@ from pppbot_bringup.eval.scenarios import (
     NOT_BUILT,
     Recording,
     Scenario,
-    drive_metrics,
+    map_metrics,
+    route_metrics,
+    save_recording,
     score_saved_map,
     world_truth,
 )
@@ -57,6 +59,8 @@ from pppbot_sim.worlds import find_world
 READY_TIMEOUT_S = 120.0
 #: Wall seconds without a ground-truth message before the run is declared stuck.
 STALL_TIMEOUT_S = 30.0
+#: Wall seconds to wait for SLAM's map after the route (it updates every map_update_interval sim s).
+FINAL_MAP_TIMEOUT_S = 60.0
 
 
 class Run:
@@ -83,7 +87,8 @@ class Run:
         x, y, yaw = self.route.start
         values.update(world=str(self.world_file), x=x, y=y, yaw=yaw, use_teleop=False, use_rviz=False,
                       headless=True, record=False, real_time_factor=self.args.real_time_factor,
-                      seed=self.args.seed, wheel_slip=self.args.wheel_slip, log_level=self.args.log_level)
+                      seed=self.args.seed, wheel_slip=self.args.wheel_slip, log_level=self.args.log_level,
+                      use_slam=self.scenario is Scenario.SLAM)
         return values
 
     def execute(self, progress: Progress) -> None:
@@ -110,7 +115,7 @@ class Run:
     def _run_stack(self, supervisor: Supervisor, names: list[str], probe: GraphProbe, progress: Progress) -> None:
         thread = threading.Thread(target=supervisor.run, kwargs={"until": self.stop.is_set}, name="supervisor")
         driver = RouteDriver(self.route.points, DriverSettings(speed_mps=self.args.speed))
-        node = EvalNode(ESTIMATES[self.scenario], driver, self.recording)
+        node = EvalNode(ESTIMATES[self.scenario], driver, self.recording, wants_map=self.scenario is Scenario.SLAM)
         wall0 = time.monotonic()
         thread.start()
         try:
@@ -119,6 +124,8 @@ class Run:
                 return
             probe.close()
             self._drive(node, thread, progress)
+            if self.scenario is Scenario.SLAM and self.recording.failure is None:
+                self._wait_for_final_map(node, thread, progress)
         finally:
             node.stop_robot()
             node.spin_once(0.0)
@@ -174,15 +181,33 @@ class Run:
                 return
         progress.update(1.0, f"sim {rec.sim_seconds:6.1f} s")
 
+    def _wait_for_final_map(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> None:
+        """Stand still until a /map built after the route's end arrives (the map updates every few seconds)."""
+        node.stop_robot()
+        end_s = self.recording.end_sim_s
+        deadline = time.monotonic() + FINAL_MAP_TIMEOUT_S
+        progress.message("waiting for the final map")
+        while self.recording.final_map_stamp_s <= end_s:
+            node.spin_pending(0.05)
+            if self.interrupted or not thread.is_alive() or time.monotonic() > deadline:
+                self.recording.failure = self.recording.failure or (
+                    "interrupted" if self.interrupted else f"no /map after the route's end within "
+                                                          f"{FINAL_MAP_TIMEOUT_S:.0f} s")
+                return
+
 
 def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     rec = run.recording
     title = f"{run.scenario.value} in {run.world_file.stem}, route {run.route.name}"
+    save_recording(run.out / "recording.npz", rec)
     metrics: dict[str, Any] = {}
     problem = None
     if rec.truth_rows:
         try:
-            metrics, problem = drive_metrics(rec, run.route, truth_map, run.out, title)
+            metrics, problem = route_metrics(run.scenario, rec, run.route, truth_map, run.out, title)
+            if run.scenario is Scenario.SLAM and rec.final_map is not None:
+                map_truth = world_truth(run.world_file, run.route, rec.final_map.resolution)
+                metrics.update(map_metrics(rec.final_map, map_truth, run.route.start, run.out, title + " — map"))
         except (PppbotError, ValueError, OSError) as exc:
             problem = f"metrics: {exc}"
     failure = rec.failure
@@ -215,8 +240,8 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.description = __doc__.strip().splitlines()[0]
     parser.add_argument("scenario", choices=[s.value for s in Scenario],
-                        help="map: score a saved map; drive: odometry drift along a route; slam, "
-                             "localization, navigation: as their parts land")
+                        help="map: score a saved map; drive: odometry drift along a route; slam: mapping "
+                             "along a route (trajectory and map); localization, navigation: as their parts land")
     parser.add_argument("--world", default="maze", help="world name or path (default maze)")
     parser.add_argument("--route", default=None, help="route name in the world's routes file (default: the first)")
     parser.add_argument("--route-file", type=Path, default=None,

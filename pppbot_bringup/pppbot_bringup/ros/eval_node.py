@@ -10,6 +10,7 @@ import time
 import rclpy
 from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import PointStamped, Twist, Vector3
+from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
@@ -17,6 +18,7 @@ from tf2_msgs.msg import TFMessage
 
 from pppbot_bringup.eval.driver import RouteDriver
 from pppbot_bringup.eval.scenarios import Estimate, Recording
+from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.qos import DEFAULT, LATCHED
 from pppbot_common.se2 import yaw_from_quaternion
 
@@ -29,7 +31,7 @@ MAX_CALLBACKS_PER_SPIN = 100
 class EvalNode:
     """Records ground truth, the estimate and collisions; drives the route on ground truth."""
 
-    def __init__(self, estimate: Estimate, driver: RouteDriver, recording: Recording) -> None:
+    def __init__(self, estimate: Estimate, driver: RouteDriver, recording: Recording, wants_map: bool = False) -> None:
         self.context = rclpy.Context()
         rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node("pppbot_eval", context=self.context, start_parameter_services=False)
@@ -51,6 +53,8 @@ class EvalNode:
             self.node.create_subscription(TFMessage, "/tf", self._on_tf, 200)
             self.node.create_subscription(TFMessage, "/tf_static", self._keep_edges, LATCHED)
         self.node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100)
+        if wants_map:
+            self.node.create_subscription(OccupancyGridMsg, "/map", self._on_map, LATCHED)
 
     def _on_truth(self, msg: Odometry) -> None:
         t = stamp_seconds(msg.header.stamp)
@@ -92,6 +96,13 @@ class EvalNode:
     def _on_collision(self, msg: PointStamped) -> None:
         t = stamp_seconds(msg.header.stamp)
         self.recording.collisions.append((t, msg.point.x, msg.point.y))
+
+    def _on_map(self, msg: OccupancyGridMsg) -> None:
+        try:
+            self.recording.final_map = grid_from_message(msg)
+        except ValueError:
+            return  # a malformed map is nobody's result; the next one replaces it
+        self.recording.final_map_stamp_s = stamp_seconds(msg.header.stamp)
 
     def stop_robot(self) -> None:
         self.driving = False

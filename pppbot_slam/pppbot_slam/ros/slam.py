@@ -1,0 +1,315 @@
+"""``slam``: online asynchronous grid SLAM, in slam_toolbox's place (``localization:=false``).
+
+Subscribes ``scan`` and TF (``odom_frame → base_frame`` at each scan's stamp, and the
+lidar's mounting); publishes ``/map`` and ``/map_metadata`` (transient local, rebuilt
+every ``map_update_interval`` in a thread of its own, so mapping never blocks scans),
+``pose`` (PoseWithCovarianceStamped of ``base_frame`` in ``map_frame``), and the TF
+``map_frame → odom_frame`` every ``transform_publish_period``, stamped ahead by
+``transform_timeout`` as slam_toolbox does. Services: ``~/save_map`` (std_srvs/Trigger;
+Nav2 YAML + PGM at ``map_file_name``), ``~/pause_new_measurements`` (std_srvs/SetBool)
+and ``~/reset`` (std_srvs/Trigger). The algorithm is :mod:`pppbot_slam.mapper`.
+"""
+from __future__ import annotations
+
+import sys
+import threading
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
+from nav_msgs.msg import MapMetaData
+from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
+from rclpy.duration import Duration
+from rclpy.node import Node
+from sensor_msgs.msg import LaserScan
+from std_srvs.srv import SetBool, Trigger
+from tf2_msgs.msg import TFMessage
+
+from pppbot_common.maps import MapFileError, OccupancyGrid, save_map
+from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.resources import maps_directory
+from pppbot_common.ros.maps import grid_message, map_metadata
+from pppbot_common.ros.node_main import Warnings, guarded, run_node
+from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.qos import LATCHED, SENSOR
+from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
+from pppbot_common.transforms import TransformBuffer, TransformError
+from pppbot_slam.mapper import Mapper, MapperError, MapperSettings
+from pppbot_slam.matcher import MatcherError, MatcherSettings
+from pppbot_slam.occupancy import LogOddsGrid, OccupancyError, ScanRays
+
+WARN_PERIOD_S = 5.0
+#: Scans waiting for odometry to reach their stamps; beyond this the oldest is dropped.
+MAX_PENDING = 20
+
+
+@dataclass(frozen=True)
+class SlamParameters:
+    odom_frame: str = param("odom", "odometry frame")
+    map_frame: str = param("map", "map frame")
+    base_frame: str = param("base_footprint", "robot base frame")
+    scan_topic: str = param("/scan", "laser scan topic")
+    mode: str = param("mapping", "mapping (localization with a map is AMCL's job here)")
+    map_file_name: str = param("", "where ~/save_map writes (no extension); default maps/map")
+    resolution: float = param(0.05, "map cell size (m)")
+    max_laser_range: float = param(20.0, "beams are used up to this range (m)")
+    minimum_travel_distance: float = param(0.5, "travel between keyframes (m)")
+    minimum_travel_heading: float = param(0.5, "turn between keyframes (rad)")
+    map_update_interval: float = param(5.0, "seconds between map rebuilds")
+    transform_publish_period: float = param(0.02, "seconds between map → odom transforms")
+    transform_timeout: float = param(0.2, "map → odom is stamped this far ahead (s)")
+    tf_buffer_duration: float = param(30.0, "seconds of TF history kept")
+    scan_buffer_size: int = param(10, "keyframes in the running matching buffer")
+    scan_buffer_maximum_scan_distance: float = param(10.0, "keyframes farther than this leave the buffer (m)")
+    link_match_minimum_response_fine: float = param(0.1, "below this a match is not trusted")
+    do_loop_closing: bool = param(True, "search for loop closures")
+    loop_search_maximum_distance: float = param(3.0, "loop candidates within this distance (m)")
+    loop_match_minimum_chain_size: int = param(10, "consecutive keyframes a loop candidate chain needs")
+    loop_match_maximum_variance_coarse: float = param(3.0, "largest coarse-match variance accepted")
+    loop_match_minimum_response_coarse: float = param(0.35, "coarse loop response needed")
+    loop_match_minimum_response_fine: float = param(0.45, "fine loop response needed")
+    correlation_search_space_dimension: float = param(0.5, "matching window width (m)")
+    correlation_search_space_resolution: float = param(0.01, "fine matching step (m)")
+    correlation_search_space_smear_deviation: float = param(0.1, "likelihood smear (m)")
+    loop_search_space_dimension: float = param(8.0, "loop matching window width (m)")
+    loop_search_space_resolution: float = param(0.05, "loop matching coarse step (m)")
+    loop_search_space_smear_deviation: float = param(0.03, "loop likelihood smear (m)")
+    distance_variance_penalty: float = param(0.5, "penalty on distance from odometry")
+    angle_variance_penalty: float = param(1.0, "penalty on turn from odometry")
+    fine_search_angle_offset: float = param(0.00349, "fine angle step (rad)")
+    coarse_search_angle_offset: float = param(0.349, "angle window ± (rad)")
+    coarse_angle_resolution: float = param(0.0349, "coarse angle step (rad)")
+    minimum_angle_penalty: float = param(0.9, "floor of the angle penalty")
+    minimum_distance_penalty: float = param(0.5, "floor of the distance penalty")
+
+    def validate(self) -> None:
+        if self.mode != "mapping":
+            raise ParameterError("mode", self.mode, "must be 'mapping' (use amcl to localize on a saved map)")
+        for name in ("map_update_interval", "transform_publish_period", "tf_buffer_duration"):
+            check_finite_range(name, getattr(self, name), 0.0, 3600.0, low_open=True)
+        check_finite_range("transform_timeout", self.transform_timeout, 0.0, 60.0)
+        for name in ("odom_frame", "map_frame", "base_frame", "scan_topic"):
+            if not getattr(self, name):
+                raise ParameterError(name, getattr(self, name), "must not be empty")
+        try:
+            self.mapper_settings()
+        except (MapperError, MatcherError, OccupancyError) as exc:
+            raise ParameterError("mapper", "", str(exc)) from exc
+
+    def mapper_settings(self) -> MapperSettings:
+        common: dict[str, Any] = dict(distance_variance_penalty=self.distance_variance_penalty,
+                      angle_variance_penalty=self.angle_variance_penalty,
+                      minimum_distance_penalty=self.minimum_distance_penalty,
+                      minimum_angle_penalty=self.minimum_angle_penalty,
+                      search_angle_rad=self.coarse_search_angle_offset,
+                      coarse_angle_step_rad=self.coarse_angle_resolution,
+                      fine_angle_step_rad=self.fine_search_angle_offset)
+        matcher = MatcherSettings(search_size_m=self.correlation_search_space_dimension,
+                                  fine_resolution_m=self.correlation_search_space_resolution,
+                                  coarse_resolution_m=max(self.correlation_search_space_resolution, 0.05),
+                                  smear_m=self.correlation_search_space_smear_deviation, **common)
+        loop = MatcherSettings(search_size_m=self.loop_search_space_dimension,
+                               fine_resolution_m=self.loop_search_space_resolution,
+                               coarse_resolution_m=max(self.loop_search_space_resolution, 0.1),
+                               smear_m=self.loop_search_space_smear_deviation, coarse_points=100, **common)
+        return MapperSettings(
+            resolution=self.resolution, max_laser_range=self.max_laser_range,
+            minimum_travel_distance=self.minimum_travel_distance, minimum_travel_heading=self.minimum_travel_heading,
+            scan_buffer_size=self.scan_buffer_size,
+            scan_buffer_maximum_scan_distance=self.scan_buffer_maximum_scan_distance,
+            link_match_minimum_response_fine=self.link_match_minimum_response_fine,
+            do_loop_closing=self.do_loop_closing, loop_search_maximum_distance=self.loop_search_maximum_distance,
+            loop_match_minimum_chain_size=self.loop_match_minimum_chain_size,
+            loop_match_maximum_variance_coarse=self.loop_match_maximum_variance_coarse,
+            loop_match_minimum_response_coarse=self.loop_match_minimum_response_coarse,
+            loop_match_minimum_response_fine=self.loop_match_minimum_response_fine,
+            matcher=matcher, loop_matcher=loop)
+
+
+class Slam(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("slam_toolbox", **kwargs)
+        self.params = p = declare_parameters(self, SlamParameters)
+        self.mapper = Mapper(p.mapper_settings())
+        self.lock = threading.Lock()  # the mapper: scans write it, the map thread reads it
+        self.tf = TransformBuffer(cache_s=p.tf_buffer_duration)
+        self.paused = False
+        self._warn = Warnings(self, WARN_PERIOD_S)
+        self._scan_frame: str | None = None
+        self._pending: deque[LaserScan] = deque()
+        self.map_pub = self.create_publisher(OccupancyGridMsg, "/map", LATCHED)
+        self.meta_pub = self.create_publisher(MapMetaData, "/map_metadata", LATCHED)
+        self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "pose", 10)
+        self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
+        self.create_subscription(TFMessage, "/tf", self._on_tf, 200)
+        self.create_subscription(TFMessage, "/tf_static", self._on_tf_static, LATCHED)
+        self.create_subscription(LaserScan, p.scan_topic, guarded(self, self.on_scan, "LaserScan"), SENSOR)
+        self.create_service(Trigger, "~/save_map", self._save_map)
+        self.create_service(SetBool, "~/pause_new_measurements", self._pause)
+        self.create_service(Trigger, "~/reset", self._reset)
+        self.create_timer(p.transform_publish_period, self._publish_transform)
+        self._map_wake = threading.Event()
+        self._stopping = threading.Event()
+        self._map_thread = threading.Thread(target=self._map_loop, name="map-builder", daemon=True)
+        self._map_thread.start()
+        self.get_logger().info(f"mapping: {p.scan_topic} with {p.odom_frame} → {p.base_frame}; map every "
+                               f"{p.map_update_interval:g} s at {p.resolution} m")
+
+    # ------------------------------------------------------------------- TF
+    def _store(self, msg: TFMessage, static: bool) -> None:
+        for t in msg.transforms:
+            q, tr = t.transform.rotation, t.transform.translation
+            stamp = t.header.stamp.sec + t.header.stamp.nanosec * 1e-9
+            try:
+                self.tf.set_transform(t.header.frame_id.lstrip("/"), t.child_frame_id.lstrip("/"), stamp,
+                                      (tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)), static)
+            except ValueError as exc:
+                self._warn("tf", f"ignoring a transform: {exc}")
+
+    def _on_tf(self, msg: TFMessage) -> None:
+        self._store(msg, static=False)
+        if self._pending:
+            self._drain()
+
+    def _on_tf_static(self, msg: TFMessage) -> None:
+        self._store(msg, static=True)
+
+    # ----------------------------------------------------------------- scans
+    def on_scan(self, msg: LaserScan) -> None:
+        """Queue the scan until odometry reaches its stamp (as tf2's message filter does)."""
+        if self.paused:
+            return
+        self._pending.append(msg)
+        self._drain()
+
+    def _drain(self) -> None:
+        p = self.params
+        while self._pending:
+            msg = self._pending[0]
+            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+            frame = msg.header.frame_id.lstrip("/")
+            try:
+                newest = self.tf.latest_time(p.odom_frame, p.base_frame)
+            except TransformError:
+                newest = None
+            if (newest is None or newest < stamp) and len(self._pending) <= MAX_PENDING:
+                # Odometry has not reached this scan yet. Waiting is bounded by a count of
+                # scans, not by the clock: while a keyframe is processed, /clock and /tf
+                # queue up alike, and the clock would say "late" for transforms already queued.
+                return
+            self._pending.popleft()
+            try:
+                odom_pose = np.array(self.tf.lookup(p.odom_frame, p.base_frame, stamp))
+                sensor = np.array(self.tf.lookup(p.base_frame, frame))
+            except TransformError as exc:
+                self._warn("transform", f"dropping a scan: no transform {p.odom_frame} → {p.base_frame} → {frame} "
+                                        f"at t = {stamp:.3f} s ({exc})")
+                continue
+            self._process(msg, stamp, frame, odom_pose, sensor)
+
+    def _process(self, msg: LaserScan, stamp: float, frame: str, odom_pose: np.ndarray, sensor: np.ndarray) -> None:
+        try:
+            rays = ScanRays.from_laser(msg.angle_min, msg.angle_increment, np.asarray(msg.ranges, dtype=float),
+                                       msg.range_min, msg.range_max)
+        except OccupancyError as exc:
+            self._warn("scan", f"dropping a malformed scan: {exc}")
+            return
+        with self.lock:
+            if self._scan_frame != frame or not np.allclose(self.mapper.sensor_offset, sensor):
+                self.mapper.sensor_offset = sensor
+                self._scan_frame = frame
+            keyframe = self.mapper.process(stamp, odom_pose, rays)
+            pose = self.mapper.predict(odom_pose)
+        if keyframe is not None:
+            self._publish_pose(msg.header.stamp, pose)
+            if keyframe.index == 0:
+                self._map_wake.set()  # a first map at once
+
+    def _publish_pose(self, stamp: Any, pose: np.ndarray) -> None:
+        msg = PoseWithCovarianceStamped()
+        msg.header.stamp = stamp
+        msg.header.frame_id = self.params.map_frame
+        msg.pose.pose.position.x, msg.pose.pose.position.y = float(pose[0]), float(pose[1])
+        o = msg.pose.pose.orientation
+        o.x, o.y, o.z, o.w = quaternion_from_yaw(float(pose[2]))
+        self.pose_pub.publish(msg)
+
+    def _publish_transform(self) -> None:
+        with self.lock:
+            map_to_odom = self.mapper.map_to_odom()
+        t = TransformStamped()
+        t.header.stamp = (self.get_clock().now() + Duration(seconds=self.params.transform_timeout)).to_msg()
+        t.header.frame_id = self.params.map_frame
+        t.child_frame_id = self.params.odom_frame
+        t.transform.translation.x, t.transform.translation.y = float(map_to_odom[0]), float(map_to_odom[1])
+        r = t.transform.rotation
+        r.x, r.y, r.z, r.w = quaternion_from_yaw(float(map_to_odom[2]))
+        self.tf_pub.publish(TFMessage(transforms=[t]))
+
+    # ------------------------------------------------------------------- map
+    def _map_loop(self) -> None:
+        while not self._stopping.is_set():
+            self._map_wake.wait(self.params.map_update_interval)
+            self._map_wake.clear()
+            if self._stopping.is_set():
+                return
+            self.publish_map()
+
+    def build_map(self) -> OccupancyGrid | None:
+        """The grid from the keyframes' current poses; built outside the lock (scans go on)."""
+        with self.lock:
+            if not self.mapper.keyframes:
+                return None
+            inputs = self.mapper.grid_inputs()
+        return LogOddsGrid.build(*inputs).to_occupancy_grid(self.params.map_frame)
+
+    def publish_map(self) -> None:
+        grid = self.build_map()
+        if grid is None:
+            return
+        stamp = self.get_clock().now().to_msg()
+        self.map_pub.publish(grid_message(grid, stamp))
+        self.meta_pub.publish(map_metadata(grid, stamp))
+
+    # -------------------------------------------------------------- services
+    def _save_map(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        grid = self.build_map()
+        if grid is None:
+            response.success, response.message = False, "no map yet: no scan has been processed"
+            return response
+        path = Path(self.params.map_file_name) if self.params.map_file_name else maps_directory() / "map"
+        try:
+            yaml_path = save_map(grid, path)
+        except (MapFileError, OSError) as exc:
+            response.success, response.message = False, f"could not save the map to {path}: {exc}"
+            return response
+        response.success, response.message = True, f"saved {yaml_path}"
+        return response
+
+    def _pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
+        self.paused = bool(request.data)
+        response.success, response.message = True, "paused" if self.paused else "processing scans"
+        return response
+
+    def _reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        with self.lock:
+            self.mapper = Mapper(self.params.mapper_settings(), self.mapper.sensor_offset)
+        response.success, response.message = True, "the map and pose graph are cleared"
+        return response
+
+    def destroy_node(self) -> None:
+        self._stopping.set()
+        self._map_wake.set()
+        self._map_thread.join(timeout=5.0)
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(Slam, "slam", args, fatal=(ParameterError,))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
