@@ -117,7 +117,9 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
         nodes.append(NodeSpec("slam_toolbox", [resolve("pppbot_slam", "slam"), *ros_args(
             level, params_file=config / "mapper_params_online_async.yaml")],
             after=("diff_drive_base_controller",), required=True,
-            ready=ReadyCheck("its start", output_pattern=r"mapping: ")))
+            # Ready once it has mapped its first scan: the map frame is where the robot was
+            # then, so nothing should drive it before (eval relies on map = spawn pose).
+            ready=ReadyCheck("a first /map", probe("/map", "nav_msgs/msg/OccupancyGrid", True))))
     if values["use_rviz"]:
         if rviz is None:
             notes.append("rviz2 is not on PATH: no RViz (use_rviz:=false silences this); "

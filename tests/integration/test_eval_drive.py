@@ -73,13 +73,9 @@ def test_slam_scenario_maps_the_room_and_tracks_the_robot(spawn, tmp_path: Path)
     code, report, output = run_eval(spawn, out, "--seed", "2", "--wheel-slip", "0.03", scenario="slam")
     assert code == 0, output
     assert report["scenario"] == "slam" and report["ok"] is True and report["collisions"] == 0
-    # SLAM against ground truth. Issue 9's targets (F1 >= 0.95, ATE RMS <= 5 cm) are met in
-    # most runs here (F1 1.0, ATE 1-2 cm), but about one run in five still accepts a wrong
-    # correction in this symmetric room (F1 0.59, ATE 0.14 m): until that is fixed, this
-    # asserts what every run so far meets, which wheel odometry alone does not (the
-    # map → odom check below).
-    assert report["map_f1"] >= 0.5 and report["map_mean_wall_distance_m"] < 0.15
-    assert report["ate_rms_m"] <= 0.2
+    # SLAM against ground truth (issue 9's targets): the map and the trajectory.
+    assert report["map_f1"] >= 0.95 and report["map_precision"] >= 0.95 and report["map_recall"] >= 0.95
+    assert report["ate_rms_m"] <= 0.05
     assert report["map_free_coverage"] > 0.9
     assert report["plots"] == ["error.png", "map.png", "trajectory.png"]
     # The map → odom chain was recorded and moved: SLAM corrected the slipping odometry.

@@ -94,6 +94,7 @@ def test_plan_follows_ppp_bots_order_and_wiring():
     slam = " ".join(by_name["slam_toolbox"].cmd)
     assert slam.startswith("/bin/pppbot_slam/slam ") and "mapper_params_online_async.yaml" in slam
     assert "use_sim_time:=true" in slam and by_name["slam_toolbox"].after == ("diff_drive_base_controller",)
+    assert ("/map", "nav_msgs/msg/OccupancyGrid", True) in probes
     assert by_name["teleop_keyboard"].terminal and not by_name["simulator"].terminal
     sim = " ".join(by_name["simulator"].cmd)
     assert "world:=" in sim and "maze.sdf" in sim and "real_time_factor:=3.0" in sim and "use_sim_time" not in sim

@@ -221,9 +221,17 @@ class Slam(Node):
             if self._scan_frame != frame or not np.allclose(self.mapper.sensor_offset, sensor):
                 self.mapper.sensor_offset = sensor
                 self._scan_frame = frame
+            closures = len(self.mapper.loop_closures)
             keyframe = self.mapper.process(stamp, odom_pose, rays)
             pose = self.mapper.predict(odom_pose)
+            new_closures = self.mapper.loop_closures[closures:]
+            response = self.mapper.last_response
         if keyframe is not None:
+            self.get_logger().debug(f"keyframe {keyframe.index} at t = {stamp:.2f} s: match response "
+                                    f"{response:.2f}, pose ({pose[0]:.2f}, {pose[1]:.2f}, {pose[2]:.3f})")
+            for closure in new_closures:
+                self.get_logger().info(f"loop closure: keyframe {closure.target} with {closure.source} "
+                                       f"(response {closure.response:.2f})")
             self._publish_pose(msg.header.stamp, pose)
             if keyframe.index == 0:
                 self._map_wake.set()  # a first map at once
