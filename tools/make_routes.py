@@ -25,6 +25,8 @@ sys.path[:0] = [str(ROOT / "pppbot_bringup"), str(ROOT / "pppbot_common"), str(R
                 str(ROOT / "pppbot_description")]
 
 from pppbot_bringup.eval.routes import Route, routes_file, save_routes  # noqa: E402
+from pppbot_bringup.eval.scenarios import world_truth  # noqa: E402
+from pppbot_common.maps import OccupancyGrid  # noqa: E402
 from pppbot_bringup.eval.shortest_path import (  # noqa: E402
     cell_centers_xy,
     cell_path,
@@ -32,10 +34,7 @@ from pppbot_bringup.eval.shortest_path import (  # noqa: E402
     free_space,
     string_pull,
 )
-from pppbot_common.maps import OccupancyGrid  # noqa: E402
-from pppbot_sim.ground_truth import ground_truth_map  # noqa: E402
-from pppbot_sim.simulation import load_world  # noqa: E402
-from pppbot_sim.worlds import find_world, model_paths  # noqa: E402
+from pppbot_sim.worlds import find_world  # noqa: E402
 
 WORLDS = ROOT / "worlds"
 SIMPLIFY_M = 0.03
@@ -57,12 +56,6 @@ SETTINGS = {
 }
 
 
-def truth(world: str, resolution_m: float) -> OccupancyGrid:
-    path = find_world(world, WORLDS)
-    spec, _ = load_world(path, model_paths(path))
-    return ground_truth_map(spec.compile(), resolution_m, 0.2)
-
-
 def lattice_targets(grid: OccupancyGrid, reachable: np.ndarray, settings: Coverage) -> np.ndarray:
     """(K, 2) cells (row, col): one per lattice point whose cell is reachable."""
     x0, y0 = grid.origin[0] + settings.inset_m, grid.origin[1] + settings.inset_m
@@ -81,7 +74,7 @@ def lattice_targets(grid: OccupancyGrid, reachable: np.ndarray, settings: Covera
 
 
 def coverage_route(world: str, settings: Coverage) -> Route:
-    grid = truth(world, settings.resolution_m)
+    grid = world_truth(find_world(world, WORLDS), resolution_m=settings.resolution_m)
     free = free_space(grid, settings.clearance_m)
     # Shortcuts are checked on a mask one cell stricter: a straight line between cells of
     # the free mask can cut the corner of a cell by up to half a cell's diagonal.

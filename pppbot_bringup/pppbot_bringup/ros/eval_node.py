@@ -8,7 +8,6 @@ from __future__ import annotations
 import time
 
 import rclpy
-from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import PointStamped, Twist, Vector3
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry
@@ -19,6 +18,7 @@ from tf2_msgs.msg import TFMessage
 from pppbot_bringup.eval.driver import RouteDriver
 from pppbot_bringup.eval.scenarios import Estimate, Recording
 from pppbot_common.ros.maps import grid_from_message
+from pppbot_common.ros.planar import planar_transforms, stamp_seconds
 from pppbot_common.ros.qos import DEFAULT, LATCHED
 from pppbot_common.se2 import yaw_from_quaternion
 
@@ -86,12 +86,9 @@ class EvalNode:
 
     def _keep_edges(self, msg: TFMessage) -> None:
         """Keep the estimate chain's edges; they are composed after the run (no extrapolation)."""
-        for transform in msg.transforms:
-            edge = (transform.header.frame_id.lstrip("/"), transform.child_frame_id.lstrip("/"))
-            if edge in self.wanted_edges:
-                tr, q = transform.transform.translation, transform.transform.rotation
-                self.recording.edge_rows.setdefault(edge, []).append(
-                    (stamp_seconds(transform.header.stamp), tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)))
+        for t in planar_transforms(msg):
+            if (t.parent, t.child) in self.wanted_edges:
+                self.recording.edge_rows.setdefault((t.parent, t.child), []).append((t.stamp_s, t.x, t.y, t.yaw))
 
     def _on_collision(self, msg: PointStamped) -> None:
         t = stamp_seconds(msg.header.stamp)
@@ -125,10 +122,6 @@ class EvalNode:
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
-
-
-def stamp_seconds(stamp: TimeMsg) -> float:
-    return float(stamp.sec) + stamp.nanosec * 1e-9
 
 
 def _vector(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Vector3:

@@ -41,7 +41,7 @@ def grid_from_message(msg: OccupancyGridMsg) -> OccupancyGrid:
     if len(msg.data) != info.width * info.height:
         raise ValueError(f"map data has {len(msg.data)} cells, not width × height = {info.width * info.height}")
     o = info.origin.orientation
-    data = np.frombuffer(bytes(np.asarray(msg.data, dtype=np.int8)), dtype=np.int8).reshape(info.height, info.width)
-    return OccupancyGrid(data.copy(), float(info.resolution),
+    data = np.array(msg.data, dtype=np.int8).reshape(info.height, info.width)
+    return OccupancyGrid(data, float(info.resolution),
                          (info.origin.position.x, info.origin.position.y, yaw_from_quaternion(o.x, o.y, o.z, o.w)),
                          msg.header.frame_id)

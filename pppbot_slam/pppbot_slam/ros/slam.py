@@ -34,8 +34,9 @@ from pppbot_common.resources import maps_directory
 from pppbot_common.ros.maps import grid_message, map_metadata
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.planar import planar_transforms, stamp_seconds
 from pppbot_common.ros.qos import LATCHED, SENSOR
-from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
+from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_common.transforms import TransformBuffer, TransformError
 from pppbot_slam.mapper import Mapper, MapperError, MapperSettings
 from pppbot_slam.matcher import MatcherError, MatcherSettings
@@ -160,12 +161,9 @@ class Slam(Node):
 
     # ------------------------------------------------------------------- TF
     def _store(self, msg: TFMessage, static: bool) -> None:
-        for t in msg.transforms:
-            q, tr = t.transform.rotation, t.transform.translation
-            stamp = t.header.stamp.sec + t.header.stamp.nanosec * 1e-9
+        for t in planar_transforms(msg):
             try:
-                self.tf.set_transform(t.header.frame_id.lstrip("/"), t.child_frame_id.lstrip("/"), stamp,
-                                      (tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)), static)
+                self.tf.set_transform(t.parent, t.child, t.stamp_s, (t.x, t.y, t.yaw), static)
             except ValueError as exc:
                 self._warn("tf", f"ignoring a transform: {exc}")
 
@@ -189,7 +187,7 @@ class Slam(Node):
         p = self.params
         while self._pending:
             msg = self._pending[0]
-            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+            stamp = stamp_seconds(msg.header.stamp)
             frame = msg.header.frame_id.lstrip("/")
             try:
                 newest = self.tf.latest_time(p.odom_frame, p.base_frame)
