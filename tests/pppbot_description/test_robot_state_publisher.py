@@ -144,6 +144,8 @@ def test_rate_limit_by_message_time(ros_node, spawn):
     wheel_transforms(ros_node, pub, msg)  # the first message at t = 100 s is published
     sub_msgs: list[TFMessage] = []
     sub = ros_node.create_subscription(TFMessage, "/tf", sub_msgs.append, QoSProfile(depth=50))
+    # A new subscription misses what is published before discovery matches it to the publisher.
+    wait_until(lambda: sub.get_publisher_count() > 0, 10, "the /tf subscription to match", node=ros_node)
     for sec, nsec in ((100, 500_000_000), (101, 0)):
         m = JointState(name=["left_wheel_joint"], position=[0.1])
         m.header.stamp.sec, m.header.stamp.nanosec = sec, nsec
