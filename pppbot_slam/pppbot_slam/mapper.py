@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Iterable
 
 import numpy as np
 
@@ -96,6 +97,7 @@ class Keyframe:
     odom_pose: np.ndarray  # base in the odom frame when the scan was taken
     rays: ScanRays  # in the sensor frame
     points: np.ndarray  # (K, 2) hits in the base frame
+    session: int = 0  # odometry session: a continued map's new run starts a new one
 
 
 @dataclass
@@ -113,21 +115,52 @@ class Mapper:
     graph: PoseGraph = field(default_factory=PoseGraph)
     loop_closures: list[LoopClosure] = field(default_factory=list)
     last_response: float = 0.0
+    session: int = 0  # the current odometry session
+    start_pose: np.ndarray | None = None  # where the current session's first keyframe is (continued maps)
+
+    def snapshot(self) -> Mapper:
+        """A copy to read (save, draw) while this one maps on; keyframes are shared, never changed."""
+        return Mapper(self.settings, self.sensor_offset.copy(), list(self.keyframes), self.graph.copy(),
+                      list(self.loop_closures), self.last_response, self.session,
+                      None if self.start_pose is None else self.start_pose.copy())
 
     # ------------------------------------------------------------------ poses
     def map_pose(self, index: int) -> np.ndarray:
         return self.graph.poses[index]
 
+    def _last_of_session(self) -> Keyframe | None:
+        if self.keyframes and self.keyframes[-1].session == self.session:
+            return self.keyframes[-1]
+        return None
+
     def map_to_odom(self) -> np.ndarray:
-        """The map → odom transform: identity until the first keyframe."""
-        if not self.keyframes:
+        """The map → odom transform: identity until the session's first keyframe."""
+        last = self._last_of_session()
+        if last is None:
             return np.zeros(3)
-        last = self.keyframes[-1]
         return np.asarray(se2_compose(self.map_pose(last.index), se2_inverse(last.odom_pose)))
 
     def predict(self, odom_pose: PoseLike) -> np.ndarray:
         """The base's map pose for an odometry pose, through the current map → odom."""
+        if self._last_of_session() is None and self.start_pose is not None:
+            return np.asarray(self.start_pose, dtype=float).copy()
         return np.asarray(se2_compose(self.map_to_odom(), np.asarray(odom_pose, dtype=float)))
+
+    def start_session(self, start_pose: PoseLike | None = None) -> None:
+        """Continue mapping with a new run's odometry (after loading a saved pose graph).
+
+        The run's first scan is placed at ``start_pose`` in the map (default: the
+        first keyframe's pose, slam_toolbox's "start at dock"), corrected by matching
+        against the keyframes around it, and linked to the nearest of them.
+        """
+        if self.keyframes:
+            self.session = max(k.session for k in self.keyframes) + 1
+        if start_pose is None:
+            start_pose = self.map_pose(0) if self.keyframes else np.zeros(3)
+        pose = np.asarray(start_pose, dtype=float)
+        if pose.shape != (3,) or not np.isfinite(pose).all():
+            raise MapperError(f"the start pose must be a finite (x, y, yaw), not {start_pose!r}")
+        self.start_pose = pose.copy()
 
     def hit_points(self, rays: ScanRays) -> np.ndarray:
         """The scan's hits within max_laser_range, in the base frame."""
@@ -137,9 +170,10 @@ class Mapper:
 
     # -------------------------------------------------------------- keyframes
     def needs_keyframe(self, odom_pose: PoseLike) -> bool:
-        if not self.keyframes:
+        last = self._last_of_session()
+        if last is None:
             return True
-        motion = se2_compose(se2_inverse(self.keyframes[-1].odom_pose), np.asarray(odom_pose, dtype=float))
+        motion = se2_compose(se2_inverse(last.odom_pose), np.asarray(odom_pose, dtype=float))
         s = self.settings
         return bool(math.hypot(motion[0], motion[1]) >= s.minimum_travel_distance
                     or abs(float(wrap_angles(motion[2]))) >= s.minimum_travel_heading)
@@ -158,17 +192,18 @@ class Mapper:
         index = len(self.keyframes)
         if index == 0:
             self.graph.add_node(predicted)
-            self.keyframes.append(Keyframe(0, stamp_s, odom, rays, points))
+            self.keyframes.append(Keyframe(0, stamp_s, odom, rays, points, self.session))
             self.last_response = 1.0
             return self.keyframes[0]
+        continuing = self._last_of_session() is None  # the first keyframe of a continued map's new run
         result = self._match_running(points, predicted)
         accepted = result is not None and result.response >= self.settings.link_match_minimum_response_fine
         pose = result.pose if accepted and result is not None else predicted
         covariance = result.covariance if accepted and result is not None else ODOMETRY_ONLY_COVARIANCE
         self.last_response = result.response if result is not None else 0.0
-        previous = index - 1
+        previous = self._nearest(pose, range(index)) if continuing else index - 1
         self.graph.add_node(pose)
-        self.keyframes.append(Keyframe(index, stamp_s, odom, rays, points))
+        self.keyframes.append(Keyframe(index, stamp_s, odom, rays, points, self.session))
         self.graph.add_edge(previous, index, self.graph.relative(previous, index),
                             _in_frame_of(covariance, self.map_pose(previous)[2]))
         if self.settings.do_loop_closing:
@@ -178,11 +213,23 @@ class Mapper:
     def _world_points(self, indices: list[int]) -> np.ndarray:
         return np.vstack([se2_apply(self.map_pose(i), self.keyframes[i].points) for i in indices])
 
+    def _distance(self, index: int, pose: np.ndarray) -> float:
+        return float(np.hypot(*(self.map_pose(index)[:2] - pose[:2])))
+
+    def _nearest(self, pose: np.ndarray, indices: Iterable[int]) -> int:
+        return min(indices, key=lambda i: self._distance(i, pose))
+
     def _running_buffer(self, pose: np.ndarray) -> list[int]:
+        """The session's last ``scan_buffer_size`` keyframes within reach; early in a continued
+        map's run, topped up with the nearest keyframes of earlier runs."""
         s = self.settings
-        recent = range(max(0, len(self.keyframes) - s.scan_buffer_size), len(self.keyframes))
-        return [i for i in recent
-                if np.hypot(*(self.map_pose(i)[:2] - pose[:2])) <= s.scan_buffer_maximum_scan_distance]
+        recent = [i for i in range(max(0, len(self.keyframes) - s.scan_buffer_size), len(self.keyframes))
+                  if self.keyframes[i].session == self.session]
+        if len(recent) < s.scan_buffer_size:
+            older = sorted((i for i in range(len(self.keyframes)) if self.keyframes[i].session != self.session),
+                           key=lambda i: self._distance(i, pose))
+            recent += older[:s.scan_buffer_size - len(recent)]
+        return [i for i in recent if self._distance(i, pose) <= s.scan_buffer_maximum_scan_distance]
 
     def _match_running(self, points: np.ndarray, predicted: np.ndarray) -> MatchResult | None:
         buffer = [i for i in self._running_buffer(predicted) if len(self.keyframes[i].points)]
@@ -222,7 +269,7 @@ class Mapper:
             fine = ScanMatcher(world, s.matcher).match(points, coarse.pose)
             if fine.response < s.loop_match_minimum_response_fine:
                 continue
-            nearest = min(chain, key=lambda i: float(np.hypot(*(self.map_pose(i)[:2] - fine.pose[:2]))))
+            nearest = self._nearest(fine.pose, chain)
             relative = se2_compose(se2_inverse(self.map_pose(nearest)), fine.pose)
             self.graph.add_edge(nearest, index, relative, _in_frame_of(fine.covariance, self.map_pose(nearest)[2]),
                                 loop=True)

@@ -63,6 +63,13 @@ class PoseGraph:
     def __len__(self) -> int:
         return len(self.poses)
 
+    def copy(self) -> PoseGraph:
+        """A snapshot: later nodes, edges and optimisations of either do not show in the other."""
+        other = PoseGraph()
+        other.poses = [p.copy() for p in self.poses]
+        other.edges = list(self.edges)  # edges are frozen
+        return other
+
     @property
     def loop_closures(self) -> int:
         return sum(e.loop for e in self.edges)

@@ -2,8 +2,11 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+
+from pppbot_common.se2 import se2_compose, se2_inverse
 
 # A 6 × 4 m room with a 1 × 0.6 m box and a pillar: enough structure to pin every axis.
 ROOM = np.array([
@@ -57,3 +60,42 @@ def cast(segments: np.ndarray, pose: np.ndarray, beams: int = 640, max_range: fl
     angles = beam_angles(beams)
     keep = ranges < max_range
     return np.stack([np.cos(angles), np.sin(angles)], axis=1)[keep] * ranges[keep, None]
+
+
+# A ring corridor 2 m wide around a 6 × 4 m block, with pillars so that the straight parts
+# are not featureless.
+PILLARS = [box(x - 0.15, y - 0.15, x + 0.15, y + 0.15) for x, y in
+           [(-1.5, -3.6), (2.0, -3.6), (4.6, 0.5), (0.5, 3.6), (-2.5, 3.6), (-4.6, -1.0)]]
+RING = np.vstack([box(-5, -4, 5, 4), box(-3, -2, 3, 2), *PILLARS])
+
+
+def ring_path(step_m: float = 0.1, overlap_m: float = 4.0) -> np.ndarray:
+    """Around the block counter-clockwise from (0, −3), and on past the start by ``overlap_m``."""
+    corners = np.array([[0, -3], [4, -3], [4, 3], [-4, 3], [-4, -3], [0, -3], [overlap_m, -3]], dtype=float)
+    poses = []
+    for a, b in zip(corners[:-1], corners[1:]):
+        yaw = math.atan2(*(b - a)[::-1])
+        n = int(round(np.linalg.norm(b - a) / step_m))
+        poses += [(*(a + (b - a) * k / n), yaw) for k in range(n)]
+    return np.array(poses)
+
+
+def drifting_odometry(truth: np.ndarray, yaw_per_m: float, scale: float) -> np.ndarray:
+    odom = [truth[0].copy()]
+    for prev, cur in zip(truth[:-1], truth[1:]):
+        step = se2_compose(se2_inverse(prev), cur)
+        moved = math.hypot(step[0], step[1])
+        odom.append(se2_compose(odom[-1], [step[0] * scale, step[1] * scale, step[2] + yaw_per_m * moved]))
+    return np.array(odom)
+
+
+def feed(mapper: Any, world: np.ndarray, truth: np.ndarray, odom: np.ndarray, first: int = 0) -> None:
+    """Scans of ``world`` from ``truth[first:]`` into a mapper with their odometry, at 10 Hz
+    (scan k is stamped 0.1·k s)."""
+    from pppbot_slam.occupancy import ScanRays
+
+    angles = beam_angles()
+    for k in range(first, len(truth)):
+        rays = ScanRays.from_laser(float(angles[0]), float(angles[1] - angles[0]),
+                                   cast_ranges(world, truth[k], noise=0.01, seed=k), 0.08, 20.0)
+        mapper.process(0.1 * k, odom[k - first], rays)

@@ -1,53 +1,19 @@
 """The mapper on a synthetic ring corridor: keyframes by travel, drift corrected, loops closed, a clean map."""
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
 from pppbot_common.maps import OCCUPIED
 from pppbot_common.se2 import se2_compose, se2_inverse
 from pppbot_slam.mapper import Mapper, MapperError, MapperSettings
-from pppbot_slam.occupancy import ScanRays
-from slam_synthetic import beam_angles, box, cast_ranges, wall_points
-
-# A ring corridor 2 m wide around a 6 × 4 m block, with pillars so that the straight parts
-# are not featureless.
-PILLARS = [box(x - 0.15, y - 0.15, x + 0.15, y + 0.15) for x, y in
-           [(-1.5, -3.6), (2.0, -3.6), (4.6, 0.5), (0.5, 3.6), (-2.5, 3.6), (-4.6, -1.0)]]
-WORLD = np.vstack([box(-5, -4, 5, 4), box(-3, -2, 3, 2), *PILLARS])
-
-
-def ring_path(step_m: float = 0.1, overlap_m: float = 4.0) -> np.ndarray:
-    """Around the block counter-clockwise from (0, −3), and on past the start by ``overlap_m``."""
-    corners = np.array([[0, -3], [4, -3], [4, 3], [-4, 3], [-4, -3], [0, -3], [overlap_m, -3]], dtype=float)
-    poses = []
-    for a, b in zip(corners[:-1], corners[1:]):
-        yaw = math.atan2(*(b - a)[::-1])
-        n = int(round(np.linalg.norm(b - a) / step_m))
-        poses += [(*(a + (b - a) * k / n), yaw) for k in range(n)]
-    return np.array(poses)
-
-
-def drifting_odometry(truth: np.ndarray, yaw_per_m: float, scale: float) -> np.ndarray:
-    odom = [truth[0].copy()]
-    for prev, cur in zip(truth[:-1], truth[1:]):
-        step = se2_compose(se2_inverse(prev), cur)
-        moved = math.hypot(step[0], step[1])
-        odom.append(se2_compose(odom[-1], [step[0] * scale, step[1] * scale, step[2] + yaw_per_m * moved]))
-    return np.array(odom)
+from slam_synthetic import RING, drifting_odometry, feed, ring_path, wall_points
 
 
 def run(settings: MapperSettings) -> tuple[Mapper, np.ndarray]:
     truth = ring_path()
-    odom = drifting_odometry(truth, yaw_per_m=0.01, scale=1.01)
     mapper = Mapper(settings)
-    angles = beam_angles()
-    for k, (pose, odom_pose) in enumerate(zip(truth, odom)):
-        rays = ScanRays.from_laser(float(angles[0]), float(angles[1] - angles[0]),
-                                   cast_ranges(WORLD, pose, noise=0.01, seed=k), 0.08, 20.0)
-        mapper.process(0.1 * k, odom_pose, rays)
+    feed(mapper, RING, truth, drifting_odometry(truth, yaw_per_m=0.01, scale=1.01))
     return mapper, truth
 
 
@@ -94,7 +60,7 @@ def test_map_frame_relation_and_the_grid(mapped):
     rows, cols = np.nonzero(grid.data == OCCUPIED)
     centres = np.stack([grid.origin[0] + (cols + 0.5) * grid.resolution,
                         grid.origin[1] + (rows + 0.5) * grid.resolution], axis=1)
-    walls = wall_points(WORLD, 0.01)
+    walls = wall_points(RING, 0.01)
     distance = np.min(np.linalg.norm(centres[:, None, :] - walls[None, ::4, :], axis=2), axis=1)
     # Every occupied cell lies on a wall (within a cell and a half): no ghost walls.
     assert np.quantile(distance, 0.99) < 0.075

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import re
 import sys
 import time
 from pathlib import Path
@@ -14,8 +15,11 @@ from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool, Trigger
 from tf2_msgs.msg import TFMessage
+from visualization_msgs.msg import Marker, MarkerArray
 
 from pppbot_common.maps import OCCUPIED, load_map
 from pppbot_common.ros.maps import grid_from_message
@@ -46,7 +50,7 @@ def test_maps_a_room_from_scans_and_odometry_and_saves_it(ros_node, spawn, tmp_p
     node = ros_node
     map_file = tmp_path / "room_map"
     slam = spawn([sys.executable, "-m", "pppbot_slam.ros.slam", "--ros-args", "-p", "use_sim_time:=true",
-                  "-p", f"map_file_name:={map_file}", "-p", "map_update_interval:=0.5"], name="slam")
+                  "-p", f"map_save_name:={map_file}", "-p", "map_update_interval:=0.5"], name="slam")
     slam.wait_for_output(r"mapping: /scan", 30)
     clock = node.create_publisher(Clock, "/clock", 10)
     tf = node.create_publisher(TFMessage, "/tf", 100)
@@ -57,6 +61,11 @@ def test_maps_a_room_from_scans_and_odometry_and_saves_it(ros_node, spawn, tmp_p
     angles = beam_angles()
     maps: list[OccupancyGridMsg] = []
     node.create_subscription(OccupancyGridMsg, "/map", maps.append, LATCHED)
+    # Publish only once the node listens: scans are best effort, and discovery takes a moment.
+    wait_until(lambda: scans.get_subscription_count() and tf.get_subscription_count()
+               and clock.get_subscription_count(), 20, "the slam node's subscriptions", node=node)
+    graphs: list[MarkerArray] = []
+    node.create_subscription(MarkerArray, "/slam_toolbox/graph_visualization", graphs.append, 10)
     # The robot drives 2 m along x at 0.4 m/s; odometry is exact; a scan every 0.1 s.
     for k in range(60):
         t = 1.0 + 0.1 * k
@@ -93,6 +102,19 @@ def test_maps_a_room_from_scans_and_odometry_and_saves_it(ros_node, spawn, tmp_p
     assert seen, "no map → odom transform"
     offset = seen[-1].transforms[0].transform.translation
     assert abs(offset.x) < 0.03 and abs(offset.y) < 0.03  # exact odometry: nothing to correct
+    # The pose graph as markers: a sphere per keyframe (at least 0.5 m apart over 2 m), a
+    # line per edge.
+    serialized = call(node, Trigger, "/slam_toolbox/serialize_map", Trigger.Request())
+    assert serialized.success, serialized.message
+    count = re.search(r"\((\d+) keyframes\)", serialized.message)
+    assert count, serialized.message
+    keyframes = int(count.group(1))
+    wait_until(lambda: graphs and len(graphs[-1].markers[0].points) == keyframes, 20, "graph markers", node=node)
+    spheres, links, loops = graphs[-1].markers
+    assert spheres.type == Marker.SPHERE_LIST and spheres.header.frame_id == "map"
+    xs = np.array([p.x for p in spheres.points])
+    assert 3 <= keyframes <= 5 and xs[0] < -0.85 and np.all(np.diff(xs) > 0.49)
+    assert len(links.points) == 2 * (keyframes - 1) and loops.points == []
     reply = call(node, Trigger, "/slam_toolbox/save_map", Trigger.Request())
     assert reply.success, reply.message
     saved, _ = load_map(map_file.with_suffix(".yaml"))
@@ -101,6 +123,18 @@ def test_maps_a_room_from_scans_and_odometry_and_saves_it(ros_node, spawn, tmp_p
     assert call(node, Trigger, "/slam_toolbox/reset", Trigger.Request()).success
     empty = call(node, Trigger, "/slam_toolbox/save_map", Trigger.Request())
     assert not empty.success and "no map yet" in empty.message
+    # Load the serialized graph back (the file name is a parameter, set at run time).
+    unset = call(node, Trigger, "/slam_toolbox/deserialize_map", Trigger.Request())
+    assert not unset.success and "map_file_name" in unset.message
+    set_reply = call(node, SetParameters, "/slam_toolbox/set_parameters", SetParameters.Request(
+        parameters=[Parameter("map_file_name", value=str(map_file)).to_parameter_msg()]))
+    assert set_reply.results[0].successful
+    loaded = call(node, Trigger, "/slam_toolbox/deserialize_map", Trigger.Request())
+    assert loaded.success, loaded.message
+    again = call(node, Trigger, "/slam_toolbox/save_map", Trigger.Request())
+    assert again.success, again.message
+    reloaded, _ = load_map(map_file.with_suffix(".yaml"))
+    np.testing.assert_array_equal(reloaded.data, saved.data)
 
 
 def rclpy_spin(node: Any, seconds: float) -> None:

@@ -5,9 +5,13 @@ lidar's mounting); publishes ``/map`` and ``/map_metadata`` (transient local, re
 every ``map_update_interval`` in a thread of its own, so mapping never blocks scans),
 ``pose`` (PoseWithCovarianceStamped of ``base_frame`` in ``map_frame``), and the TF
 ``map_frame → odom_frame`` every ``transform_publish_period``, stamped ahead by
-``transform_timeout`` as slam_toolbox does. Services: ``~/save_map`` (std_srvs/Trigger;
-Nav2 YAML + PGM at ``map_file_name``), ``~/pause_new_measurements`` (std_srvs/SetBool)
-and ``~/reset`` (std_srvs/Trigger). The algorithm is :mod:`pppbot_slam.mapper`.
+``transform_timeout`` as slam_toolbox does, and the pose graph as markers
+(``~/graph_visualization``). Services (std_srvs; file names are parameters, which
+``ros2 param set`` may change at run time): ``~/save_map`` (Nav2 YAML + PGM at
+``map_save_name``), ``~/serialize_map`` (the pose graph with its scans,
+``map_save_name`` + ``.posegraph``), ``~/deserialize_map`` (load ``map_file_name``
+and map on from it; also done at startup when it is set), ``~/pause_new_measurements``
+(SetBool) and ``~/reset``. The algorithm is :mod:`pppbot_slam.mapper`.
 """
 from __future__ import annotations
 
@@ -19,21 +23,23 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
+from geometry_msgs.msg import Point, PoseWithCovarianceStamped, TransformStamped
 from nav_msgs.msg import MapMetaData
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rclpy.duration import Duration
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import SetBool, Trigger
+from std_msgs.msg import ColorRGBA
 from tf2_msgs.msg import TFMessage
+from visualization_msgs.msg import Marker, MarkerArray
 
 from pppbot_common.maps import MapFileError, OccupancyGrid, save_map
 from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.resources import maps_directory
 from pppbot_common.ros.maps import grid_message, map_metadata
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
-from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.planar import planar_transforms, stamp_seconds
 from pppbot_common.ros.qos import LATCHED, SENSOR
 from pppbot_common.se2 import quaternion_from_yaw
@@ -41,6 +47,8 @@ from pppbot_common.transforms import TransformBuffer, TransformError
 from pppbot_slam.mapper import Mapper, MapperError, MapperSettings
 from pppbot_slam.matcher import MatcherError, MatcherSettings
 from pppbot_slam.occupancy import LogOddsGrid, OccupancyError, ScanRays
+from pppbot_slam.pose_graph import Edge
+from pppbot_slam.serialization import PoseGraphFileError, load_posegraph, posegraph_path, save_posegraph
 
 WARN_PERIOD_S = 5.0
 #: Scans waiting for odometry to reach their stamps; beyond this the oldest is dropped.
@@ -54,7 +62,12 @@ class SlamParameters:
     base_frame: str = param("base_footprint", "robot base frame")
     scan_topic: str = param("/scan", "laser scan topic")
     mode: str = param("mapping", "mapping (localization with a map is AMCL's job here)")
-    map_file_name: str = param("", "where ~/save_map writes (no extension); default maps/map")
+    map_file_name: str = param("", "a pose graph (.posegraph) to map on from, loaded at startup and by "
+                                   "~/deserialize_map")
+    map_start_pose: list[float] = param([0.0, 0.0, 0.0], "where the robot starts in a loaded pose graph (x, y, yaw), "
+                                                 "unless map_start_at_dock")
+    map_start_at_dock: bool = param(True, "the robot starts at the loaded pose graph's first keyframe")
+    map_save_name: str = param("", "where ~/save_map and ~/serialize_map write (no extension); default maps/map")
     resolution: float = param(0.05, "map cell size (m)")
     max_laser_range: float = param(20.0, "beams are used up to this range (m)")
     minimum_travel_distance: float = param(0.5, "travel between keyframes (m)")
@@ -95,10 +108,20 @@ class SlamParameters:
         for name in ("odom_frame", "map_frame", "base_frame", "scan_topic"):
             if not getattr(self, name):
                 raise ParameterError(name, getattr(self, name), "must not be empty")
+        start = self.map_start_pose
+        if len(start) != 3 or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in start):
+            raise ParameterError("map_start_pose", start, "must be three finite numbers [x, y, yaw]")
         try:
             self.mapper_settings()
         except (MapperError, MatcherError, OccupancyError) as exc:
             raise ParameterError("mapper", "", str(exc)) from exc
+
+    def start_pose(self) -> np.ndarray | None:
+        """Where a loaded pose graph's new run starts (None: at its first keyframe)."""
+        return None if self.map_start_at_dock else np.array(self.map_start_pose, dtype=float)
+
+    def save_name(self) -> Path:
+        return Path(self.map_save_name).expanduser() if self.map_save_name else maps_directory() / "map"
 
     def mapper_settings(self) -> MapperSettings:
         common: dict[str, Any] = dict(distance_variance_penalty=self.distance_variance_penalty,
@@ -134,7 +157,10 @@ class Slam(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("slam_toolbox", **kwargs)
         self.params = p = declare_parameters(self, SlamParameters)
+        on_valid_update(self, lambda: self.params, self._set_params)
         self.mapper = Mapper(p.mapper_settings())
+        if p.map_file_name:
+            self.mapper = self._load(p.map_file_name)
         self.lock = threading.Lock()  # the mapper: scans write it, the map thread reads it
         self.tf = TransformBuffer(cache_s=p.tf_buffer_duration)
         self.paused = False
@@ -143,12 +169,15 @@ class Slam(Node):
         self._pending: deque[LaserScan] = deque()
         self.map_pub = self.create_publisher(OccupancyGridMsg, "/map", LATCHED)
         self.meta_pub = self.create_publisher(MapMetaData, "/map_metadata", LATCHED)
+        self.graph_pub = self.create_publisher(MarkerArray, "~/graph_visualization", 1)
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "pose", 10)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
         self.create_subscription(TFMessage, "/tf", self._on_tf, 200)
         self.create_subscription(TFMessage, "/tf_static", self._on_tf_static, LATCHED)
         self.create_subscription(LaserScan, p.scan_topic, guarded(self, self.on_scan, "LaserScan"), SENSOR)
         self.create_service(Trigger, "~/save_map", self._save_map)
+        self.create_service(Trigger, "~/serialize_map", self._serialize)
+        self.create_service(Trigger, "~/deserialize_map", self._deserialize)
         self.create_service(SetBool, "~/pause_new_measurements", self._pause)
         self.create_service(Trigger, "~/reset", self._reset)
         self.create_timer(p.transform_publish_period, self._publish_transform)
@@ -158,6 +187,22 @@ class Slam(Node):
         self._map_thread.start()
         self.get_logger().info(f"mapping: {p.scan_topic} with {p.odom_frame} → {p.base_frame}; map every "
                                f"{p.map_update_interval:g} s at {p.resolution} m")
+
+    def _set_params(self, params: SlamParameters) -> None:
+        self.params = params
+
+    def _load(self, name: str) -> Mapper:
+        """A saved pose graph to map on from, the robot starting where the parameters say.
+
+        Raises:
+            PoseGraphFileError: the file is missing or bad (the message names it).
+        """
+        mapper = load_posegraph(name, self.params.mapper_settings())
+        mapper.start_session(self.params.start_pose())
+        start = mapper.start_pose if mapper.start_pose is not None else np.zeros(3)
+        self.get_logger().info(f"mapping on from {posegraph_path(name)}: {len(mapper.keyframes)} keyframes, "
+                               f"starting at ({start[0]:.2f}, {start[1]:.2f}, {start[2]:.3f})")
+        return mapper
 
     # ------------------------------------------------------------------- TF
     def _store(self, msg: TFMessage, static: bool) -> None:
@@ -279,6 +324,14 @@ class Slam(Node):
         stamp = self.get_clock().now().to_msg()
         self.map_pub.publish(grid_message(grid, stamp))
         self.meta_pub.publish(map_metadata(grid, stamp))
+        self.publish_graph(stamp)
+
+    def publish_graph(self, stamp: Any) -> None:
+        """Keyframes as spheres, matching edges and loop closures as lines (slam_toolbox's markers)."""
+        with self.lock:
+            poses = np.array(self.mapper.graph.poses).reshape(-1, 3)
+            edges = list(self.mapper.graph.edges)
+        self.graph_pub.publish(graph_markers(poses, edges, self.params.map_frame, stamp))
 
     # -------------------------------------------------------------- services
     def _save_map(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
@@ -286,13 +339,40 @@ class Slam(Node):
         if grid is None:
             response.success, response.message = False, "no map yet: no scan has been processed"
             return response
-        path = Path(self.params.map_file_name) if self.params.map_file_name else maps_directory() / "map"
+        path = self.params.save_name()
         try:
             yaml_path = save_map(grid, path)
         except (MapFileError, OSError) as exc:
             response.success, response.message = False, f"could not save the map to {path}: {exc}"
             return response
         response.success, response.message = True, f"saved {yaml_path}"
+        return response
+
+    def _serialize(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        with self.lock:
+            snapshot = self.mapper.snapshot()  # written outside the lock: scans go on
+        try:
+            path = save_posegraph(snapshot, self.params.save_name())
+        except PoseGraphFileError as exc:
+            response.success, response.message = False, str(exc)
+            return response
+        response.success, response.message = True, f"saved {path} ({len(snapshot.keyframes)} keyframes)"
+        return response
+
+    def _deserialize(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        if not self.params.map_file_name:
+            response.success, response.message = False, "set the parameter map_file_name to the pose graph to load"
+            return response
+        try:
+            mapper = self._load(self.params.map_file_name)
+        except PoseGraphFileError as exc:
+            response.success, response.message = False, str(exc)
+            return response
+        with self.lock:
+            mapper.sensor_offset = self.mapper.sensor_offset
+            self.mapper = mapper
+        self._map_wake.set()
+        response.success, response.message = True, f"mapping on from {posegraph_path(self.params.map_file_name)}"
         return response
 
     def _pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
@@ -313,8 +393,27 @@ class Slam(Node):
         super().destroy_node()
 
 
+def graph_markers(poses: np.ndarray, edges: list[Edge], frame: str, stamp: Any) -> MarkerArray:
+    """The pose graph for RViz: keyframes (blue spheres), matching edges (thin blue lines) and
+    loop closures (red lines); one marker each, replaced on every update."""
+    points = [Point(x=float(x), y=float(y)) for x, y, _ in poses]
+    markers = []
+    for ident, (kind, width, rgba, segments) in enumerate([
+            (Marker.SPHERE_LIST, 0.1, (0.1, 0.3, 1.0, 1.0), None),
+            (Marker.LINE_LIST, 0.02, (0.1, 0.3, 1.0, 0.6), [e for e in edges if not e.loop]),
+            (Marker.LINE_LIST, 0.03, (1.0, 0.1, 0.1, 1.0), [e for e in edges if e.loop])]):
+        marker = Marker(type=kind, action=Marker.ADD, id=ident, ns="slam_toolbox")
+        marker.header.frame_id, marker.header.stamp = frame, stamp
+        marker.pose.orientation.w = 1.0
+        marker.scale.x = marker.scale.y = marker.scale.z = width
+        marker.color = ColorRGBA(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
+        marker.points = points if segments is None else [points[i] for e in segments for i in (e.source, e.target)]
+        markers.append(marker)
+    return MarkerArray(markers=markers)
+
+
 def main(args: list[str] | None = None) -> int:
-    return run_node(Slam, "slam", args, fatal=(ParameterError,))
+    return run_node(Slam, "slam", args, fatal=(ParameterError, PoseGraphFileError))
 
 
 if __name__ == "__main__":
