@@ -17,6 +17,9 @@ setup(
     description="Map server, map saver, AMCL, costmaps, planner, controller and navigator for ppp_bot (Nav2's role).",
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [],
+        'console_scripts': [
+            'map_saver = pppbot_nav.ros.map_saver:main',
+            'map_saver_cli = pppbot_nav.ros.map_saver_cli:cli_main',
+        ],
     },
 )

@@ -11,7 +11,8 @@ with a hash of its inputs, so a second run with nothing changed does no work:
    so that message packages can be built against them. Only files in ``.venv/``
    are touched.
 2. ``install/``: the interface packages in ``interfaces/`` (``tf2_msgs``,
-   ``nav2_msgs``) built with colcon, each only when the environment cannot import it.
+   ``nav2_msgs``) built with colcon, each only when the environment cannot import it
+   (every kind it defines: ``.msg``, ``.srv``, ``.action``).
 3. ``install/``: pppbot's own ament_python packages, built with
    ``colcon build --symlink-install`` so that source edits apply without a rebuild.
 
@@ -221,8 +222,14 @@ def interface_packages() -> list[Path]:
     return sorted(p.parent for p in INTERFACES.glob("*/package.xml"))
 
 
-def importable(module: str, env: dict[str, str]) -> bool:
-    probe = subprocess.run([str(venv_python()), "-c", f"import {module}"],
+def interface_modules(pkg: Path) -> list[str]:
+    """The Python modules an interface package provides: ``<name>.msg``, ``.srv``, ``.action``
+    for each kind of definition it holds."""
+    return [f"{pkg.name}.{kind}" for kind in ("msg", "srv", "action") if any((pkg / kind).glob(f"*.{kind}"))]
+
+
+def importable(modules: list[str], env: dict[str, str]) -> bool:
+    probe = subprocess.run([str(venv_python()), "-c", f"import {', '.join(modules)}"],
                            capture_output=True, env=env)
     return probe.returncode == 0
 
@@ -245,7 +252,9 @@ def ensure_interfaces(force: bool, quiet: bool) -> bool:
     if not force and _stamp_current("interfaces", digest):
         return False
     env = ros_environment()
-    missing = [pkg for pkg in packages if not importable(f"{pkg.name}.msg", env)]
+    # A package counts as provided only when every kind of interface we define imports
+    # (an environment's nav2_msgs without services would leave SaveMap missing).
+    missing = [pkg for pkg in packages if not importable(interface_modules(pkg), env)]
     for pkg in packages:
         if pkg not in missing:
             say(f"{pkg.name}: provided by the environment, not built")

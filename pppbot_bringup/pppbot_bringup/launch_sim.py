@@ -25,6 +25,7 @@ ARGUMENTS = [
     Argument("localization", False, "localize on a saved map (map_server + AMCL) instead of mapping (SLAM)"),
     Argument("map", "", "map YAML for localization; default maps/<world>.yaml"),
     Argument("use_slam", True, "with localization:=false, map with the SLAM node (false: drive on odometry only)"),
+    Argument("slam_params_file", "", "the slam node's parameters; default config/mapper_params_online_async.yaml"),
     Argument("use_teleop", True, "keyboard teleop in this terminal (other nodes' output goes to log files)"),
     Argument("use_rviz", True, "start rviz2 with config/ppp_bot.rviz when rviz2 is on PATH"),
     Argument("headless", True, "no MuJoCo viewer window (false opens one; needs a display)"),
@@ -114,8 +115,11 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
                                 f"(save one while mapping, or give map:=path/to/map.yaml)")
         raise ArgumentError("localization:=true needs map_server and amcl, which are not built yet in this checkout")
     if values["use_slam"]:
+        slam_params = Path(values["slam_params_file"] or config / "mapper_params_online_async.yaml")
+        if not slam_params.is_file():
+            raise ArgumentError(f"slam_params_file: {slam_params} does not exist")
         nodes.append(NodeSpec("slam_toolbox", [resolve("pppbot_slam", "slam"), *ros_args(
-            level, params_file=config / "mapper_params_online_async.yaml")],
+            level, params_file=slam_params)],
             after=("diff_drive_base_controller",), required=True,
             # Ready once it has mapped its first scan: the map frame is where the robot was
             # then, so nothing should drive it before (eval relies on map = spawn pose).

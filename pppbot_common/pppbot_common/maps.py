@@ -10,11 +10,16 @@ Nav2's rules (map_server / map_saver):
   ``trinary``: p > occupied_thresh → 100, p < free_thresh → 0, else -1;
   ``scale``: the same ends, and between them ``round(100·(p - free)/(occ - free))``;
   ``raw``: the pixel value itself (255 → -1).
-* saving: ``trinary`` writes 0 for occupied, 254 for free, 205 for unknown, and,
-  as Nav2's map_saver does since it fixed this (navigation2 #5278), records the
-  fixed thresholds 0.65 / 0.196 in the YAML so that 205 reads back as unknown (the
-  thresholds given only classify the cells before saving); ``scale`` writes
-  ``round(255·(1 - occ/100))``, unknown 205; ``raw`` the value.
+* saving: cells outside 0-100 are unknown. ``trinary`` writes 0 for occupied
+  (``cell >= rint(100·occupied_thresh)``), 254 for free (``cell <= rint(100·free_thresh)``,
+  checked first) and 205 for the rest, and, as Nav2's map_saver does since it fixed
+  this (navigation2 #5278), records the fixed thresholds 0.65 / 0.196 in the YAML
+  so that 205 reads back as unknown (the thresholds given only classify the cells
+  before saving); ``scale`` writes ``floor(255·(100 - cell)/100)`` and the given
+  thresholds, unknown cells transparent (alpha 0) in a PNG — PGM and BMP carry no
+  transparency here, so there they are mid-grey (127) and read back as a middling
+  occupancy, which is why Nav2 warns against scale without PNG; ``raw`` writes
+  the cell value, unknown 255.
 """
 from __future__ import annotations
 
@@ -33,6 +38,12 @@ from pppbot_common.errors import PppbotError
 FREE, OCCUPIED, UNKNOWN = 0, 100, -1
 #: What a trinary map file records: 0 → p 1.0 occupied, 254 → p 0.004 free, 205 → p 0.196 unknown.
 TRINARY_FILE_THRESHOLDS = (0.65, 0.196)
+#: Image formats map files are written in (Nav2's map_saver: "bmp", "pgm", "png").
+IMAGE_FORMATS = ("pgm", "png", "bmp")
+#: Formats in which ``scale`` mode marks unknown cells transparent.
+ALPHA_FORMATS = ("png",)
+#: Grey of unknown cells in ``scale`` mode (under the transparency, or alone without it).
+SCALE_UNKNOWN_GREY = 127
 
 
 class MapFileError(PppbotError, ValueError):
@@ -151,8 +162,12 @@ def read_map_metadata(path: str | Path) -> MapMetadata:
                        mode, bool(negate), occupied, free, extra)
 
 
-def pixels_to_occupancy(pixels: np.ndarray, meta: MapMetadata) -> np.ndarray:
-    """Nav2's loading rule: greyscale pixels (image orientation) → int8 cells (same orientation)."""
+def pixels_to_occupancy(pixels: np.ndarray, meta: MapMetadata, alpha: np.ndarray | None = None) -> np.ndarray:
+    """Nav2's loading rule: greyscale pixels (image orientation) → int8 cells (same orientation).
+
+    ``alpha`` (0-255, same shape), when the image has it: in ``scale`` mode a pixel
+    that is not fully opaque is unknown.
+    """
     values = pixels.astype(np.float64)
     if meta.mode is MapMode.RAW:
         out = values.copy()
@@ -166,24 +181,26 @@ def pixels_to_occupancy(pixels: np.ndarray, meta: MapMetadata) -> np.ndarray:
         between = (p >= meta.free_thresh) & (p <= meta.occupied_thresh)
         span = max(meta.occupied_thresh - meta.free_thresh, 1e-9)
         out[between] = np.rint(100.0 * (p[between] - meta.free_thresh) / span).astype(np.int8)
+        if alpha is not None:
+            out[alpha < 255] = UNKNOWN
     return out
 
 
 def occupancy_to_pixels(data: np.ndarray, mode: MapMode = MapMode.TRINARY,
                         occupied_thresh: float = 0.65, free_thresh: float = 0.25) -> np.ndarray:
-    """Nav2 map_saver's writing rule: int8 cells → uint8 greyscale pixels."""
-    out = np.full(data.shape, 205, dtype=np.uint8)
+    """Nav2 map_saver's writing rule: int8 cells → uint8 greyscale pixels (see the module doc)."""
+    cells = data.astype(np.int16)
+    unknown = (cells < 0) | (cells > 100)
     if mode is MapMode.RAW:
-        out = np.where(data < 0, 255, data).astype(np.uint8)
-        return out
-    occupied = data >= occupied_thresh * 100.0
-    free = (data >= 0) & (data <= free_thresh * 100.0)
-    if mode is MapMode.TRINARY:
-        out[occupied] = 0
-        out[free] = 254
-        return out
-    known = data >= 0
-    out[known] = np.rint(255.0 * (1.0 - data[known] / 100.0)).astype(np.uint8)
+        return np.where(unknown, 255, cells).astype(np.uint8)
+    if mode is MapMode.SCALE:
+        grey = (255 * (100 - cells)) // 100
+        return np.where(unknown, SCALE_UNKNOWN_GREY, grey).astype(np.uint8)
+    free = ~unknown & (cells <= int(np.rint(free_thresh * 100.0)))
+    occupied = ~unknown & ~free & (cells >= int(np.rint(occupied_thresh * 100.0)))
+    out = np.full(data.shape, 205, dtype=np.uint8)
+    out[occupied] = 0
+    out[free] = 254
     return out
 
 
@@ -198,12 +215,15 @@ def load_map(path: str | Path) -> tuple[OccupancyGrid, MapMetadata]:
     image_path = Path(meta.image) if Path(meta.image).is_absolute() else path.parent / meta.image
     try:
         with Image.open(image_path) as image:
+            if image.mode == "P" and "transparency" in image.info:
+                image = image.convert("RGBA")
             pixels = np.asarray(image.convert("L"))
+            alpha = np.asarray(image.getchannel("A")) if "A" in image.getbands() else None
     except FileNotFoundError:
         raise MapFileError(f"{path}: image '{meta.image}' not found at {image_path}") from None
     except (UnidentifiedImageError, OSError) as exc:
         raise MapFileError(f"{image_path}: not a readable image ({exc})") from exc
-    cells = pixels_to_occupancy(pixels, meta)[::-1]
+    cells = pixels_to_occupancy(pixels, meta, alpha)[::-1]
     return OccupancyGrid(cells, meta.resolution, meta.origin), meta
 
 
@@ -212,27 +232,34 @@ def save_map(grid: OccupancyGrid, path: str | Path, mode: MapMode = MapMode.TRIN
              overwrite: bool = True) -> Path:
     """Write ``<path>.yaml`` and ``<path>.<image_format>`` as Nav2's map_saver does.
 
-    ``path`` may end in ``.yaml``; returns the YAML path.
+    ``path`` may end in ``.yaml``; returns the YAML path. Nothing is written when an
+    argument is bad.
 
     Raises:
-        MapFileError: bad format, thresholds, or an existing file when not ``overwrite``.
+        MapFileError: a bad format or thresholds (Nav2's rule: 0 <= free < occupied <= 1),
+            or an existing file when not ``overwrite``.
     """
     path = Path(path)
     base = path.with_suffix("") if path.suffix == ".yaml" else path
     image_format = image_format.lower()
-    if image_format not in ("pgm", "png", "bmp"):
-        raise MapFileError(f"image format '{image_format}' is not supported (pgm, png, bmp)")
-    if not 0.0 <= free_thresh <= occupied_thresh <= 1.0:
-        raise MapFileError(f"thresholds need 0 <= free ({free_thresh}) <= occupied ({occupied_thresh}) <= 1")
-    yaml_path = base.with_suffix(".yaml")
-    image_path = base.with_suffix(f".{image_format}")
+    if image_format not in IMAGE_FORMATS:
+        raise MapFileError(f"image format '{image_format}' is not supported ({', '.join(IMAGE_FORMATS)})")
+    check_save_thresholds(occupied_thresh, free_thresh)
+    yaml_path = base.parent / f"{base.name}.yaml"
+    image_path = base.parent / f"{base.name}.{image_format}"
     if not overwrite:
         for existing in (yaml_path, image_path):
             if existing.exists():
                 raise MapFileError(f"{existing} exists; refusing to overwrite it")
-    pixels = occupancy_to_pixels(grid.data, mode, occupied_thresh, free_thresh)[::-1]
+    pixels = np.ascontiguousarray(occupancy_to_pixels(grid.data, mode, occupied_thresh, free_thresh)[::-1])
+    if mode is MapMode.SCALE and image_format in ALPHA_FORMATS:
+        cells = grid.data[::-1]
+        alpha = np.where((cells < 0) | (cells > 100), 0, 255).astype(np.uint8)
+        image = Image.fromarray(np.dstack([pixels, alpha]))  # mode LA: grey and alpha
+    else:
+        image = Image.fromarray(pixels)
     base.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(np.ascontiguousarray(pixels)).save(image_path)
+    image.save(image_path)
     if mode is MapMode.TRINARY:
         occupied_thresh, free_thresh = TRINARY_FILE_THRESHOLDS
     meta = {
@@ -246,3 +273,14 @@ def save_map(grid: OccupancyGrid, path: str | Path, mode: MapMode = MapMode.TRIN
     }
     yaml_path.write_text(yaml.safe_dump(meta, sort_keys=False, default_flow_style=None))
     return yaml_path
+
+
+def check_save_thresholds(occupied_thresh: float, free_thresh: float) -> None:
+    """Nav2 map_saver's rule for thresholds: finite, ``0 <= free < occupied <= 1``.
+
+    Raises:
+        MapFileError: naming both values.
+    """
+    if not (math.isfinite(free_thresh) and math.isfinite(occupied_thresh)
+            and 0.0 <= free_thresh < occupied_thresh <= 1.0):
+        raise MapFileError(f"thresholds need 0 <= free ({free_thresh}) < occupied ({occupied_thresh}) <= 1")

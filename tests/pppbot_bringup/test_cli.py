@@ -27,7 +27,7 @@ def talker(spawn, python_script):
 def test_help_lists_verbs():
     result = pppbot("--help")
     assert result.returncode == 0
-    for verb in ("run", "topic", "teleop", "launch_sim", "setup", "env"):
+    for verb in ("run", "topic", "teleop", "launch_sim", "map_saver", "setup", "env"):
         assert re.search(rf"^\s+{verb}\s", result.stdout, re.M), verb
 
 
@@ -113,10 +113,22 @@ def test_topic_hz_measures_the_rate(spawn, talker):
     assert re.search(r"min: [\d.]+s max: [\d.]+s std dev: [\d.]+s window: \d+", hz.output)
 
 
-def test_a_design_verb_not_built_yet_says_so_instead_of_pretending():
-    result = pppbot("map_saver", "-f", "somewhere")
-    assert result.returncode == 2
-    assert "not built yet" in result.stderr and result.stdout == ""
+def test_a_design_verb_not_built_yet_says_so_instead_of_pretending(monkeypatch, capsys):
+    from pppbot_bringup import cli
+
+    monkeypatch.setitem(cli.NOT_YET, "fly", "flying over the map")
+    assert cli.main(["fly", "--high"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and "pppbot fly: flying over the map is not built yet in this checkout" in err
+
+
+def test_map_saver_is_a_verb_and_an_executable_of_pppbot_nav():
+    result = pppbot("map_saver", "--help")
+    assert result.returncode == 0, result.stderr
+    assert "usage: pppbot map_saver [-h] [-f PATH] [-t MAP_TOPIC] [--occ T] [--free T]" in result.stdout
+    result = pppbot("run", "pppbot_nav", "map_saver_cli", "--help")  # Nav2's name, for `ros2 run`
+    assert result.returncode == 0, result.stderr
+    assert "usage: map_saver_cli [-h] [-f PATH]" in result.stdout
 
 
 def test_an_eval_scenario_not_built_yet_names_what_it_needs():

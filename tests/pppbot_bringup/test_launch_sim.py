@@ -222,3 +222,13 @@ def test_in_a_terminal_the_teleop_drives_and_ctrl_c_ends_everything(ros_node):
     finally:
         stop_process_group(proc)
         os.close(master)
+
+
+def test_slam_params_file_replaces_the_default_and_must_exist(tmp_path):
+    own = tmp_path / "extend_maze.yaml"
+    own.write_text("slam_toolbox:\n  ros__parameters:\n    map_file_name: maps/maze\n")
+    p, _ = fake_plan(f"slam_params_file:={own}")
+    slam = next(n for n in p.nodes if n.name == "slam_toolbox")
+    assert str(own) in slam.cmd and "mapper_params_online_async.yaml" not in " ".join(slam.cmd)
+    with pytest.raises(ArgumentError, match=f"slam_params_file: {tmp_path / 'missing.yaml'} does not exist"):
+        fake_plan(f"slam_params_file:={tmp_path / 'missing.yaml'}")

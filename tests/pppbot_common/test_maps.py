@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import yaml
 from PIL import Image
 
 from pppbot_common.maps import (
@@ -109,3 +110,82 @@ def test_refuses_to_overwrite_when_asked(tmp_path):
     save_map(sample_grid(), tmp_path / "m")
     with pytest.raises(MapFileError, match="exists; refusing to overwrite"):
         save_map(sample_grid(), tmp_path / "m", overwrite=False)
+
+
+# ---------------------------------------------------------------- saving as Nav2's map_saver
+def cells_to_pixels(tmp_path, cells, **kwargs):
+    """Save one row of cells; return the image's pixels as an independent reader (PIL) sees them."""
+    grid = OccupancyGrid(np.array([cells], dtype=np.int8), 0.1)
+    yaml_path = save_map(grid, tmp_path / "m", **kwargs)
+    image_name = yaml.safe_load(yaml_path.read_text())["image"]
+    with Image.open(tmp_path / image_name) as image:
+        return image.mode, np.asarray(image)
+
+
+def test_trinary_thresholds_are_rounded_to_whole_cells_as_nav2_does(tmp_path):
+    # Nav2 compares cells with rint(100·threshold): free 0.256 → cells <= 26, occupied 0.594 → cells >= 59.
+    _, pixels = cells_to_pixels(tmp_path, [26, 27, 58, 59], free_thresh=0.256, occupied_thresh=0.594)
+    assert pixels[0].tolist() == [254, 205, 205, 0]
+
+
+def test_cells_outside_0_to_100_are_unknown_in_every_mode(tmp_path):
+    assert cells_to_pixels(tmp_path, [101, 127, -1, 100])[1][0].tolist() == [205, 205, 205, 0]
+    assert cells_to_pixels(tmp_path, [101, -1, 7], mode=MapMode.RAW)[1][0].tolist() == [255, 255, 7]
+    mode, pixels = cells_to_pixels(tmp_path, [101, -1, 0], mode=MapMode.SCALE, image_format="png")
+    assert mode == "LA" and pixels[0, :, 1].tolist() == [0, 0, 255]
+
+
+def test_scale_png_is_grey_by_occupancy_with_unknown_transparent(tmp_path):
+    mode, pixels = cells_to_pixels(tmp_path, [0, 30, 50, 70, 100, -1], mode=MapMode.SCALE, image_format="png")
+    assert mode == "LA"
+    # floor(255·(100 - cell)/100), as Nav2's map_saver writes the grey; unknown: alpha 0
+    assert pixels[0, :, 0].tolist() == [255, 178, 127, 76, 0, 127]
+    assert pixels[0, :, 1].tolist() == [255, 255, 255, 255, 255, 0]
+    loaded, meta = load_map(tmp_path / "m.yaml")
+    assert (meta.mode, meta.occupied_thresh, meta.free_thresh) == (MapMode.SCALE, 0.65, 0.25)
+    # read back with the scale rule: p = (255 - v)/255 between the thresholds, transparent → unknown
+    # (178 → p 0.302 → 13, 127 → p 0.502 → 63)
+    assert loaded.data[0].tolist() == [FREE, 13, 63, OCCUPIED, OCCUPIED, UNKNOWN]
+
+
+def test_scale_without_png_has_no_transparency(tmp_path):
+    mode, pixels = cells_to_pixels(tmp_path, [0, -1], mode=MapMode.SCALE, image_format="pgm")
+    assert mode == "L" and pixels[0].tolist() == [255, 127]
+
+
+@pytest.mark.parametrize("image_format", ["png", "bmp", "PGM"])
+def test_trinary_in_each_image_format(tmp_path, image_format):
+    yaml_path = save_map(sample_grid(), tmp_path / "m", image_format=image_format)
+    meta = yaml.safe_load(yaml_path.read_text())
+    assert meta["image"] == f"m.{image_format.lower()}"
+    with Image.open(tmp_path / meta["image"]) as image:
+        assert image.mode == "L"
+        pixels = np.asarray(image)
+    assert pixels[0, 5] == 205 and pixels[1, 1] == 254 and (pixels[-1, :] == 0).all()
+
+
+def test_yaml_has_nav2s_keys_in_nav2s_order(tmp_path):
+    yaml_path = save_map(OccupancyGrid(np.zeros((2, 3), np.int8), 0.05, (1.5, -2.25, 0.5)), tmp_path / "m",
+                         mode=MapMode.RAW, occupied_thresh=0.7, free_thresh=0.2)
+    meta = yaml.safe_load(yaml_path.read_text())
+    assert list(meta) == ["image", "mode", "resolution", "origin", "negate", "occupied_thresh", "free_thresh"]
+    assert meta == {"image": "m.pgm", "mode": "raw", "resolution": 0.05, "origin": [1.5, -2.25, 0.5],
+                    "negate": 0, "occupied_thresh": 0.7, "free_thresh": 0.2}
+
+
+def test_a_dotted_name_gets_the_extensions_appended(tmp_path):
+    yaml_path = save_map(sample_grid(), tmp_path / "maze.v2")
+    assert yaml_path == tmp_path / "maze.v2.yaml" and (tmp_path / "maze.v2.pgm").is_file()
+
+
+@pytest.mark.parametrize("occupied, free", [(0.5, 0.5), (0.4, 0.6), (1.2, 0.25), (0.65, -0.1), (float("nan"), 0.2)])
+def test_bad_thresholds_write_nothing(tmp_path, occupied, free):
+    with pytest.raises(MapFileError, match=r"thresholds need 0 <= free .* < occupied .* <= 1"):
+        save_map(sample_grid(), tmp_path / "out" / "m", occupied_thresh=occupied, free_thresh=free)
+    assert not (tmp_path / "out").exists()
+
+
+def test_unknown_image_format_writes_nothing(tmp_path):
+    with pytest.raises(MapFileError, match="image format 'jpg' is not supported"):
+        save_map(sample_grid(), tmp_path / "out" / "m", image_format="jpg")
+    assert not (tmp_path / "out").exists()

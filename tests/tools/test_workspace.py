@@ -67,3 +67,18 @@ def test_package_inputs_skip_module_sources_but_not_setup_files():
 def test_digest_depends_on_content_and_order_of_parts():
     assert workspace._digest([b"ab", b"c"]) != workspace._digest([b"a", b"bc"])
     assert workspace._digest([b"x"]) == workspace._digest([b"x"])
+
+
+def test_an_interface_package_counts_as_provided_only_with_every_kind_it_defines():
+    nav2 = REPO / "interfaces" / "nav2_msgs"
+    assert workspace.interface_modules(nav2) == ["nav2_msgs.msg", "nav2_msgs.srv", "nav2_msgs.action"]
+    assert workspace.interface_modules(REPO / "interfaces" / "tf2_msgs") == [
+        "tf2_msgs.msg", "tf2_msgs.srv", "tf2_msgs.action"]
+
+
+def test_built_nav2_msgs_has_the_map_services():
+    """After setup, the environment imports nav2_msgs' services (SaveMap, LoadMap) too."""
+    result = subprocess.run([sys.executable, "-c", "from nav2_msgs.srv import LoadMap, SaveMap; print('ok')"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == "ok\n"

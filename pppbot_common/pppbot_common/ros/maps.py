@@ -34,6 +34,9 @@ def grid_message(grid: OccupancyGrid, stamp: Time) -> OccupancyGridMsg:
 def grid_from_message(msg: OccupancyGridMsg) -> OccupancyGrid:
     """The core grid of a message (origin yaw from its quaternion).
 
+    The resolution is a float32 in the message; it becomes the shortest decimal
+    with that float32 value (0.05, not 0.05000000074505806), as written in map files.
+
     Raises:
         ValueError: the data length is not width × height, or a bad resolution.
     """
@@ -42,6 +45,6 @@ def grid_from_message(msg: OccupancyGridMsg) -> OccupancyGrid:
         raise ValueError(f"map data has {len(msg.data)} cells, not width × height = {info.width * info.height}")
     o = info.origin.orientation
     data = np.array(msg.data, dtype=np.int8).reshape(info.height, info.width)
-    return OccupancyGrid(data, float(info.resolution),
+    return OccupancyGrid(data, float(str(np.float32(info.resolution))),
                          (info.origin.position.x, info.origin.position.y, yaw_from_quaternion(o.x, o.y, o.z, o.w)),
                          msg.header.frame_id)

@@ -1,0 +1,9 @@
+"""Errors of the navigation package."""
+from __future__ import annotations
+
+from pppbot_common.errors import PppbotError
+
+
+class MapSaverError(PppbotError, ValueError):
+    """A map save request cannot be carried out as asked (bad mode, format or thresholds);
+    the message names the value and what is allowed."""
