@@ -34,7 +34,7 @@ import numpy as np
 from pppbot_common.errors import PppbotError
 from pppbot_common.maps import OccupancyGrid
 from pppbot_common.se2 import PoseLike, se2_apply, se2_compose, se2_inverse, wrap_angles
-from pppbot_slam.matcher import MatcherSettings, MatchResult, ScanMatcher
+from pppbot_slam.matcher import MatcherSettings, MatchResult, ScanMatcher, rotate, scan_normals
 from pppbot_slam.occupancy import LogOddsGrid, OccupancySettings, ScanRays
 from pppbot_slam.pose_graph import PoseGraph
 
@@ -97,6 +97,7 @@ class Keyframe:
     odom_pose: np.ndarray  # base in the odom frame when the scan was taken
     rays: ScanRays  # in the sensor frame
     points: np.ndarray  # (K, 2) hits in the base frame
+    normals: np.ndarray  # (K, 2) their unit surface normals, facing the sensor
     session: int = 0  # odometry session: a continued map's new run starts a new one
 
 
@@ -162,11 +163,12 @@ class Mapper:
             raise MapperError(f"the start pose must be a finite (x, y, yaw), not {start_pose!r}")
         self.start_pose = pose.copy()
 
-    def hit_points(self, rays: ScanRays) -> np.ndarray:
-        """The scan's hits within max_laser_range, in the base frame."""
+    def hit_points(self, rays: ScanRays) -> tuple[np.ndarray, np.ndarray]:
+        """The scan's hits within max_laser_range and their surface normals, in the base frame."""
         classes = rays.classify(self.settings.max_laser_range)
         sensor_xy = rays.directions[classes.hit] * rays.ranges_m[classes.hit, None]
-        return np.asarray(se2_apply(self.sensor_offset, sensor_xy))
+        normals = rotate(scan_normals(sensor_xy), float(self.sensor_offset[2]))
+        return np.asarray(se2_apply(self.sensor_offset, sensor_xy)), normals
 
     # -------------------------------------------------------------- keyframes
     def needs_keyframe(self, odom_pose: PoseLike) -> bool:
@@ -186,32 +188,34 @@ class Mapper:
         """
         if not self.needs_keyframe(odom_pose):
             return None
-        points = self.hit_points(rays)
+        points, normals = self.hit_points(rays)
         odom = np.asarray(odom_pose, dtype=float).copy()
         predicted = self.predict(odom)
         index = len(self.keyframes)
         if index == 0:
             self.graph.add_node(predicted)
-            self.keyframes.append(Keyframe(0, stamp_s, odom, rays, points, self.session))
+            self.keyframes.append(Keyframe(0, stamp_s, odom, rays, points, normals, self.session))
             self.last_response = 1.0
             return self.keyframes[0]
         continuing = self._last_of_session() is None  # the first keyframe of a continued map's new run
-        result = self._match_running(points, predicted)
+        result = self._match_running(points, normals, predicted)
         accepted = result is not None and result.response >= self.settings.link_match_minimum_response_fine
         pose = result.pose if accepted and result is not None else predicted
         covariance = result.covariance if accepted and result is not None else ODOMETRY_ONLY_COVARIANCE
         self.last_response = result.response if result is not None else 0.0
         previous = self._nearest(pose, range(index)) if continuing else index - 1
         self.graph.add_node(pose)
-        self.keyframes.append(Keyframe(index, stamp_s, odom, rays, points, self.session))
+        self.keyframes.append(Keyframe(index, stamp_s, odom, rays, points, normals, self.session))
         self.graph.add_edge(previous, index, self.graph.relative(previous, index),
                             _in_frame_of(covariance, self.map_pose(previous)[2]))
         if self.settings.do_loop_closing:
             self._close_loops(index)
         return self.keyframes[-1]
 
-    def _world_points(self, indices: list[int]) -> np.ndarray:
-        return np.vstack([se2_apply(self.map_pose(i), self.keyframes[i].points) for i in indices])
+    def _world_points(self, indices: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """The keyframes' hits and normals in the map."""
+        return (np.vstack([se2_apply(self.map_pose(i), self.keyframes[i].points) for i in indices]),
+                np.vstack([rotate(self.keyframes[i].normals, float(self.map_pose(i)[2])) for i in indices]))
 
     def _distance(self, index: int, pose: np.ndarray) -> float:
         return float(np.hypot(*(self.map_pose(index)[:2] - pose[:2])))
@@ -231,11 +235,12 @@ class Mapper:
             recent += older[:s.scan_buffer_size - len(recent)]
         return [i for i in recent if self._distance(i, pose) <= s.scan_buffer_maximum_scan_distance]
 
-    def _match_running(self, points: np.ndarray, predicted: np.ndarray) -> MatchResult | None:
+    def _match_running(self, points: np.ndarray, normals: np.ndarray, predicted: np.ndarray) -> MatchResult | None:
         buffer = [i for i in self._running_buffer(predicted) if len(self.keyframes[i].points)]
         if not buffer or len(points) < MIN_MATCH_POINTS:
             return None
-        return ScanMatcher(self._world_points(buffer), self.settings.matcher).match(points, predicted)
+        world, world_normals = self._world_points(buffer)
+        return ScanMatcher(world, self.settings.matcher, world_normals).match(points, predicted, normals)
 
     # ----------------------------------------------------------- loop closure
     def loop_candidates(self, index: int) -> list[list[int]]:
@@ -253,20 +258,32 @@ class Mapper:
                 chains.append([i])
         return [c for c in chains if len(c) >= s.loop_match_minimum_chain_size]
 
+    def _linked(self, chain: list[int], index: int) -> bool:
+        """Whether a loop edge already joins ``chain`` to keyframe ``index`` or its running chain:
+        that loop is closed, and closing it again on every keyframe would only make the graph
+        over-confident in one place (and cost a large search each time)."""
+        recent = range(max(0, index - self.settings.scan_buffer_size), index + 1)
+        members = set(chain)
+        return any(e.loop and ((e.source in members and e.target in recent) or (e.target in members
+                                                                                and e.source in recent))
+                   for e in self.graph.edges[-4 * len(recent) - 64:])
+
     def _close_loops(self, index: int) -> None:
         s = self.settings
-        points = self.keyframes[index].points
+        keyframe = self.keyframes[index]
+        points, normals = keyframe.points, keyframe.normals
         if len(points) < MIN_MATCH_POINTS:
             return
+        closed = False
         for chain in self.loop_candidates(index):
-            if sum(len(self.keyframes[i].points) for i in chain) < MIN_MATCH_POINTS:
+            if sum(len(self.keyframes[i].points) for i in chain) < MIN_MATCH_POINTS or self._linked(chain, index):
                 continue
-            world = self._world_points(chain)
-            coarse = ScanMatcher(world, s.loop_matcher).match(points, self.map_pose(index))
+            world, world_normals = self._world_points(chain)
+            coarse = ScanMatcher(world, s.loop_matcher, world_normals).match(points, self.map_pose(index), normals)
             if (coarse.response < s.loop_match_minimum_response_coarse
                     or max(coarse.covariance[0, 0], coarse.covariance[1, 1]) > s.loop_match_maximum_variance_coarse):
                 continue
-            fine = ScanMatcher(world, s.matcher).match(points, coarse.pose)
+            fine = ScanMatcher(world, s.matcher, world_normals).match(points, coarse.pose, normals)
             if fine.response < s.loop_match_minimum_response_fine:
                 continue
             nearest = self._nearest(fine.pose, chain)
@@ -274,6 +291,8 @@ class Mapper:
             self.graph.add_edge(nearest, index, relative, _in_frame_of(fine.covariance, self.map_pose(nearest)[2]),
                                 loop=True)
             self.loop_closures.append(LoopClosure(nearest, index, fine.response))
+            closed = True
+        if closed:
             self.graph.optimize()
 
     # -------------------------------------------------------------------- map

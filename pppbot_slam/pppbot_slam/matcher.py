@@ -78,12 +78,63 @@ class MatcherSettings:
             raise MatcherError(f"coarse_points must be at least 3, not {self.coarse_points}")
 
 
-class LikelihoodField:
-    """``exp(-d²/2σ²)`` on a grid of ``resolution_m`` around map points (world frame)."""
+#: Branch and bound: shifts are bounded in blocks of BLOCK × BLOCK cells, and at most
+#: MAX_BLOCKS blocks are scored cell by cell.
+BLOCK = 4
+MAX_BLOCKS = 400
+#: Surface-normal classes: a scan point is scored only against map points whose surface
+#: faces the same way (normals within ±90° of its class's direction), so the two faces of
+#: a thin wall, seen from either side, are never matched onto each other.
+NORMAL_CLASSES = 4
 
-    def __init__(self, points_xy: np.ndarray, resolution_m: float, smear_m: float, margin_m: float) -> None:
+
+def normal_classes(normals_xy: np.ndarray) -> np.ndarray:
+    """The class (0 … NORMAL_CLASSES−1) of each unit normal: the nearest of the class directions."""
+    angle = np.arctan2(normals_xy[..., 1], normals_xy[..., 0])
+    return np.asarray(np.round(angle / (2 * np.pi / NORMAL_CLASSES)).astype(np.int64) % NORMAL_CLASSES)
+
+
+def scan_normals(points_xy: np.ndarray, sensor_xy: np.ndarray | None = None, max_gap_m: float = 0.3) -> np.ndarray:
+    """Unit surface normals of consecutive scan points (in scan order), facing the sensor.
+
+    Each point's tangent runs between its neighbours; where a neighbour is more than
+    ``max_gap_m`` away (an edge, a gap), the normal falls back to the direction to the sensor.
+    """
+    points = np.asarray(points_xy, dtype=float).reshape(-1, 2)
+    sensor = np.zeros(2) if sensor_xy is None else np.asarray(sensor_xy, dtype=float)
+    to_sensor = sensor - points
+    view = to_sensor / np.maximum(np.linalg.norm(to_sensor, axis=1, keepdims=True), 1e-9)
+    if len(points) < 3:
+        return view
+    before = np.vstack([points[:1], points[:-1]])
+    after = np.vstack([points[1:], points[-1:]])
+    gaps = np.maximum(np.linalg.norm(points - before, axis=1), np.linalg.norm(after - points, axis=1))
+    tangent = after - before
+    normal = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
+    length = np.linalg.norm(normal, axis=1, keepdims=True)
+    normal = np.where(length > 1e-9, normal / np.maximum(length, 1e-9), view)
+    normal *= np.where((normal * view).sum(axis=1) < 0, -1.0, 1.0)[:, None]
+    return np.asarray(np.where((gaps > max_gap_m)[:, None], view, normal))
+
+
+def rotate(vectors: np.ndarray, yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.stack([c * vectors[..., 0] - s * vectors[..., 1], s * vectors[..., 0] + c * vectors[..., 1]], axis=-1)
+
+
+class LikelihoodField:
+    """``exp(-d²/2σ²)`` on a grid of ``resolution_m`` around map points (world frame).
+
+    With the map points' surface ``normals_xy``, there is one field per normal class:
+    class ``j`` keeps a cell's value only where the nearest map point faces within
+    ±90° of class ``j``'s direction, and is 0 elsewhere.
+    """
+
+    def __init__(self, points_xy: np.ndarray, resolution_m: float, smear_m: float, margin_m: float,
+                 normals_xy: np.ndarray | None = None) -> None:
         points = np.asarray(points_xy, dtype=float).reshape(-1, 2)
-        points = points[np.isfinite(points).all(axis=1)]
+        finite = np.isfinite(points).all(axis=1)
+        points = points[finite]
         if not len(points):
             raise MatcherError("no map points to match against")
         self.resolution_m = resolution_m
@@ -100,33 +151,86 @@ class LikelihoodField:
         has = count > 0
         mean[has] = mean[has] / count[has, None]
         nearest = ndimage.distance_transform_edt(~hit, return_distances=False, return_indices=True)
-        rows, cols = np.indices((height, width))
-        centres = self.origin + (np.stack([cols, rows], axis=-1) + 0.5) * resolution_m
-        distance_m = np.linalg.norm(centres - mean.reshape(height, width, 2)[nearest[0], nearest[1]], axis=-1)
-        self.values = np.exp(-0.5 * (distance_m / smear_m) ** 2)
-        # Cubic B-spline coefficients: a smooth response whose peak can lie between cell
-        # centres (bilinear interpolation peaks only at them, biasing by up to half a cell).
-        self._spline = ndimage.spline_filter(self.values, order=3, mode="constant")
+        near_flat = (nearest[0] * width + nearest[1]).ravel()
+        dx = (self.origin[0] + (np.arange(width) + 0.5) * resolution_m)[None, :] - \
+            mean[near_flat, 0].reshape(height, width)
+        dy = (self.origin[1] + (np.arange(height) + 0.5) * resolution_m)[:, None] - \
+            mean[near_flat, 1].reshape(height, width)
+        values = np.exp((dx * dx + dy * dy) * (-0.5 / (smear_m * smear_m)))
+        if normals_xy is None:
+            self.values = values[None]
+        else:
+            normals = np.asarray(normals_xy, dtype=float).reshape(-1, 2)[finite]
+            summed = np.stack([np.bincount(flat, normals[:, k], height * width) for k in (0, 1)], axis=-1)
+            # the nearest map point's normal (summed over its cell)
+            nx, ny = summed[near_flat, 0].reshape(height, width), summed[near_flat, 1].reshape(height, width)
+            angles = np.arange(NORMAL_CLASSES) * (2 * np.pi / NORMAL_CLASSES)
+            self.values = np.stack([values * ((nx * math.cos(a) + ny * math.sin(a)) > 0) for a in angles])
+        self._spline: np.ndarray | None = None
+        self._block_max: np.ndarray | None = None
+
+    @property
+    def spline(self) -> np.ndarray:
+        """Cubic B-spline coefficients (made on first use): a smooth response whose peak can lie
+        between cell centres (bilinear interpolation peaks only at them, biasing by up to half a cell)."""
+        if self._spline is None:
+            self._spline = np.stack([ndimage.spline_filter(v, order=3, mode="constant") for v in self.values])
+        return self._spline
+
+    @property
+    def block_max(self) -> np.ndarray:
+        """Per class, the maximum of the cells [r, r + BLOCK) × [c, c + BLOCK), stored at (r, c)."""
+        if self._block_max is None:
+            # scipy centres an even window at index BLOCK // 2: shift it to start at (r, c)
+            maxed = ndimage.maximum_filter(self.values, size=(1, BLOCK, BLOCK), mode="constant", cval=0.0)
+            shift = BLOCK // 2
+            self._block_max = np.zeros_like(maxed)
+            self._block_max[:, :maxed.shape[1] - shift, :maxed.shape[2] - shift] = maxed[:, shift:, shift:]
+        return self._block_max
+
+    @property
+    def classes(self) -> int:
+        return len(self.values)
 
     def cells(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Integer (row, col) of world points; may be out of range."""
         ij = np.floor((xy - self.origin) / self.resolution_m).astype(np.int64)
         return ij[..., 1], ij[..., 0]
 
-    def lookup(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Values at integer cells; 0 outside the grid."""
-        height, width = self.values.shape
+    def lookup(self, rows: np.ndarray, cols: np.ndarray, classes: np.ndarray | None = None,
+               block_max: bool = False) -> np.ndarray:
+        """Values at integer cells (in each point's normal class), or with ``block_max`` the
+        maximum of the BLOCK × BLOCK cells from there; 0 outside the grid."""
+        values = self.block_max if block_max else self.values
+        _, height, width = values.shape
         inside = (rows >= 0) & (rows < height) & (cols >= 0) & (cols < width)
         out = np.zeros(rows.shape)
-        out[inside] = self.values[rows[inside], cols[inside]]
+        if classes is None or self.classes == 1:
+            out[inside] = values[0][rows[inside], cols[inside]]
+        else:
+            out[inside] = values[np.broadcast_to(classes, rows.shape)[inside], rows[inside], cols[inside]]
         return out
 
-    def interpolate(self, xy: np.ndarray) -> np.ndarray:
-        """Values at world points, cubic-spline interpolated between cell centres; 0 outside."""
+    def interpolate(self, xy: np.ndarray, classes: np.ndarray | None = None) -> np.ndarray:
+        """Values at world points (..., 2), cubic-spline interpolated between cell centres; 0 outside.
+
+        ``classes`` gives each point's normal class (broadcast against ``xy[..., 0]``).
+        """
         grid = (xy - self.origin) / self.resolution_m - 0.5
-        return np.asarray(ndimage.map_coordinates(self._spline, [grid[..., 1].ravel(), grid[..., 0].ravel()],
-                                                  order=3, mode="constant", cval=0.0,
-                                                  prefilter=False)).reshape(xy.shape[:-1])
+        rows, cols = grid[..., 1], grid[..., 0]
+        if classes is None or self.classes == 1:
+            return self._sample(0, rows, cols)
+        classes = np.broadcast_to(classes, rows.shape)
+        out = np.zeros(rows.shape)
+        for j in range(self.classes):
+            chosen = classes == j
+            if chosen.any():
+                out[chosen] = self._sample(j, rows[chosen], cols[chosen])
+        return out
+
+    def _sample(self, j: int, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        return np.asarray(ndimage.map_coordinates(self.spline[j], [rows.ravel(), cols.ravel()], order=3,
+                                                  mode="constant", cval=0.0, prefilter=False)).reshape(rows.shape)
 
 
 @dataclass(frozen=True)
@@ -153,60 +257,146 @@ def _subsample(points: np.ndarray, count: int) -> np.ndarray:
 class ScanMatcher:
     """Matches scans against one map (the points given); reuse it for several scans."""
 
-    def __init__(self, map_points_xy: np.ndarray, settings: MatcherSettings = MatcherSettings()) -> None:
+    def __init__(self, map_points_xy: np.ndarray, settings: MatcherSettings = MatcherSettings(),
+                 map_normals_xy: np.ndarray | None = None) -> None:
+        """``map_normals_xy``: the map points' unit surface normals; with them, scans given
+        with normals are matched face to face (see :data:`NORMAL_CLASSES`)."""
         self.settings = settings
-        margin = settings.search_size_m + 1.0
+        self._map = (np.asarray(map_points_xy, dtype=float), map_normals_xy)
+        self._margin = settings.search_size_m + 1.0
         self.coarse = LikelihoodField(map_points_xy, settings.coarse_resolution_m,
-                                      max(settings.smear_m, settings.coarse_resolution_m), margin)
-        self.fine = LikelihoodField(map_points_xy, min(settings.fine_resolution_m * 2.5, settings.coarse_resolution_m),
-                                    settings.smear_m, margin)
+                                      max(settings.smear_m, settings.coarse_resolution_m), self._margin, map_normals_xy)
+        self._fine_field: LikelihoodField | None = None
 
-    def response(self, scan_xy: np.ndarray, pose: PoseLike) -> float:
+    @property
+    def fine(self) -> LikelihoodField:
+        """The field scored with interpolation: the coarse one when the smear spans two of its
+        cells or more (a cubic spline then follows exp(-d²/2σ²) closely), else a finer one."""
+        s = self.settings
+        if self._fine_field is None:
+            if s.smear_m >= 2 * s.coarse_resolution_m:
+                self._fine_field = self.coarse
+            else:
+                resolution = max(min(s.fine_resolution_m * 2.5, s.coarse_resolution_m), s.smear_m / 2)
+                self._fine_field = LikelihoodField(self._map[0], resolution, s.smear_m, self._margin, self._map[1])
+        return self._fine_field
+
+    def response(self, scan_xy: np.ndarray, pose: PoseLike, scan_normals_xy: np.ndarray | None = None) -> float:
         """Mean interpolated likelihood of the scan's points at ``pose`` (no penalty)."""
-        return float(self.fine.interpolate(se2_apply(np.asarray(pose, dtype=float), scan_xy)).mean())
+        pose = np.asarray(pose, dtype=float)
+        classes = None if scan_normals_xy is None else normal_classes(rotate(scan_normals_xy, pose[2]))
+        return float(self.fine.interpolate(se2_apply(pose, scan_xy), classes).mean())
 
-    def match(self, scan_xy: np.ndarray, prior: PoseLike) -> MatchResult:
-        """The best pose of the scan (points (K, 2) in its own frame) near ``prior``.
+    def match(self, scan_xy: np.ndarray, prior: PoseLike, scan_normals_xy: np.ndarray | None = None,
+              coarse_only: bool = False) -> MatchResult:
+        """The best pose of the scan (points (K, 2) in its own frame, with their unit surface
+        normals when the map has them) near ``prior``; ``coarse_only`` stops after the coarse
+        search (its best candidate, response and covariance).
 
         Raises:
             MatcherError: fewer than 3 finite scan points.
         """
         points = np.asarray(scan_xy, dtype=float).reshape(-1, 2)
-        points = points[np.isfinite(points).all(axis=1)]
+        finite = np.isfinite(points).all(axis=1)
+        points = points[finite]
+        normals = None if scan_normals_xy is None else np.asarray(scan_normals_xy, dtype=float).reshape(-1, 2)[finite]
         if len(points) < 3:
             raise MatcherError(f"a scan needs at least 3 finite points to match, not {len(points)}")
         prior_pose = np.asarray(prior, dtype=float)
-        coarse, candidates, responses = self._coarse(_subsample(points, self.settings.coarse_points), prior_pose)
-        fine = self._fine(points, prior_pose, coarse)
-        refined = self._refine(points, prior_pose, fine)
-        raw = self.response(points, refined)
+        few = _subsample(np.arange(len(points)), self.settings.coarse_points)
+        coarse, candidates, responses = self._coarse(points[few], None if normals is None else normals[few],
+                                                     prior_pose)
+        if coarse_only:
+            best = float(responses.max())
+            offset = coarse - prior_pose
+            penalty = float(_penalty(offset[0], offset[1], wrap_angles(offset[2]), self.settings))
+            return MatchResult(coarse, best, best / max(penalty, 1e-12), self._covariance(candidates, responses))
+        classes = None if normals is None else normal_classes(rotate(normals, coarse[2]))
+        fine = self._fine(points, classes, prior_pose, coarse)
+        refined = self._refine(points, classes, prior_pose, fine)
+        raw = float(self.fine.interpolate(se2_apply(refined, points), classes).mean())
         offset = refined - prior_pose
         penalised = raw * float(_penalty(offset[0], offset[1], wrap_angles(offset[2]), self.settings))
         return MatchResult(refined, penalised, raw, self._covariance(candidates, responses))
 
-    def _coarse(self, points: np.ndarray, prior: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The best coarse pose, and every coarse candidate (C, 3) with its penalised response."""
+    def _coarse(self, points: np.ndarray, normals: np.ndarray | None,
+                prior: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The best coarse pose, and the coarse candidates scored (C, 3) with their penalised responses.
+
+        A small window is searched exhaustively. A large one (loop closure) is searched
+        branch and bound, as Cartographer does: blocks of BLOCK × BLOCK shifts are bounded
+        from above by a field holding each block's maximum, and only blocks whose bound
+        beats the best exact score so far are scored cell by cell. The result is the same
+        as the exhaustive search's.
+        """
         s = self.settings
         steps = int(math.floor(s.search_angle_rad / s.coarse_angle_step_rad + 1e-9))
         dyaws = np.arange(-steps, steps + 1) * s.coarse_angle_step_rad
         half = int(math.floor(s.search_size_m / 2 / s.coarse_resolution_m + 1e-9))
-        offsets = np.arange(-half, half + 1)
-        dy, dx = np.meshgrid(offsets * s.coarse_resolution_m, offsets * s.coarse_resolution_m, indexing="ij")
-        all_candidates, all_scores = [], []
+        per_yaw = []
         for dyaw in dyaws:
             rotated = se2_apply(np.array([prior[0], prior[1], prior[2] + dyaw]), points)
             rows, cols = self.coarse.cells(rotated)
-            # (K, W, W): every point under every integer shift of the window
-            grid_rows, grid_cols = np.broadcast_arrays(rows[:, None, None] + offsets[None, :, None],
-                                                       cols[:, None, None] + offsets[None, None, :])
-            scores = self.coarse.lookup(grid_rows, grid_cols).mean(axis=0)
-            all_scores.append((scores * _penalty(dx, dy, np.full(dx.shape, dyaw), s)).ravel())
-            all_candidates.append(np.stack([prior[0] + dx.ravel(), prior[1] + dy.ravel(),
-                                            np.full(dx.size, prior[2] + dyaw)], axis=-1))
-        candidates, scores = np.concatenate(all_candidates), np.concatenate(all_scores)
+            classes = None if normals is None else normal_classes(rotate(normals, prior[2] + dyaw))
+            per_yaw.append((float(dyaw), rows, cols, classes))
+        if 2 * half + 1 <= 3 * BLOCK:
+            scored = [self._score_shifts(prior, entry, np.arange(-half, half + 1), np.arange(-half, half + 1))
+                      for entry in per_yaw]
+        else:
+            scored = self._branch_and_bound(prior, per_yaw, half)
+        candidates = np.concatenate([c for c, _ in scored])
+        scores = np.concatenate([r for _, r in scored])
         return candidates[int(np.argmax(scores))], candidates, scores
 
-    def _fine(self, points: np.ndarray, prior: np.ndarray, coarse: np.ndarray) -> np.ndarray:
+    def _score_shifts(self, prior: np.ndarray, entry: tuple[float, np.ndarray, np.ndarray, np.ndarray | None],
+                      row_shifts: np.ndarray, col_shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Candidates (C, 3) and penalised responses (C,) of one yaw over a grid of cell shifts."""
+        s = self.settings
+        dyaw, rows, cols, classes = entry
+        # (K, R, C): every point under every shift
+        grid_rows, grid_cols = np.broadcast_arrays(rows[:, None, None] + row_shifts[None, :, None],
+                                                   cols[:, None, None] + col_shifts[None, None, :])
+        scores = self.coarse.lookup(grid_rows, grid_cols, None if classes is None else classes[:, None, None])
+        dy, dx = np.meshgrid(row_shifts * s.coarse_resolution_m, col_shifts * s.coarse_resolution_m, indexing="ij")
+        penalised = scores.mean(axis=0) * _penalty(dx, dy, np.full(dx.shape, dyaw), s)
+        candidates = np.stack([prior[0] + dx.ravel(), prior[1] + dy.ravel(), np.full(dx.size, prior[2] + dyaw)],
+                              axis=-1)
+        return candidates, penalised.ravel()
+
+    def _branch_and_bound(self, prior: np.ndarray, per_yaw: list[tuple[float, np.ndarray, np.ndarray,
+                                                                         np.ndarray | None]],
+                          half: int) -> list[tuple[np.ndarray, np.ndarray]]:
+        s = self.settings
+        starts = np.arange(-half, half + 1, BLOCK)
+        bounds, keys = [], []
+        for y, (dyaw, rows, cols, classes) in enumerate(per_yaw):
+            # the block maximum of the cells [r, r + BLOCK) is stored at r
+            grid_rows, grid_cols = np.broadcast_arrays(rows[:, None, None] + starts[None, :, None],
+                                                       cols[:, None, None] + starts[None, None, :])
+            upper = self.coarse.lookup(grid_rows, grid_cols, None if classes is None else classes[:, None, None],
+                                       block_max=True).mean(axis=0)
+            nearest = np.clip(0, starts, np.minimum(starts + BLOCK - 1, half)) * s.coarse_resolution_m
+            ny, nx = np.meshgrid(nearest, nearest, indexing="ij")
+            upper = upper * _penalty(nx, ny, np.full(nx.shape, dyaw), s)
+            bounds.append(upper.ravel())
+            keys += [(y, i, j) for i in range(len(starts)) for j in range(len(starts))]
+        bound = np.concatenate(bounds)
+        order = np.argsort(-bound)
+        best = -1.0
+        scored = []
+        for rank in order[:MAX_BLOCKS]:
+            if bound[rank] <= best:
+                break
+            y, i, j = keys[rank]
+            row_shifts = np.arange(starts[i], min(starts[i] + BLOCK, half + 1))
+            col_shifts = np.arange(starts[j], min(starts[j] + BLOCK, half + 1))
+            candidates, responses = self._score_shifts(prior, per_yaw[y], row_shifts, col_shifts)
+            best = max(best, float(responses.max()))
+            scored.append((candidates, responses))
+        return scored
+
+    def _fine(self, points: np.ndarray, classes: np.ndarray | None, prior: np.ndarray,
+              coarse: np.ndarray) -> np.ndarray:
         s = self.settings
         # The coarse best is within half a coarse step of the best: search that at the fine steps.
         n_xy = max(1, int(round(s.coarse_resolution_m / 2 / s.fine_resolution_m)))
@@ -219,12 +409,13 @@ class ScanMatcher:
         world = np.empty((len(candidates), len(points), 2))
         world[..., 0] = candidates[:, 0, None] + cos[:, None] * points[None, :, 0] - sin[:, None] * points[None, :, 1]
         world[..., 1] = candidates[:, 1, None] + sin[:, None] * points[None, :, 0] + cos[:, None] * points[None, :, 1]
-        raw = self.fine.interpolate(world).mean(axis=1)
+        raw = self.fine.interpolate(world, None if classes is None else classes[None, :]).mean(axis=1)
         offsets = candidates - prior
         responses = raw * _penalty(offsets[:, 0], offsets[:, 1], wrap_angles(offsets[:, 2]), s)
         return np.asarray(candidates[int(np.argmax(responses))])
 
-    def _refine(self, points: np.ndarray, prior: np.ndarray, start: np.ndarray) -> np.ndarray:
+    def _refine(self, points: np.ndarray, classes: np.ndarray | None, prior: np.ndarray,
+                start: np.ndarray) -> np.ndarray:
         s = self.settings
         scale = np.array([s.fine_resolution_m, s.fine_resolution_m, s.fine_angle_step_rad])
 
@@ -232,7 +423,7 @@ class ScanMatcher:
             pose = start + z * scale
             offset = pose - prior
             penalty = float(_penalty(offset[0], offset[1], wrap_angles(offset[2]), s))
-            return -self.response(points, pose) * penalty
+            return -float(self.fine.interpolate(se2_apply(pose, points), classes).mean()) * penalty
 
         result = optimize.minimize(cost, np.zeros(3), method="Powell",
                                    bounds=[(-1.0, 1.0)] * 3, options={"xtol": 0.02, "ftol": 1e-6})

@@ -169,8 +169,9 @@ def _mapper_from(path: Path, data: dict[str, np.ndarray], settings: MapperSettin
             rays = ScanRays(directions[begin:end], ranges[begin:end], float(limits[index, 0]), float(limits[index, 1]))
         except OccupancyError as exc:
             raise PoseGraphFileError(f"{path}: the scan of keyframe {index} is malformed: {exc}") from exc
-        mapper.keyframes.append(Keyframe(index, float(stamps[index]), odom[index].astype(float), rays,
-                                         mapper.hit_points(rays), int(sessions[index])))
+        points, normals = mapper.hit_points(rays)
+        mapper.keyframes.append(Keyframe(index, float(stamps[index]), odom[index].astype(float), rays, points,
+                                         normals, int(sessions[index])))
     for source, target, response in closures:
         if not (0 <= source < count and 0 <= target < count):
             raise PoseGraphFileError(f"{path}: loop closure ({source:g}, {target:g}) names a node the graph lacks")

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from pppbot_common.se2 import se2_apply
-from pppbot_slam.matcher import MatcherError, MatcherSettings, ScanMatcher
+from pppbot_slam.matcher import MatcherError, MatcherSettings, ScanMatcher, normal_classes, scan_normals
 from slam_synthetic import CORRIDOR, ROOM, cast, wall_points
 
 SEGMENTS = ROOM
@@ -69,3 +69,45 @@ def test_bad_settings_and_inputs_name_the_value():
         ScanMatcher(np.empty((0, 2)))
     with pytest.raises(MatcherError, match="at least 3 finite points"):
         ScanMatcher(wall_points(SEGMENTS)).match(np.array([[np.nan, 1.0], [1.0, 1.0]]), (0, 0, 0))
+
+
+def test_scan_normals_face_the_sensor():
+    # A wall at x = 2 seen from the origin, and one at y = −1: normals point back at the sensor.
+    wall = np.stack([np.full(21, 2.0), np.linspace(-1, 1, 21)], axis=1)
+    floor = np.stack([np.linspace(-1, 1, 21), np.full(21, -1.0)], axis=1)
+    np.testing.assert_allclose(scan_normals(wall)[1:-1], [[-1.0, 0.0]] * 19, atol=1e-9)
+    np.testing.assert_allclose(scan_normals(floor)[1:-1], [[0.0, 1.0]] * 19, atol=1e-9)
+    assert list(normal_classes(np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]]))) == [0, 1, 2, 3]
+
+
+def test_the_far_face_of_a_thin_wall_is_not_matched_with_normals():
+    # The map holds only the far face of a 0.15 m wall (x = 2.15, seen from beyond it); the
+    # scan sees the near face (x = 2) from the origin. Without normals the faces align with
+    # a 0.15 m error; with them, nothing in the map faces the scan.
+    far_face = np.stack([np.full(201, 2.15), np.linspace(-1, 1, 201)], axis=1)
+    far_normals = np.tile([1.0, 0.0], (201, 1))
+    scan = np.stack([np.full(101, 2.0), np.linspace(-1, 1, 101)], axis=1)
+    plain = ScanMatcher(far_face).match(scan, [0.1, 0.0, 0.0])
+    assert plain.response > 0.8 and abs(plain.pose[0] - 0.15) < 0.03
+    facing = ScanMatcher(far_face, map_normals_xy=far_normals)
+    assert facing.match(scan, [0.1, 0.0, 0.0], scan_normals(scan)).raw_response < 0.05
+    # and a map of the near face, seen from this side, matches as before
+    near = ScanMatcher(scan, map_normals_xy=scan_normals(scan)).match(scan, [0.1, 0.0, 0.0], scan_normals(scan))
+    assert near.response > 0.9 and abs(near.pose[0]) < 0.01
+
+
+def test_branch_and_bound_finds_the_exhaustive_best():
+    truth = np.array([0.4, -0.3, 0.2])
+    settings = MatcherSettings(search_size_m=4.0, coarse_resolution_m=0.1, smear_m=0.03, coarse_points=100)
+    matcher = ScanMatcher(wall_points(SEGMENTS), settings)
+    scan = cast(SEGMENTS, truth, noise=0.01)[::6]
+    prior = truth + np.array([1.1, -0.7, 0.1])
+    best, candidates, scores = matcher._coarse(scan, None, prior)
+    assert len(candidates) < 41 * 41 * 21 / 4  # it did not score every shift
+    shifts = np.arange(-20, 21)
+    exhaustive = [matcher._score_shifts(prior, (dyaw, *matcher.coarse.cells(se2_apply(prior + [0, 0, dyaw], scan)),
+                                                None), shifts, shifts)
+                  for dyaw in np.arange(-10, 11) * settings.coarse_angle_step_rad]
+    all_scores = np.concatenate([r for _, r in exhaustive])
+    assert scores.max() == pytest.approx(all_scores.max())
+    assert np.hypot(*(best[:2] - truth[:2])) < 0.15
