@@ -82,6 +82,8 @@ class MatcherSettings:
 #: MAX_BLOCKS blocks are scored cell by cell.
 BLOCK = 4
 MAX_BLOCKS = 400
+#: The fine search scores at most this many of the scan's points (evenly chosen).
+FINE_POINTS = 320
 #: Surface-normal classes: a scan point is scored only against map points whose surface
 #: faces the same way (normals within ±90° of its class's direction), so the two faces of
 #: a thin wall, seen from either side, are never matched onto each other.
@@ -397,8 +399,12 @@ class ScanMatcher:
 
     def _fine(self, points: np.ndarray, classes: np.ndarray | None, prior: np.ndarray,
               coarse: np.ndarray) -> np.ndarray:
+        """Around the coarse best (it is within half a coarse step of the optimum) at the fine
+        steps, then below a step: a parabola through the best and its neighbours on each axis."""
         s = self.settings
-        # The coarse best is within half a coarse step of the best: search that at the fine steps.
+        if len(points) > FINE_POINTS:
+            few = _subsample(np.arange(len(points)), FINE_POINTS)
+            points, classes = points[few], None if classes is None else classes[few]
         n_xy = max(1, int(round(s.coarse_resolution_m / 2 / s.fine_resolution_m)))
         n_yaw = max(1, int(round(s.coarse_angle_step_rad / 2 / s.fine_angle_step_rad)))
         shifts = np.arange(-n_xy, n_xy + 1) * s.fine_resolution_m
@@ -411,11 +417,26 @@ class ScanMatcher:
         world[..., 1] = candidates[:, 1, None] + sin[:, None] * points[None, :, 0] + cos[:, None] * points[None, :, 1]
         raw = self.fine.interpolate(world, None if classes is None else classes[None, :]).mean(axis=1)
         offsets = candidates - prior
-        responses = raw * _penalty(offsets[:, 0], offsets[:, 1], wrap_angles(offsets[:, 2]), s)
-        return np.asarray(candidates[int(np.argmax(responses))])
+        responses = (raw * _penalty(offsets[:, 0], offsets[:, 1], wrap_angles(offsets[:, 2]), s)).reshape(yaw.shape)
+        best = np.unravel_index(int(np.argmax(responses)), responses.shape)
+        pose = candidates[int(np.argmax(responses))].copy()
+        steps = (s.fine_angle_step_rad, s.fine_resolution_m, s.fine_resolution_m)  # (yaw, y, x) axes
+        for axis, component in ((0, 2), (1, 1), (2, 0)):
+            i = best[axis]
+            if 0 < i < responses.shape[axis] - 1:
+                index = list(best)
+                index[axis] = i - 1
+                below = responses[tuple(index)]
+                index[axis] = i + 1
+                above = responses[tuple(index)]
+                curvature = below - 2 * responses[best] + above
+                if curvature < 0:
+                    pose[component] += float(np.clip(0.5 * (below - above) / curvature, -0.5, 0.5)) * steps[axis]
+        return np.asarray(pose)
 
     def _refine(self, points: np.ndarray, classes: np.ndarray | None, prior: np.ndarray,
                 start: np.ndarray) -> np.ndarray:
+        """A local optimisation (Powell) of the full scan's response from ``start``, within a fine step."""
         s = self.settings
         scale = np.array([s.fine_resolution_m, s.fine_resolution_m, s.fine_angle_step_rad])
 
@@ -425,8 +446,8 @@ class ScanMatcher:
             penalty = float(_penalty(offset[0], offset[1], wrap_angles(offset[2]), s))
             return -float(self.fine.interpolate(se2_apply(pose, points), classes).mean()) * penalty
 
-        result = optimize.minimize(cost, np.zeros(3), method="Powell",
-                                   bounds=[(-1.0, 1.0)] * 3, options={"xtol": 0.02, "ftol": 1e-6})
+        result = optimize.minimize(cost, np.zeros(3), method="Powell", bounds=[(-1.0, 1.0)] * 3,
+                                   options={"xtol": 0.1, "ftol": 1e-5, "maxfev": 40})
         refined = start + result.x * scale
         if cost(result.x) > cost(np.zeros(3)):
             refined = start
@@ -437,6 +458,8 @@ class ScanMatcher:
         """Spread of the coarse candidates within 90 % of the best response (as Karto estimates it
         from its search), with a floor of one fine step."""
         s = self.settings
+        if not responses.max() > 0:  # nothing matched anywhere: the whole window is possible
+            return np.diag([(s.search_size_m / 2) ** 2, (s.search_size_m / 2) ** 2, max(s.search_angle_rad, 0.1) ** 2])
         good = responses >= 0.9 * responses.max()
         weights = responses[good] / responses[good].sum()
         mean = (candidates[good] * weights[:, None]).sum(axis=0)

@@ -135,6 +135,16 @@ def test_maps_a_room_from_scans_and_odometry_and_saves_it(ros_node, spawn, tmp_p
     assert again.success, again.message
     reloaded, _ = load_map(map_file.with_suffix(".yaml"))
     np.testing.assert_array_equal(reloaded.data, saved.data)
+    # A scan from a frame TF does not know is dropped with a warning naming the frames.
+    assert call(node, SetBool, "/slam_toolbox/pause_new_measurements", SetBool.Request(data=False)).success
+    t = 40.0
+    tf.publish(TFMessage(transforms=[transform("odom", "base_link", t + 0.1, 1.0, 0.0, 0.0)]))
+    stray = LaserScan(angle_min=float(angles[0]), angle_increment=float(angles[1] - angles[0]), range_min=0.08,
+                      range_max=20.0, ranges=[1.0] * len(angles))
+    stray.header.frame_id, stray.header.stamp = "nowhere", transform("", "", t, 0, 0, 0).header.stamp
+    rclpy_spin(node, 0.2)
+    scans.publish(stray)
+    slam.wait_for_output(r"dropping a scan: no transform odom → base_footprint → nowhere", 20)
 
 
 def rclpy_spin(node: Any, seconds: float) -> None:

@@ -51,8 +51,11 @@ from pppbot_slam.pose_graph import Edge
 from pppbot_slam.serialization import PoseGraphFileError, load_posegraph, posegraph_path, save_posegraph
 
 WARN_PERIOD_S = 5.0
-#: Scans waiting for odometry to reach their stamps; beyond this the oldest is dropped.
-MAX_PENDING = 20
+#: Scans wait for odometry to reach their stamps for at most this much scan time (s): the
+#: oldest is dropped once a pending scan is this much newer. While a keyframe is processed,
+#: /tf (100+ messages a second) backs up far more than /scan, and the executor takes one
+#: message of each per turn, so scans arrive well ahead of their odometry for a while.
+MAX_PENDING_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -238,9 +241,10 @@ class Slam(Node):
                 newest = self.tf.latest_time(p.odom_frame, p.base_frame)
             except TransformError:
                 newest = None
-            if (newest is None or newest < stamp) and len(self._pending) <= MAX_PENDING:
-                # Odometry has not reached this scan yet. Waiting is bounded by a count of
-                # scans, not by the clock: while a keyframe is processed, /clock and /tf
+            waited_s = stamp_seconds(self._pending[-1].header.stamp) - stamp
+            if (newest is None or newest < stamp) and waited_s <= MAX_PENDING_S:
+                # Odometry has not reached this scan yet. Waiting is bounded by the scans'
+                # own stamps, not by the clock: while a keyframe is processed, /clock and /tf
                 # queue up alike, and the clock would say "late" for transforms already queued.
                 return
             self._pending.popleft()
