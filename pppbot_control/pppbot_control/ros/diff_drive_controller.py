@@ -154,6 +154,8 @@ class DiffDriveController(Node):
         self._last_update: Time | None = None
         self._last_odom_publish: Time | None = None
         self._wheels: tuple[float, float, float, float] | None = None  # left pos, right pos, left vel, right vel
+        self._wheels_stamp_ns = 0  # when the wheels were measured (the joint states' stamp)
+        self._odom_stamp_ns = -1  # the stamp of the odometry last published
         self.timer = self.create_timer(1.0 / self.params.update_rate, self.update)
         on_valid_update(self, lambda: self.params, self._apply)
         self.get_logger().info(
@@ -220,6 +222,7 @@ class DiffDriveController(Node):
                        + ("positions" if self.params.position_feedback else "velocities"))
             return
         self._wheels = sample
+        self._wheels_stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
     # ------------------------------------------------------------------- loop
     def update(self) -> None:
@@ -229,6 +232,7 @@ class DiffDriveController(Node):
             self.linear.reset()
             self.angular.reset()
             dt = 0.0
+            self._odom_stamp_ns = -1
         self._last_update = now
         v, w = self._target
         if self._target_time is None or (now - self._target_time).nanoseconds * 1e-9 > self.params.cmd_vel_timeout:
@@ -249,7 +253,15 @@ class DiffDriveController(Node):
             self.limited_pub.publish(out)
         self._integrate(v, w, dt)
         if self._last_odom_publish is None or (now - self._last_odom_publish).nanoseconds * 1e-9 >= 1.0 / p.publish_rate - 1e-6:
-            self._publish_odometry(now)
+            # From wheel positions, the pose is the robot's when the wheels were measured: stamp
+            # it with that time, not the update's (later by the joint states' trip here), so that
+            # odom → base_link at a scan's stamp is where the robot was when it scanned. Nothing
+            # new since the last odometry: nothing to publish (TF would see repeated data).
+            stamp_ns = self._wheels_stamp_ns if (p.position_feedback and not p.open_loop
+                                                 and self._wheels_stamp_ns > 0) else now.nanoseconds
+            if stamp_ns > self._odom_stamp_ns:
+                self._publish_odometry(Time(nanoseconds=stamp_ns, clock_type=now.clock_type))
+                self._odom_stamp_ns = stamp_ns
             self._last_odom_publish = now
 
     def _integrate(self, v: float, w: float, dt: float) -> None:

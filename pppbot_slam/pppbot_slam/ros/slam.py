@@ -15,6 +15,7 @@ and map on from it; also done at startup when it is set), ``~/pause_new_measurem
 """
 from __future__ import annotations
 
+import queue
 import sys
 import threading
 from collections import deque
@@ -56,6 +57,8 @@ WARN_PERIOD_S = 5.0
 #: /tf (100+ messages a second) backs up far more than /scan, and the executor takes one
 #: message of each per turn, so scans arrive well ahead of their odometry for a while.
 MAX_PENDING_S = 10.0
+#: Scans (with their odometry) waiting for the processing thread; beyond this the oldest goes.
+MAX_QUEUED = 200
 
 
 @dataclass(frozen=True)
@@ -170,6 +173,10 @@ class Slam(Node):
         self._warn = Warnings(self, WARN_PERIOD_S)
         self._scan_frame: str | None = None
         self._pending: deque[LaserScan] = deque()
+        # Scans with their odometry, processed in a worker thread: the executor stays free
+        # for TF (in and out) while a keyframe is matched or a loop searched.
+        self._work: queue.Queue[tuple[LaserScan, float, str, np.ndarray, np.ndarray] | None] = \
+            queue.Queue(maxsize=MAX_QUEUED)
         self.map_pub = self.create_publisher(OccupancyGridMsg, "/map", LATCHED)
         self.meta_pub = self.create_publisher(MapMetaData, "/map_metadata", LATCHED)
         self.graph_pub = self.create_publisher(MarkerArray, "~/graph_visualization", 1)
@@ -188,6 +195,8 @@ class Slam(Node):
         self._stopping = threading.Event()
         self._map_thread = threading.Thread(target=self._map_loop, name="map-builder", daemon=True)
         self._map_thread.start()
+        self._worker = threading.Thread(target=self._work_loop, name="scan-processing", daemon=True)
+        self._worker.start()
         self.get_logger().info(f"mapping: {p.scan_topic} with {p.odom_frame} → {p.base_frame}; map every "
                                f"{p.map_update_interval:g} s at {p.resolution} m")
 
@@ -255,7 +264,23 @@ class Slam(Node):
                 self._warn("transform", f"dropping a scan: no transform {p.odom_frame} → {p.base_frame} → {frame} "
                                         f"at t = {stamp:.3f} s ({exc})")
                 continue
-            self._process(msg, stamp, frame, odom_pose, sensor)
+            if self._work.full():
+                self._warn("behind", f"scan processing is {MAX_QUEUED} scans behind: dropping the oldest")
+                try:
+                    self._work.get_nowait()
+                except queue.Empty:
+                    pass
+            self._work.put((msg, stamp, frame, odom_pose, sensor))
+
+    def _work_loop(self) -> None:
+        while True:
+            item = self._work.get()
+            if item is None or self._stopping.is_set():
+                return
+            try:
+                self._process(*item)
+            except Exception as exc:  # noqa: BLE001 - one bad scan must not stop mapping
+                self._warn("process", f"a scan could not be processed: {type(exc).__name__}: {exc}")
 
     def _process(self, msg: LaserScan, stamp: float, frame: str, odom_pose: np.ndarray, sensor: np.ndarray) -> None:
         try:
@@ -393,6 +418,16 @@ class Slam(Node):
     def destroy_node(self) -> None:
         self._stopping.set()
         self._map_wake.set()
+        while True:  # make room for the stop sign
+            try:
+                self._work.put_nowait(None)
+                break
+            except queue.Full:
+                try:
+                    self._work.get_nowait()
+                except queue.Empty:
+                    pass
+        self._worker.join(timeout=5.0)
         self._map_thread.join(timeout=5.0)
         super().destroy_node()
 
