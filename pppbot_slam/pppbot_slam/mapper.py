@@ -42,6 +42,8 @@ from pppbot_slam.pose_graph import PoseGraph
 ODOMETRY_ONLY_COVARIANCE = np.diag([0.1 ** 2, 0.1 ** 2, 0.05 ** 2])
 #: Fewer hits than this and a scan is not matched (open space): odometry places it.
 MIN_MATCH_POINTS = 10
+#: A loop candidate chain searched without a match is searched again only this many keyframes later.
+LOOP_RETRY_KEYFRAMES = 3
 
 
 class MapperError(PppbotError, ValueError):
@@ -117,13 +119,14 @@ class Mapper:
     loop_closures: list[LoopClosure] = field(default_factory=list)
     last_response: float = 0.0
     session: int = 0  # the current odometry session
+    tried: dict[int, int] = field(default_factory=dict)  # loop chain (its first keyframe) → keyframe that last tried it
     start_pose: np.ndarray | None = None  # where the current session's first keyframe is (continued maps)
 
     def snapshot(self) -> Mapper:
         """A copy to read (save, draw) while this one maps on; keyframes are shared, never changed."""
         return Mapper(self.settings, self.sensor_offset.copy(), list(self.keyframes), self.graph.copy(),
-                      list(self.loop_closures), self.last_response, self.session,
-                      None if self.start_pose is None else self.start_pose.copy())
+                      list(self.loop_closures), self.last_response, session=self.session, tried=dict(self.tried),
+                      start_pose=None if self.start_pose is None else self.start_pose.copy())
 
     # ------------------------------------------------------------------ poses
     def map_pose(self, index: int) -> np.ndarray:
@@ -278,6 +281,9 @@ class Mapper:
         for chain in self.loop_candidates(index):
             if sum(len(self.keyframes[i].points) for i in chain) < MIN_MATCH_POINTS or self._linked(chain, index):
                 continue
+            if index - self.tried.get(chain[0], -LOOP_RETRY_KEYFRAMES) < LOOP_RETRY_KEYFRAMES:
+                continue  # searched a moment ago without a match: the next keyframes will see more
+            self.tried[chain[0]] = index
             world, world_normals = self._world_points(chain)
             coarse = ScanMatcher(world, s.loop_matcher, world_normals).match(points, self.map_pose(index), normals)
             if (coarse.response < s.loop_match_minimum_response_coarse
