@@ -34,8 +34,9 @@ SHELL_VERBS: dict[str, str] = {
 
 
 def _top_parser() -> argparse.ArgumentParser:
-    rows = [*(f"  {n:<8} {h}" for n, (_, h) in VERBS.items()),
-            *(f"  {n:<8} {h}" for n, h in SHELL_VERBS.items())]
+    width = max(map(len, [*VERBS, *SHELL_VERBS]))
+    rows = [*(f"  {n:<{width}}  {h}" for n, (_, h) in VERBS.items()),
+            *(f"  {n:<{width}}  {h}" for n, h in SHELL_VERBS.items())]
     parser = argparse.ArgumentParser(
         prog="pppbot",
         usage="pppbot <verb> [arguments ...]",
