@@ -36,12 +36,15 @@ from pppbot_common.maps import OccupancyGrid
 from pppbot_common.se2 import PoseLike, se2_apply, se2_compose, se2_inverse, wrap_angles
 from pppbot_slam.matcher import MatcherSettings, MatchResult, ScanMatcher, rotate, scan_normals
 from pppbot_slam.occupancy import LogOddsGrid, OccupancySettings, ScanRays
-from pppbot_slam.pose_graph import PoseGraph
+from pppbot_slam.pose_graph import Edge, PoseGraph
 
 #: Covariance of an edge whose scan could not be matched: odometry alone (m², m², rad²).
 ODOMETRY_ONLY_COVARIANCE = np.diag([0.1 ** 2, 0.1 ** 2, 0.05 ** 2])
 #: Fewer hits than this and a scan is not matched (open space): odometry places it.
 MIN_MATCH_POINTS = 10
+#: A loop edge whose residual after optimisation exceeds this (χ² with 3 degrees of freedom;
+#: 16.3 is the 99.9 % quantile) disagrees with the rest of the graph and is dropped.
+LOOP_CHI2_MAX = 16.3
 #: A loop candidate chain searched without a match is searched again only this many keyframes later.
 LOOP_RETRY_KEYFRAMES = 3
 
@@ -119,7 +122,8 @@ class Mapper:
     loop_closures: list[LoopClosure] = field(default_factory=list)
     last_response: float = 0.0
     session: int = 0  # the current odometry session
-    tried: dict[int, int] = field(default_factory=dict)  # loop chain (its first keyframe) → keyframe that last tried it
+    tried: dict[int, int] = field(default_factory=dict)
+    rejected_closures: int = 0  # loop matches the graph could not agree with  # loop chain (its first keyframe) → keyframe that last tried it
     start_pose: np.ndarray | None = None  # where the current session's first keyframe is (continued maps)
 
     def snapshot(self) -> Mapper:
@@ -277,7 +281,8 @@ class Mapper:
         points, normals = keyframe.points, keyframe.normals
         if len(points) < MIN_MATCH_POINTS:
             return
-        closed = False
+        before = [pose.copy() for pose in self.graph.poses]
+        added: list[tuple[Edge, LoopClosure]] = []
         for chain in self.loop_candidates(index):
             if sum(len(self.keyframes[i].points) for i in chain) < MIN_MATCH_POINTS or self._linked(chain, index):
                 continue
@@ -294,12 +299,24 @@ class Mapper:
                 continue
             nearest = self._nearest(fine.pose, chain)
             relative = se2_compose(se2_inverse(self.map_pose(nearest)), fine.pose)
-            self.graph.add_edge(nearest, index, relative, _in_frame_of(fine.covariance, self.map_pose(nearest)[2]),
-                                loop=True)
-            self.loop_closures.append(LoopClosure(nearest, index, fine.response))
-            closed = True
-        if closed:
-            self.graph.optimize()
+            edge = self.graph.add_edge(nearest, index, relative,
+                                       _in_frame_of(fine.covariance, self.map_pose(nearest)[2]), loop=True)
+            added.append((edge, LoopClosure(nearest, index, fine.response)))
+        if not added:
+            return
+        self.graph.optimize()
+        # A closure the rest of the graph cannot agree with is a wrong one (an alias of the
+        # place): after optimising, its residual is far outside its covariance. It goes, and
+        # the graph is solved again from where it was.
+        wrong = [edge for edge, _ in added if self.graph.residual_chi2(edge) > LOOP_CHI2_MAX]
+        if wrong:
+            self.graph.edges = [e for e in self.graph.edges if all(e is not w for w in wrong)]
+            self.graph.poses = before
+            added = [(edge, closure) for edge, closure in added if all(edge is not w for w in wrong)]
+            self.rejected_closures += len(wrong)
+            if added:
+                self.graph.optimize()
+        self.loop_closures += [closure for _, closure in added]
 
     # -------------------------------------------------------------------- map
     def grid_inputs(self) -> tuple[OccupancySettings, list[np.ndarray], list[ScanRays]]:

@@ -95,6 +95,12 @@ class PoseGraph:
         self.edges.append(edge)
         return edge
 
+    def residual_chi2(self, edge: Edge) -> float:
+        """How far the current poses are from ``edge``'s measurement, in its covariance (χ²)."""
+        error = se2_compose(se2_inverse(edge.relative), self.relative(edge.source, edge.target))
+        error = np.array([error[0], error[1], math.remainder(float(error[2]), 2 * math.pi)])
+        return float(error @ np.linalg.solve(edge.covariance, error))
+
     def relative(self, source: int, target: int) -> np.ndarray:
         """``target``'s current pose in ``source``'s frame."""
         return np.asarray(se2_compose(se2_inverse(self.poses[source]), self.poses[target]))

@@ -102,3 +102,19 @@ def test_bad_edges_and_nodes_name_the_value():
         graph.add_edge(0, 1, (1, 0, 0), np.zeros((3, 3)))
     with pytest.raises(PoseGraphError, match="finite \\(x, y, yaw\\)"):
         graph.add_node((0, math.nan, 0))
+
+
+
+def test_residual_tells_a_true_loop_edge_from_a_wrong_one():
+    # The mapper drops a loop edge whose residual after optimising is beyond χ² 16.3: once
+    # true closures hold the graph, a wrong one cannot be met.
+    truth = square_truth()
+    graph = drifting_graph(truth, yaw_drift_rad=0.01)
+    true_edges = [graph.add_edge(a, b, se2_compose(se2_inverse(truth[a]), truth[b]), LOOP_COV, loop=True)
+                  for a, b in [(0, 32), (2, 30), (4, 28), (8, 24)]]
+    graph.optimize()
+    assert all(graph.residual_chi2(e) < 16.3 for e in true_edges)
+    wrong = se2_compose(se2_compose(se2_inverse(truth[12]), truth[20]), [0.6, -0.4, 0.2])
+    false_edge = graph.add_edge(12, 20, wrong, LOOP_COV, loop=True)
+    graph.optimize()
+    assert graph.residual_chi2(false_edge) > 16.3

@@ -293,8 +293,9 @@ class Slam(Node):
             if self._scan_frame != frame or not np.allclose(self.mapper.sensor_offset, sensor):
                 self.mapper.sensor_offset = sensor
                 self._scan_frame = frame
-            closures = len(self.mapper.loop_closures)
+            closures, rejected = len(self.mapper.loop_closures), self.mapper.rejected_closures
             keyframe = self.mapper.process(stamp, odom_pose, rays)
+            rejected = self.mapper.rejected_closures - rejected
             pose = self.mapper.predict(odom_pose)
             new_closures = self.mapper.loop_closures[closures:]
             response = self.mapper.last_response
@@ -304,6 +305,9 @@ class Slam(Node):
             for closure in new_closures:
                 self.get_logger().info(f"loop closure: keyframe {closure.target} with {closure.source} "
                                        f"(response {closure.response:.2f})")
+            if rejected:
+                self.get_logger().info(f"keyframe {keyframe.index}: {rejected} loop match(es) the pose graph "
+                                       "could not agree with, dropped")
             self._publish_pose(msg.header.stamp, pose)
             if keyframe.index == 0:
                 self._map_wake.set()  # a first map at once
