@@ -307,12 +307,15 @@ def _print_report(result: dict[str, Any], line: str, as_json: bool) -> None:
 
 def _score_map(args: argparse.Namespace, world_file: Path) -> int:
     out = _output_dir(args, Scenario.MAP, world_file)
+    created = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)
         pose = (args.map_pose[0], args.map_pose[1], args.map_pose[2])
         result = score_saved_map(args.map, world_file, pose, out)
     except (MapFileError, MapQualityError) as exc:
         print(f"pppbot eval map: {exc}", file=sys.stderr)
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()  # no report: leave no empty folder behind
         return 2
     _print_report(result, write_json(out / "report.json", result), args.json)
     return 0

@@ -62,9 +62,11 @@ def test_a_map_saved_in_the_spawn_frame_with_a_ghost_and_a_missing_wall(capsys, 
     assert shifted["map_f1"] < 0.5 * report["map_f1"]
 
 
-def test_bad_map_arguments_give_one_message(capsys, tmp_path: Path):
+def test_bad_map_arguments_give_one_message(capsys, tmp_path: Path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the default report folder goes here
     assert main(["eval", "map", "--world", str(BOX_ROOM), "--map", str(tmp_path / "none.yaml")]) == 2
     assert "none.yaml" in capsys.readouterr().err
+    assert not list(tmp_path.glob("eval_map_*"))  # no empty report folder left behind
     assert main(["eval", "drive", "--world", str(BOX_ROOM), "--map", "x.yaml"]) == 2
     assert "only the map scenario takes it" in capsys.readouterr().err
     yaml_path = save_map(truth_grid(), tmp_path / "truth")
