@@ -269,11 +269,16 @@ class Mapper:
         """Whether a loop edge already joins ``chain`` to keyframe ``index`` or its running chain:
         that loop is closed, and closing it again on every keyframe would only make the graph
         over-confident in one place (and cost a large search each time)."""
-        recent = range(max(0, index - self.settings.scan_buffer_size), index + 1)
+        first_recent = max(0, index - self.settings.scan_buffer_size)
         members = set(chain)
-        return any(e.loop and ((e.source in members and e.target in recent) or (e.target in members
-                                                                                and e.source in recent))
-                   for e in self.graph.edges[-4 * len(recent) - 64:])
+        # Edges are added with the new keyframe as their target, so those into the running
+        # chain are the last ones, and a loop edge's source is the older keyframe.
+        for edge in reversed(self.graph.edges):
+            if edge.target < first_recent:
+                return False
+            if edge.loop and edge.source in members:
+                return True
+        return False
 
     def _close_loops(self, index: int) -> None:
         s = self.settings

@@ -287,7 +287,11 @@ class ScanMatcher:
         """Mean interpolated likelihood of the scan's points at ``pose`` (no penalty)."""
         pose = np.asarray(pose, dtype=float)
         classes = None if scan_normals_xy is None else normal_classes(rotate(scan_normals_xy, pose[2]))
-        return float(self.fine.interpolate(se2_apply(pose, scan_xy), classes).mean())
+        return self._likelihood(scan_xy, classes, pose)
+
+    def _likelihood(self, points: np.ndarray, classes: np.ndarray | None, pose: np.ndarray) -> float:
+        """Mean interpolated likelihood of points (in their normal classes) placed at ``pose``."""
+        return float(self.fine.interpolate(se2_apply(pose, points), classes).mean())
 
     def match(self, scan_xy: np.ndarray, prior: PoseLike, scan_normals_xy: np.ndarray | None = None,
               coarse_only: bool = False) -> MatchResult:
@@ -316,7 +320,7 @@ class ScanMatcher:
         classes = None if normals is None else normal_classes(rotate(normals, coarse[2]))
         fine = self._fine(points, classes, prior_pose, coarse)
         refined = self._refine(points, classes, prior_pose, fine)
-        raw = float(self.fine.interpolate(se2_apply(refined, points), classes).mean())
+        raw = self._likelihood(points, classes, refined)
         offset = refined - prior_pose
         penalised = raw * float(_penalty(offset[0], offset[1], wrap_angles(offset[2]), self.settings))
         return MatchResult(refined, penalised, raw, self._covariance(candidates, responses))
@@ -444,7 +448,7 @@ class ScanMatcher:
             pose = start + z * scale
             offset = pose - prior
             penalty = float(_penalty(offset[0], offset[1], wrap_angles(offset[2]), s))
-            return -float(self.fine.interpolate(se2_apply(pose, points), classes).mean()) * penalty
+            return -self._likelihood(points, classes, pose) * penalty
 
         result = optimize.minimize(cost, np.zeros(3), method="Powell", bounds=[(-1.0, 1.0)] * 3,
                                    options={"xtol": 0.1, "ftol": 1e-5, "maxfev": 40})

@@ -211,7 +211,7 @@ class Slam(Node):
         """
         mapper = load_posegraph(name, self.params.mapper_settings())
         mapper.start_session(self.params.start_pose())
-        start = mapper.start_pose if mapper.start_pose is not None else np.zeros(3)
+        start = mapper.predict(np.zeros(3))  # the new session's first keyframe goes here
         self.get_logger().info(f"mapping on from {posegraph_path(name)}: {len(mapper.keyframes)} keyframes, "
                                f"starting at ({start[0]:.2f}, {start[1]:.2f}, {start[2]:.3f})")
         return mapper
