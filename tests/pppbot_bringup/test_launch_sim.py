@@ -147,7 +147,8 @@ def test_end_to_end_headless_drive_record_and_clean_sigint(ros_node, spawn, tmp_
     os.kill(launch.pid, signal.SIGINT)
     assert launch.wait(15) == 0
     assert time.monotonic() - t0 < 15
-    assert launch.output.count("process has finished cleanly") == 6
+    assert launch.output.count("process has finished cleanly") == 6, \
+        "\n".join(line for line in launch.output.splitlines() if "[launch]" in line or "process has" in line)
     for pid in pids:
         assert not os.path.exists(f"/proc/{pid}") or open(f"/proc/{pid}/stat").read().rsplit(")", 1)[-1].split()[0] == "Z"
     # Stopping the launch finished the bag: the drive and the latched description are in it.
