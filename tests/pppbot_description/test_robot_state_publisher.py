@@ -57,21 +57,36 @@ def publish_joint_states(node, names, positions, sec):
     return pub, msg
 
 
-def wheel_transforms(node, pub, msg, count=1):
+def wheel_transforms(node, pub, msg):
+    """The first /tf for ``msg``, publishing it until one arrives.
+
+    Discovery can drop the first messages, and the node rate-limits by message time, so
+    each retry is one second later: ``msg``'s stamp ends as the last one sent.
+    """
     received = []
     sub = node.create_subscription(TFMessage, "/tf", received.append, 10)
-    wait_until(lambda: (pub.publish(msg), len(received) >= count)[1], 10, "/tf", node=node)
+    wait_until(lambda: sub.get_publisher_count() > 0, 10, "the /tf subscription to match", node=node)
+
+    def publish_again():
+        if received:
+            return True
+        pub.publish(msg)
+        msg.header.stamp.sec += 1
+        return False
+
+    wait_until(publish_again, 10, "/tf", node=node)
+    msg.header.stamp.sec -= 1
     node.destroy_subscription(sub)
-    return received
+    return received[0]
 
 
 def test_wheel_transform_follows_joint_state(ros_node, rsp):
     pub, msg = publish_joint_states(ros_node, ["left_wheel_joint", "right_wheel_joint"], [math.pi / 2, 0.0], 42)
-    (tf,) = wheel_transforms(ros_node, pub, msg)[:1]
+    tf = wheel_transforms(ros_node, pub, msg)
     by_child = {t.child_frame_id: t for t in tf.transforms}
     left = by_child["left_wheel"]
     assert left.header.frame_id == "base_link"
-    assert left.header.stamp.sec == 42
+    assert 42 <= left.header.stamp.sec <= msg.header.stamp.sec
     q = left.transform.rotation
     expected = Rotation.from_euler("xyz", [-math.pi / 2, 0, 0]) * Rotation.from_rotvec([0, 0, math.pi / 2])
     assert Rotation.from_quat([q.x, q.y, q.z, q.w]).approx_equal(expected, atol=1e-9)
@@ -81,7 +96,7 @@ def test_wheel_transform_follows_joint_state(ros_node, rsp):
 def test_unknown_and_non_finite_joints_are_ignored_with_a_warning(ros_node, rsp):
     pub, msg = publish_joint_states(ros_node, ["ghost_joint", "left_wheel_joint", "right_wheel_joint"],
                                     [1.0, math.nan, 0.5], 7)
-    (tf,) = wheel_transforms(ros_node, pub, msg)[:1]
+    tf = wheel_transforms(ros_node, pub, msg)
     assert [t.child_frame_id for t in tf.transforms] == ["right_wheel"]
     rsp.wait_for_output(r"ignoring unknown joint\(s\) ghost_joint", 10)
     rsp.wait_for_output(r"ignoring non-finite position\(s\) of left_wheel_joint", 10)
@@ -141,17 +156,18 @@ def test_rate_limit_by_message_time(ros_node, spawn):
                    "-p", "publish_frequency:=1.0"], name="rsp-1hz")
     child.wait_for_output("10 links", 30)
     pub, msg = publish_joint_states(ros_node, ["left_wheel_joint"], [0.0], 100)
-    wheel_transforms(ros_node, pub, msg)  # the first message at t = 100 s is published
+    wheel_transforms(ros_node, pub, msg)  # the first message, at t0 = 100 s (or a retry's later t0), is published
+    t0 = msg.header.stamp.sec
     sub_msgs: list[TFMessage] = []
     sub = ros_node.create_subscription(TFMessage, "/tf", sub_msgs.append, QoSProfile(depth=50))
     # A new subscription misses what is published before discovery matches it to the publisher.
     wait_until(lambda: sub.get_publisher_count() > 0, 10, "the /tf subscription to match", node=ros_node)
-    for sec, nsec in ((100, 500_000_000), (101, 0)):
+    for sec, nsec in ((t0, 500_000_000), (t0 + 1, 0)):
         m = JointState(name=["left_wheel_joint"], position=[0.1])
         m.header.stamp.sec, m.header.stamp.nanosec = sec, nsec
         pub.publish(m)
-    wait_until(lambda: any(x.transforms[0].header.stamp.sec == 101 for x in sub_msgs), 10, "the 101 s /tf",
+    wait_until(lambda: any(x.transforms[0].header.stamp.sec == t0 + 1 for x in sub_msgs), 10, "the t0 + 1 s /tf",
                node=ros_node)
     stamps = [(x.transforms[0].header.stamp.sec, x.transforms[0].header.stamp.nanosec) for x in sub_msgs]
-    assert (100, 500_000_000) not in stamps and (101, 0) in stamps
+    assert (t0, 500_000_000) not in stamps and (t0 + 1, 0) in stamps
     ros_node.destroy_subscription(sub)
