@@ -42,13 +42,29 @@ def run_node(factory: Callable[[], N], name: str, args: list[str] | None = None,
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:
-        if rclpy.ok():
+        if not _shutting_down():
             raise
         # The context was shut down under a running callback: that is the end we asked for.
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def _shutting_down(grace_s: float = 2.0) -> bool:
+    """Whether the context is (about to be) shut down.
+
+    rclpy shuts it down from a signal thread, a moment after Python has seen the
+    signal. A KeyboardInterrupt that lands inside a binding call surfaces as that
+    call's error (pybind11: "Unable to convert call argument") while ``rclpy.ok()``
+    still holds, so wait a little before calling the error real.
+    """
+    deadline = time.monotonic() + grace_s
+    while rclpy.ok():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.02)
+    return True
 
 
 class Warnings:

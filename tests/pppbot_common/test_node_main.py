@@ -1,0 +1,40 @@
+"""run_node: how a node's main() ends."""
+from __future__ import annotations
+
+import threading
+
+import pytest
+import rclpy
+from rclpy.node import Node
+
+from pppbot_common.errors import PppbotError
+from pppbot_common.ros.node_main import run_node
+
+pytestmark = pytest.mark.ros
+
+
+def test_an_error_while_the_context_goes_down_is_a_clean_end():
+    """SIGINT: Python sees it inside a binding call (which then fails) a moment before
+    rclpy's signal thread shuts the context down. That is still exit 0."""
+    def spin(node: Node) -> None:
+        threading.Timer(0.3, rclpy.try_shutdown).start()
+        raise RuntimeError("Unable to convert call argument '0' to Python object")
+
+    assert run_node(lambda: Node("ends_on_sigint"), "ends_on_sigint", [], spin=spin, signal_handlers=False) == 0
+
+
+def test_a_real_error_is_raised():
+    def spin(node: Node) -> None:
+        raise ValueError("a bug")
+
+    with pytest.raises(ValueError, match="a bug"):
+        run_node(lambda: Node("has_a_bug"), "has_a_bug", [], spin=spin, signal_handlers=False)
+    assert not rclpy.ok()
+
+
+def test_a_fatal_error_at_start_is_one_line_and_exit_1(capsys):
+    def factory() -> Node:
+        raise PppbotError("parameter 'x' = -1: must be positive")
+
+    assert run_node(factory, "bad_start", [], signal_handlers=False) == 1
+    assert capsys.readouterr().err == "[bad_start] error: parameter 'x' = -1: must be positive\n"
