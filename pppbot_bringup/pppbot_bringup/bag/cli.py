@@ -46,6 +46,7 @@ class PlayOptions:
     start_paused: bool = False
     keyboard_controls: bool = True
     node_name: str = "rosbag2_player"
+    wait_for_all_acked_ms: int = 1000
 
 
 def _size(text: str) -> int:
@@ -65,6 +66,16 @@ def _non_negative(text: str) -> float:
         raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
     if not math.isfinite(value) or value < 0:
         raise argparse.ArgumentTypeError(f"must be a finite number >= 0, not {text}")
+    return value
+
+
+def _acked_timeout(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number of milliseconds") from None
+    if value < -1:
+        raise argparse.ArgumentTypeError(f"must be milliseconds >= 0, or -1 not to wait, not {text}")
     return value
 
 
@@ -128,6 +139,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("-m", "--remap", nargs="+", default=[], metavar="OLD:=NEW", help="publish OLD on NEW")
     p.add_argument("--disable-keyboard-controls", action="store_true",
                    help="ignore the keyboard (space pause/resume, s step, up/down rate)")
+    p.add_argument("--wait-for-all-acked", type=_acked_timeout, default=1000, metavar="TIMEOUT_MS",
+                   help="at the end, wait up to this long for reliable subscribers to acknowledge "
+                        "every message (0: as long as it takes, -1: not at all; default 1000)")
     p.add_argument("--include-hidden-topics", action="store_true")
     p.add_argument("--node-name", default="rosbag2_player")
 
@@ -177,7 +191,8 @@ def play_options(args: argparse.Namespace) -> PlayOptions:
         selection=_selection(args, [], all_topics),
         remap=Remapping.parse(args.remap), rate=args.rate, loop=args.loop, clock_hz=args.clock,
         start_offset_s=args.start_offset, delay_s=args.delay, start_paused=args.start_paused,
-        keyboard_controls=not args.disable_keyboard_controls, node_name=args.node_name)
+        keyboard_controls=not args.disable_keyboard_controls, node_name=args.node_name,
+        wait_for_all_acked_ms=args.wait_for_all_acked)
 
 
 def main(args: argparse.Namespace) -> int:

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import rclpy
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
@@ -129,6 +130,20 @@ class Player:
         self.stop.set()
         return 0
 
+    def wait_for_all_acked(self) -> None:
+        """Give reliable subscribers the time to acknowledge the last messages (destroying
+        the publishers at once can lose them); warn when they did not."""
+        timeout_ms = self.options.wait_for_all_acked_ms
+        if timeout_ms < 0:
+            return
+        deadline = time.monotonic() + timeout_ms / 1000.0
+        for topic, pub in self.publishers.items():
+            left_s = max(0.0, deadline - time.monotonic()) if timeout_ms else -1.0
+            if not pub.wait_for_all_acked(Duration(nanoseconds=int(left_s * 1e9))):
+                self.node.get_logger().warning(
+                    f"'{topic}': not every message was acknowledged within {timeout_ms} ms")
+                return
+
     def _wait_until(self, stamp: int) -> bool:
         """Sleep until ``stamp`` is due (or a step is asked for while paused); False to stop."""
         assert self.clock is not None
@@ -210,6 +225,7 @@ def main(options: PlayOptions) -> int:
         player.stop.set()
         if keys is not None:
             keys.join()
+        player.wait_for_all_acked()
         node.destroy_node()
         rclpy.try_shutdown()
     print(f"[bag play] published {player.published} messages", flush=True)

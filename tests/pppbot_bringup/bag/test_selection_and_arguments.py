@@ -65,11 +65,19 @@ def test_existing_output_is_refused(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv", [("record", "-a", "-d", "-1"), ("record", "-a", "-b", "1.5"),
-                                  ("play", "x", "--rate", "0"), ("record", "-a", "--compression-mode", "lz4")])
+                                  ("play", "x", "--rate", "0"), ("record", "-a", "--compression-mode", "lz4"),
+                                  ("play", "x", "--wait-for-all-acked", "-2"),
+                                  ("play", "x", "--wait-for-all-acked", "0.5")])
 def test_argparse_refuses_bad_values(argv, capsys):
     with pytest.raises(SystemExit) as exit_:
         parse(*argv)
     assert exit_.value.code == 2 and "error: argument" in capsys.readouterr().err
+
+
+def test_play_waits_for_acknowledgements_by_default():
+    assert cli.play_options(parse("play", "x")).wait_for_all_acked_ms == 1000
+    assert cli.play_options(parse("play", "x", "--wait-for-all-acked", "-1")).wait_for_all_acked_ms == -1
+    assert cli.play_options(parse("play", "x", "--wait-for-all-acked", "0")).wait_for_all_acked_ms == 0
 
 
 def test_info_of_a_missing_bag(tmp_path, capsys):
