@@ -88,6 +88,9 @@ FINE_POINTS = 320
 #: faces the same way (normals within ±90° of its class's direction), so the two faces of
 #: a thin wall, seen from either side, are never matched onto each other.
 NORMAL_CLASSES = 4
+#: Rows of zeros around each class's grid in the spline coefficients: a clipped point's
+#: cubic support (two cells either side) stays inside its own class.
+SPLINE_BORDER = 3
 
 
 def normal_classes(normals_xy: np.ndarray) -> np.ndarray:
@@ -168,26 +171,35 @@ class LikelihoodField:
             nx, ny = summed[near_flat, 0].reshape(height, width), summed[near_flat, 1].reshape(height, width)
             angles = np.arange(NORMAL_CLASSES) * (2 * np.pi / NORMAL_CLASSES)
             self.values = np.stack([values * ((nx * math.cos(a) + ny * math.sin(a)) > 0) for a in angles])
+        self.height, self.width = height, width
+        # Lookups gather from one flat array: each class's grid inside a border of zeros, so
+        # a cell index clipped to the border reads 0 (outside the grid) without masking.
+        self._cells = _with_zero_border(self.values, 1).ravel()
         self._spline: np.ndarray | None = None
         self._block_max: np.ndarray | None = None
 
     @property
     def spline(self) -> np.ndarray:
-        """Cubic B-spline coefficients (made on first use): a smooth response whose peak can lie
-        between cell centres (bilinear interpolation peaks only at them, biasing by up to half a cell)."""
+        """Cubic B-spline coefficients (made on first use) of the classes' grids stacked along
+        the rows, each inside SPLINE_BORDER rows of zeros, so one ``map_coordinates`` call
+        samples points of every class: a smooth response whose peak can lie between cell
+        centres (bilinear interpolation peaks only at them, biasing by up to half a cell)."""
         if self._spline is None:
-            self._spline = np.stack([ndimage.spline_filter(v, order=3, mode="constant") for v in self.values])
+            tiles = np.pad(self.values, ((0, 0), (SPLINE_BORDER, SPLINE_BORDER), (0, 0)))
+            self._spline = ndimage.spline_filter(tiles.reshape(-1, self.width), order=3, mode="constant")
         return self._spline
 
     @property
     def block_max(self) -> np.ndarray:
-        """Per class, the maximum of the cells [r, r + BLOCK) × [c, c + BLOCK), stored at (r, c)."""
+        """Per class, the maximum of the cells [r, r + BLOCK) × [c, c + BLOCK), stored at (r, c),
+        flat as the lookups read it."""
         if self._block_max is None:
             # scipy centres an even window at index BLOCK // 2: shift it to start at (r, c)
             maxed = ndimage.maximum_filter(self.values, size=(1, BLOCK, BLOCK), mode="constant", cval=0.0)
             shift = BLOCK // 2
-            self._block_max = np.zeros_like(maxed)
-            self._block_max[:, :maxed.shape[1] - shift, :maxed.shape[2] - shift] = maxed[:, shift:, shift:]
+            starts = np.zeros_like(maxed)
+            starts[:, :maxed.shape[1] - shift, :maxed.shape[2] - shift] = maxed[:, shift:, shift:]
+            self._block_max = _with_zero_border(starts, 1).ravel()
         return self._block_max
 
     @property
@@ -202,16 +214,17 @@ class LikelihoodField:
     def lookup(self, rows: np.ndarray, cols: np.ndarray, classes: np.ndarray | None = None,
                block_max: bool = False) -> np.ndarray:
         """Values at integer cells (in each point's normal class), or with ``block_max`` the
-        maximum of the BLOCK × BLOCK cells from there; 0 outside the grid."""
-        values = self.block_max if block_max else self.values
-        _, height, width = values.shape
-        inside = (rows >= 0) & (rows < height) & (cols >= 0) & (cols < width)
-        out = np.zeros(rows.shape)
-        if classes is None or self.classes == 1:
-            out[inside] = values[0][rows[inside], cols[inside]]
-        else:
-            out[inside] = values[np.broadcast_to(classes, rows.shape)[inside], rows[inside], cols[inside]]
-        return out
+        maximum of the BLOCK × BLOCK cells from there; 0 outside the grid.
+
+        ``rows``, ``cols`` and ``classes`` broadcast against each other (so a grid of shifts
+        can be given as (K, R, 1) rows and (K, 1, C) columns).
+        """
+        source = self.block_max if block_max else self._cells
+        stride = self.width + 2
+        index = (np.clip(rows, -1, self.height) + 1) * stride + (np.clip(cols, -1, self.width) + 1)
+        if classes is not None and self.classes > 1:
+            index = index + classes * ((self.height + 2) * stride)
+        return np.asarray(source[index])
 
     def interpolate(self, xy: np.ndarray, classes: np.ndarray | None = None) -> np.ndarray:
         """Values at world points (..., 2), cubic-spline interpolated between cell centres; 0 outside.
@@ -219,20 +232,17 @@ class LikelihoodField:
         ``classes`` gives each point's normal class (broadcast against ``xy[..., 0]``).
         """
         grid = (xy - self.origin) / self.resolution_m - 0.5
-        rows, cols = grid[..., 1], grid[..., 0]
-        if classes is None or self.classes == 1:
-            return self._sample(0, rows, cols)
-        classes = np.broadcast_to(classes, rows.shape)
-        out = np.zeros(rows.shape)
-        for j in range(self.classes):
-            chosen = classes == j
-            if chosen.any():
-                out[chosen] = self._sample(j, rows[chosen], cols[chosen])
-        return out
-
-    def _sample(self, j: int, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        return np.asarray(ndimage.map_coordinates(self.spline[j], [rows.ravel(), cols.ravel()], order=3,
+        rows = np.clip(grid[..., 1], -1.0, float(self.height)) + SPLINE_BORDER
+        cols = np.clip(grid[..., 0], -1.0, float(self.width))
+        if classes is not None and self.classes > 1:
+            rows = rows + classes * (self.height + 2 * SPLINE_BORDER)
+        rows, cols = np.broadcast_arrays(rows, cols)
+        return np.asarray(ndimage.map_coordinates(self.spline, [rows.ravel(), cols.ravel()], order=3,
                                                   mode="constant", cval=0.0, prefilter=False)).reshape(rows.shape)
+
+
+def _with_zero_border(grids: np.ndarray, width: int) -> np.ndarray:
+    return np.pad(grids, ((0, 0), (width, width), (width, width)))
 
 
 @dataclass(frozen=True)
@@ -360,9 +370,9 @@ class ScanMatcher:
         s = self.settings
         dyaw, rows, cols, classes = entry
         # (K, R, C): every point under every shift
-        grid_rows, grid_cols = np.broadcast_arrays(rows[:, None, None] + row_shifts[None, :, None],
-                                                   cols[:, None, None] + col_shifts[None, None, :])
-        scores = self.coarse.lookup(grid_rows, grid_cols, None if classes is None else classes[:, None, None])
+        scores = self.coarse.lookup(rows[:, None, None] + row_shifts[None, :, None],
+                                    cols[:, None, None] + col_shifts[None, None, :],
+                                    None if classes is None else classes[:, None, None])
         dy, dx = np.meshgrid(row_shifts * s.coarse_resolution_m, col_shifts * s.coarse_resolution_m, indexing="ij")
         penalised = scores.mean(axis=0) * _penalty(dx, dy, np.full(dx.shape, dyaw), s)
         candidates = np.stack([prior[0] + dx.ravel(), prior[1] + dy.ravel(), np.full(dx.size, prior[2] + dyaw)],
@@ -377,10 +387,9 @@ class ScanMatcher:
         bounds, keys = [], []
         for y, (dyaw, rows, cols, classes) in enumerate(per_yaw):
             # the block maximum of the cells [r, r + BLOCK) is stored at r
-            grid_rows, grid_cols = np.broadcast_arrays(rows[:, None, None] + starts[None, :, None],
-                                                       cols[:, None, None] + starts[None, None, :])
-            upper = self.coarse.lookup(grid_rows, grid_cols, None if classes is None else classes[:, None, None],
-                                       block_max=True).mean(axis=0)
+            upper = self.coarse.lookup(rows[:, None, None] + starts[None, :, None],
+                                       cols[:, None, None] + starts[None, None, :],
+                                       None if classes is None else classes[:, None, None], block_max=True).mean(axis=0)
             nearest = np.clip(0, starts, np.minimum(starts + BLOCK - 1, half)) * s.coarse_resolution_m
             ny, nx = np.meshgrid(nearest, nearest, indexing="ij")
             upper = upper * _penalty(nx, ny, np.full(nx.shape, dyaw), s)
