@@ -11,17 +11,17 @@ candidate pose scores the mean likelihood of its points (the *response*, 0–1).
 1. coarse: every angle of the coarse step across ±``search_angle_rad``, every
    translation of the coarse grid across the window, on a field at the coarse
    resolution, with a subset of the points — whole cells, so scoring is lookups;
-2. fine: around the coarse best, ±½ coarse step at the fine steps, scored with
-   cubic-spline interpolation in the fine field;
-3. refine: a local optimisation of that smooth response from the fine best
-   (sub-cell accuracy).
+2. refine: from the coarse best (within half a coarse step of the optimum),
+   Gauss-Newton steps on the smooth response (cubic-spline interpolation in the fine
+   field) to its maximum, below a cell; the better of the two poses is the result.
 
 Responses are multiplied by slam_toolbox's distance and angle penalties (so in a
 featureless corridor the match stays near the prior), and the covariance comes
 from the spread of the good coarse candidates, as Karto does. No ROS here.
 
 Olson, "Real-Time Correlative Scan Matching", ICRA 2009; Konolige et al.,
-"Efficient Sparse Pose Adjustment for 2D Mapping" (Karto), IROS 2010.
+"Efficient Sparse Pose Adjustment for 2D Mapping" (Karto), IROS 2010; Kohlbrecher et al.,
+"A Flexible and Scalable SLAM System with Full 3D Motion Estimation" (Hector SLAM), SSRR 2011.
 """
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage, optimize
+from scipy import ndimage
 
 from pppbot_common.errors import PppbotError
 from pppbot_common.se2 import PoseLike, se2_apply, wrap_angles
@@ -82,8 +82,9 @@ class MatcherSettings:
 #: MAX_BLOCKS blocks are scored cell by cell.
 BLOCK = 4
 MAX_BLOCKS = 400
-#: The fine search scores at most this many of the scan's points (evenly chosen).
-FINE_POINTS = 320
+#: Gauss-Newton refinement: at most this many steps, damped by this fraction of the diagonal.
+GAUSS_NEWTON_ITERATIONS = 10
+GAUSS_NEWTON_DAMPING = 0.1
 #: Surface-normal classes: a scan point is scored only against map points whose surface
 #: faces the same way (normals within ±90° of its class's direction), so the two faces of
 #: a thin wall, seen from either side, are never matched onto each other.
@@ -143,6 +144,7 @@ class LikelihoodField:
         if not len(points):
             raise MatcherError("no map points to match against")
         self.resolution_m = resolution_m
+        self.smear_m = smear_m
         self.origin = np.floor((points.min(axis=0) - margin_m) / resolution_m) * resolution_m
         shape = np.ceil((points.max(axis=0) + margin_m - self.origin) / resolution_m).astype(int) + 1
         cells = np.floor((points - self.origin) / resolution_m).astype(int)
@@ -323,17 +325,64 @@ class ScanMatcher:
         coarse, candidates, responses = self._coarse(points[few], None if normals is None else normals[few],
                                                      prior_pose)
         if coarse_only:
-            best = float(responses.max())
+            top = float(responses.max())
             offset = coarse - prior_pose
             penalty = float(_penalty(offset[0], offset[1], wrap_angles(offset[2]), self.settings))
-            return MatchResult(coarse, best, best / max(penalty, 1e-12), self._covariance(candidates, responses))
+            return MatchResult(coarse, top, top / max(penalty, 1e-12), self._covariance(candidates, responses))
         classes = None if normals is None else normal_classes(rotate(normals, coarse[2]))
-        fine = self._fine(points, classes, prior_pose, coarse)
-        refined = self._refine(points, classes, prior_pose, fine)
-        raw = self._likelihood(points, classes, refined)
-        offset = refined - prior_pose
-        penalised = raw * float(_penalty(offset[0], offset[1], wrap_angles(offset[2]), self.settings))
-        return MatchResult(refined, penalised, raw, self._covariance(candidates, responses))
+        best, best_raw, best_penalised = coarse, 0.0, -1.0
+        for pose in (coarse, self._gauss_newton(points, classes, coarse)):
+            raw = self._likelihood(points, classes, pose)
+            offset = pose - prior_pose
+            penalised = raw * float(_penalty(offset[0], offset[1], wrap_angles(offset[2]), self.settings))
+            if penalised > best_penalised:
+                best, best_raw, best_penalised = pose, raw, penalised
+        return MatchResult(best, best_penalised, best_raw, self._covariance(candidates, responses))
+
+    def _gauss_newton(self, points: np.ndarray, classes: np.ndarray | None, start: np.ndarray) -> np.ndarray:
+        """From the coarse best (within half a coarse step of the optimum), the pose of the
+        highest mean likelihood: Gauss-Newton steps, each the point-to-surface least squares
+        that the field's Gaussian shape implies. Near a point's nearest map surface the
+        likelihood is ``f = exp(-d²/2σ²)``, so its gradient ∇f points to the surface and
+        ``σ²|∇f|/f`` is the distance ``d``; weighting each point by ``f`` (iteratively
+        reweighted least squares with Welsch's kernel) makes the step
+        ``(Σ f aᵀa)⁻¹ σ² Σ ∇f·∂x/∂pose`` with ``a`` the surface direction moved by the pose,
+        whose fixed point is the maximum of the mean likelihood. Gradients are central
+        differences of the spline. Steps are damped (Levenberg-Marquardt), so a direction the
+        scan does not constrain (along a corridor) stays put, and kept within a coarse step."""
+        s = self.settings
+        field = self.fine
+        sigma2 = field.smear_m ** 2
+        h = 0.25 * field.resolution_m
+        deltas = np.array([[0.0, 0.0], [h, 0.0], [-h, 0.0], [0.0, h], [0.0, -h]])[:, None, :]
+        point_classes = None if classes is None else classes[None, :]
+        limit = np.array([s.coarse_resolution_m / 2 + s.fine_resolution_m, s.coarse_resolution_m / 2 + s.fine_resolution_m,
+                          s.coarse_angle_step_rad / 2 + s.fine_angle_step_rad])
+        pose = np.asarray(start, dtype=float).copy()
+        best, best_score = pose.copy(), -1.0
+        for _ in range(GAUSS_NEWTON_ITERATIONS):
+            c, sn = math.cos(pose[2]), math.sin(pose[2])
+            arm = np.stack([c * points[:, 0] - sn * points[:, 1], sn * points[:, 0] + c * points[:, 1]], axis=-1)
+            values = field.interpolate(pose[:2] + arm + deltas, point_classes)
+            score = float(values[0].mean())
+            if score > best_score:
+                best, best_score = pose.copy(), score
+            gx, gy = (values[1] - values[2]) / (2 * h), (values[3] - values[4]) / (2 * h)
+            gradient = np.stack([gx, gy, gy * arm[:, 0] - gx * arm[:, 1]], axis=-1).sum(axis=0)
+            norm = np.maximum(np.hypot(gx, gy), 1e-12)
+            ux, uy = gx / norm, gy / norm
+            direction = np.stack([ux, uy, uy * arm[:, 0] - ux * arm[:, 1]], axis=-1)
+            hessian = (direction * values[0][:, None]).T @ direction
+            hessian += np.diag(GAUSS_NEWTON_DAMPING * np.diag(hessian) + 1e-12)
+            step = np.linalg.solve(hessian, sigma2 * gradient)
+            pose = np.clip(pose + step, start - limit, start + limit)
+            if abs(step[0]) < 1e-4 and abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4:
+                break
+        values = field.interpolate(pose[:2] + rotate(points, pose[2]), classes)
+        if float(values.mean()) > best_score:
+            best = pose
+        best[2] = float(wrap_angles(best[2]))
+        return best
 
     def _coarse(self, points: np.ndarray, normals: np.ndarray | None,
                 prior: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -409,63 +458,6 @@ class ScanMatcher:
             best = max(best, float(responses.max()))
             scored.append((candidates, responses))
         return scored
-
-    def _fine(self, points: np.ndarray, classes: np.ndarray | None, prior: np.ndarray,
-              coarse: np.ndarray) -> np.ndarray:
-        """Around the coarse best (it is within half a coarse step of the optimum) at the fine
-        steps, then below a step: a parabola through the best and its neighbours on each axis."""
-        s = self.settings
-        if len(points) > FINE_POINTS:
-            few = _subsample(np.arange(len(points)), FINE_POINTS)
-            points, classes = points[few], None if classes is None else classes[few]
-        n_xy = max(1, int(round(s.coarse_resolution_m / 2 / s.fine_resolution_m)))
-        n_yaw = max(1, int(round(s.coarse_angle_step_rad / 2 / s.fine_angle_step_rad)))
-        shifts = np.arange(-n_xy, n_xy + 1) * s.fine_resolution_m
-        dyaws = np.arange(-n_yaw, n_yaw + 1) * s.fine_angle_step_rad
-        yaw, dy, dx = np.meshgrid(coarse[2] + dyaws, coarse[1] + shifts, coarse[0] + shifts, indexing="ij")
-        candidates = np.stack([dx.ravel(), dy.ravel(), yaw.ravel()], axis=-1)  # (C, 3)
-        cos, sin = np.cos(candidates[:, 2]), np.sin(candidates[:, 2])
-        world = np.empty((len(candidates), len(points), 2))
-        world[..., 0] = candidates[:, 0, None] + cos[:, None] * points[None, :, 0] - sin[:, None] * points[None, :, 1]
-        world[..., 1] = candidates[:, 1, None] + sin[:, None] * points[None, :, 0] + cos[:, None] * points[None, :, 1]
-        raw = self.fine.interpolate(world, None if classes is None else classes[None, :]).mean(axis=1)
-        offsets = candidates - prior
-        responses = (raw * _penalty(offsets[:, 0], offsets[:, 1], wrap_angles(offsets[:, 2]), s)).reshape(yaw.shape)
-        best = np.unravel_index(int(np.argmax(responses)), responses.shape)
-        pose = candidates[int(np.argmax(responses))].copy()
-        steps = (s.fine_angle_step_rad, s.fine_resolution_m, s.fine_resolution_m)  # (yaw, y, x) axes
-        for axis, component in ((0, 2), (1, 1), (2, 0)):
-            i = best[axis]
-            if 0 < i < responses.shape[axis] - 1:
-                index = list(best)
-                index[axis] = i - 1
-                below = responses[tuple(index)]
-                index[axis] = i + 1
-                above = responses[tuple(index)]
-                curvature = below - 2 * responses[best] + above
-                if curvature < 0:
-                    pose[component] += float(np.clip(0.5 * (below - above) / curvature, -0.5, 0.5)) * steps[axis]
-        return np.asarray(pose)
-
-    def _refine(self, points: np.ndarray, classes: np.ndarray | None, prior: np.ndarray,
-                start: np.ndarray) -> np.ndarray:
-        """A local optimisation (Powell) of the full scan's response from ``start``, within a fine step."""
-        s = self.settings
-        scale = np.array([s.fine_resolution_m, s.fine_resolution_m, s.fine_angle_step_rad])
-
-        def cost(z: np.ndarray) -> float:
-            pose = start + z * scale
-            offset = pose - prior
-            penalty = float(_penalty(offset[0], offset[1], wrap_angles(offset[2]), s))
-            return -self._likelihood(points, classes, pose) * penalty
-
-        result = optimize.minimize(cost, np.zeros(3), method="Powell", bounds=[(-1.0, 1.0)] * 3,
-                                   options={"xtol": 0.1, "ftol": 1e-5, "maxfev": 40})
-        refined = start + result.x * scale
-        if cost(result.x) > cost(np.zeros(3)):
-            refined = start
-        refined[2] = float(wrap_angles(refined[2]))
-        return np.asarray(refined)
 
     def _covariance(self, candidates: np.ndarray, responses: np.ndarray) -> np.ndarray:
         """Spread of the coarse candidates within 90 % of the best response (as Karto estimates it

@@ -23,6 +23,19 @@ def test_recovers_a_known_offset_from_the_prior(offset):
     assert np.all(np.linalg.eigvalsh(result.covariance) > 0)
 
 
+@pytest.mark.parametrize("offset", [(0.023, -0.031, 0.012), (-0.17, 0.061, -0.19)])
+def test_the_refinement_goes_below_the_coarse_cells(offset):
+    """The coarse grid is 5 cm and 2°; Gauss-Newton on the smooth response gets to millimetres."""
+    truth = np.array([0.3, -0.4, 0.7])
+    matcher = ScanMatcher(wall_points(SEGMENTS))
+    scan = cast(SEGMENTS, truth)
+    coarse = matcher.match(scan, truth + np.array(offset), coarse_only=True)
+    result = matcher.match(scan, truth + np.array(offset))
+    assert np.hypot(*(coarse.pose[:2] - truth[:2])) > 0.01 or abs(coarse.pose[2] - truth[2]) > 0.005
+    assert np.hypot(*(result.pose[:2] - truth[:2])) < 0.004 and abs(result.pose[2] - truth[2]) < 0.001
+    assert result.raw_response > coarse.raw_response
+
+
 def test_response_is_best_at_the_true_pose():
     truth = np.array([-0.5, 0.6, -1.2])
     matcher = ScanMatcher(wall_points(SEGMENTS))
