@@ -36,7 +36,7 @@ from pppbot_common.maps import OccupancyGrid
 from pppbot_common.se2 import PoseLike, se2_apply, se2_compose, se2_inverse, wrap_angles
 from pppbot_slam.matcher import MatcherSettings, MatchResult, ScanMatcher, rotate, scan_normals
 from pppbot_slam.occupancy import LogOddsGrid, OccupancySettings, ScanRays
-from pppbot_slam.pose_graph import Edge, PoseGraph
+from pppbot_slam.pose_graph import PoseGraph
 
 #: Covariance of an edge whose scan could not be matched: odometry alone (m², m², rad²).
 ODOMETRY_ONLY_COVARIANCE = np.diag([0.1 ** 2, 0.1 ** 2, 0.05 ** 2])
@@ -122,15 +122,20 @@ class Mapper:
     loop_closures: list[LoopClosure] = field(default_factory=list)
     last_response: float = 0.0
     session: int = 0  # the current odometry session
-    tried: dict[int, int] = field(default_factory=dict)
-    rejected_closures: int = 0  # loop matches the graph could not agree with  # loop chain (its first keyframe) → keyframe that last tried it
+    tried: dict[int, int] = field(default_factory=dict)  # loop chain (its first keyframe) → keyframe that last tried it
+    rejected_closures: int = 0  # loop matches the graph could not agree with
     start_pose: np.ndarray | None = None  # where the current session's first keyframe is (continued maps)
+    #: With True, :meth:`process` leaves loop closing to the caller (a loop-closing thread:
+    #: :meth:`loop_search`, :meth:`LoopSearch.run`, :func:`solve_loops`, :meth:`merge_loops`).
+    defer_loops: bool = False
 
     def snapshot(self) -> Mapper:
         """A copy to read (save, draw) while this one maps on; keyframes are shared, never changed."""
         return Mapper(self.settings, self.sensor_offset.copy(), list(self.keyframes), self.graph.copy(),
                       list(self.loop_closures), self.last_response, session=self.session, tried=dict(self.tried),
-                      start_pose=None if self.start_pose is None else self.start_pose.copy())
+                      rejected_closures=self.rejected_closures,
+                      start_pose=None if self.start_pose is None else self.start_pose.copy(),
+                      defer_loops=self.defer_loops)
 
     # ------------------------------------------------------------------ poses
     def map_pose(self, index: int) -> np.ndarray:
@@ -215,8 +220,8 @@ class Mapper:
         self.keyframes.append(Keyframe(index, stamp_s, odom, rays, points, normals, self.session))
         self.graph.add_edge(previous, index, self.graph.relative(previous, index),
                             _in_frame_of(covariance, self.map_pose(previous)[2]))
-        if self.settings.do_loop_closing:
-            self._close_loops(index)
+        if self.settings.do_loop_closing and not self.defer_loops:
+            self.close_loops(index)
         return self.keyframes[-1]
 
     def _world_points(self, indices: list[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -271,23 +276,16 @@ class Mapper:
         over-confident in one place (and cost a large search each time)."""
         first_recent = max(0, index - self.settings.scan_buffer_size)
         members = set(chain)
-        # Edges are added with the new keyframe as their target, so those into the running
-        # chain are the last ones, and a loop edge's source is the older keyframe.
-        for edge in reversed(self.graph.edges):
-            if edge.target < first_recent:
-                return False
-            if edge.loop and edge.source in members:
-                return True
-        return False
+        return any(e.loop and first_recent <= e.target <= index and e.source in members for e in self.graph.edges)
 
-    def _close_loops(self, index: int) -> None:
-        s = self.settings
+    def loop_search(self, index: int) -> LoopSearch | None:
+        """The loop search of keyframe ``index``: the candidate chains with their hits placed
+        at their current poses (None when there is nothing to search). Chains already
+        linked, or searched a moment ago, are left out; the rest are marked as tried."""
         keyframe = self.keyframes[index]
-        points, normals = keyframe.points, keyframe.normals
-        if len(points) < MIN_MATCH_POINTS:
-            return
-        before = [pose.copy() for pose in self.graph.poses]
-        added: list[tuple[Edge, LoopClosure]] = []
+        if len(keyframe.points) < MIN_MATCH_POINTS:
+            return None
+        chains = []
         for chain in self.loop_candidates(index):
             if sum(len(self.keyframes[i].points) for i in chain) < MIN_MATCH_POINTS or self._linked(chain, index):
                 continue
@@ -295,33 +293,36 @@ class Mapper:
                 continue  # searched a moment ago without a match: the next keyframes will see more
             self.tried[chain[0]] = index
             world, world_normals = self._world_points(chain)
-            coarse = ScanMatcher(world, s.loop_matcher, world_normals).match(points, self.map_pose(index), normals)
-            if (coarse.response < s.loop_match_minimum_response_coarse
-                    or max(coarse.covariance[0, 0], coarse.covariance[1, 1]) > s.loop_match_maximum_variance_coarse):
-                continue
-            fine = ScanMatcher(world, s.matcher, world_normals).match(points, coarse.pose, normals)
-            if fine.response < s.loop_match_minimum_response_fine:
-                continue
-            nearest = self._nearest(fine.pose, chain)
-            relative = se2_compose(se2_inverse(self.map_pose(nearest)), fine.pose)
-            edge = self.graph.add_edge(nearest, index, relative,
-                                       _in_frame_of(fine.covariance, self.map_pose(nearest)[2]), loop=True)
-            added.append((edge, LoopClosure(nearest, index, fine.response)))
-        if not added:
+            chains.append(LoopChain(np.array(chain), np.array([self.map_pose(i) for i in chain]), world,
+                                    world_normals))
+        if not chains:
+            return None
+        return LoopSearch(index, self.map_pose(index).copy(), keyframe.points, keyframe.normals, tuple(chains))
+
+    def close_loops(self, index: int) -> None:
+        """Search, match and add keyframe ``index``'s loop closures, and optimise (all at once)."""
+        search = self.loop_search(index)
+        matches = search.run(self.settings) if search is not None else []
+        if matches:
+            self.merge_loops(*solve_loops(self.graph.copy(), matches))
+
+    def merge_loops(self, solved: PoseGraph, accepted: list[LoopMatch], rejected: int) -> None:
+        """Take a graph that :func:`solve_loops` solved from a copy of this one. Keyframes
+        added since the copy keep their poses relative to the copy's last keyframe, which
+        moves as the solution moved it (and their edges are kept)."""
+        self.rejected_closures += rejected
+        if not accepted:
             return
-        self.graph.optimize()
-        # A closure the rest of the graph cannot agree with is a wrong one (an alias of the
-        # place): after optimising, its residual is far outside its covariance. It goes, and
-        # the graph is solved again from where it was.
-        wrong = [edge for edge, _ in added if self.graph.residual_chi2(edge) > LOOP_CHI2_MAX]
-        if wrong:
-            self.graph.edges = [e for e in self.graph.edges if all(e is not w for w in wrong)]
-            self.graph.poses = before
-            added = [(edge, closure) for edge, closure in added if all(edge is not w for w in wrong)]
-            self.rejected_closures += len(wrong)
-            if added:
-                self.graph.optimize()
-        self.loop_closures += [closure for _, closure in added]
+        known = len(solved.poses)
+        if known > len(self.graph.poses):
+            raise MapperError(f"a solved graph of {known} keyframes does not belong to this map "
+                              f"({len(self.graph.poses)})")
+        last = known - 1
+        correction = se2_compose(solved.poses[last], se2_inverse(self.graph.poses[last]))
+        self.graph.poses = [p.copy() for p in solved.poses] + [
+            np.asarray(se2_compose(correction, p)) for p in self.graph.poses[known:]]
+        self.graph.edges += [e for e in solved.edges[len(solved.edges) - len(accepted):]]
+        self.loop_closures += [LoopClosure(m.source, m.target, m.response) for m in accepted]
 
     # -------------------------------------------------------------------- map
     def grid_inputs(self) -> tuple[OccupancySettings, list[np.ndarray], list[ScanRays]]:
@@ -336,6 +337,77 @@ class Mapper:
 
     def grid(self, frame_id: str = "map") -> OccupancyGrid:
         return self.occupancy().to_occupancy_grid(frame_id)
+
+
+@dataclass(frozen=True)
+class LoopChain:
+    indices: np.ndarray  # (C,) consecutive older keyframes
+    poses: np.ndarray  # (C, 3) their map poses when the search was taken
+    points: np.ndarray  # their hits in the map
+    normals: np.ndarray  # and the hits' surface normals
+
+
+@dataclass(frozen=True)
+class LoopMatch:
+    source: int  # the chain's keyframe nearest the match
+    target: int  # the searching keyframe
+    relative: np.ndarray  # target's pose in the source's frame
+    covariance: np.ndarray  # in the source's frame
+    response: float
+
+
+@dataclass(frozen=True)
+class LoopSearch:
+    """One keyframe's loop search as taken from the mapper: it runs without the mapper (so
+    a loop-closing thread can run it while scans go on)."""
+
+    index: int
+    pose: np.ndarray  # the keyframe's map pose when the search was taken
+    points: np.ndarray  # its hits in the base frame
+    normals: np.ndarray
+    chains: tuple[LoopChain, ...]
+
+    def run(self, settings: MapperSettings) -> list[LoopMatch]:
+        """Each chain matched in the large window (coarse response ≥
+        ``loop_match_minimum_response_coarse``, variance ≤ ``loop_match_maximum_variance_coarse``),
+        then finely (response ≥ ``loop_match_minimum_response_fine``)."""
+        matches = []
+        for chain in self.chains:
+            coarse = ScanMatcher(chain.points, settings.loop_matcher, chain.normals).match(
+                self.points, self.pose, self.normals)
+            if (coarse.response < settings.loop_match_minimum_response_coarse
+                    or max(coarse.covariance[0, 0], coarse.covariance[1, 1]) > settings.loop_match_maximum_variance_coarse):
+                continue
+            fine = ScanMatcher(chain.points, settings.matcher, chain.normals).match(self.points, coarse.pose,
+                                                                                    self.normals)
+            if fine.response < settings.loop_match_minimum_response_fine:
+                continue
+            k = int(np.argmin(np.hypot(*(chain.poses[:, :2] - fine.pose[:2]).T)))
+            matches.append(LoopMatch(int(chain.indices[k]), self.index,
+                                     np.asarray(se2_compose(se2_inverse(chain.poses[k]), fine.pose)),
+                                     _in_frame_of(fine.covariance, float(chain.poses[k][2])), fine.response))
+        return matches
+
+
+def solve_loops(graph: PoseGraph, matches: list[LoopMatch]) -> tuple[PoseGraph, list[LoopMatch], int]:
+    """Add the matches to ``graph`` (a copy of the mapper's) as loop edges and optimise it.
+
+    A closure the rest of the graph cannot agree with is a wrong one (an alias of the
+    place): after optimising, its residual is far outside its covariance (χ² beyond
+    :data:`LOOP_CHI2_MAX`). It goes, and the graph is solved again from where it was.
+    Returns the graph, the matches kept (their edges are the graph's last) and how many went.
+    """
+    before = [pose.copy() for pose in graph.poses]
+    added = [(graph.add_edge(m.source, m.target, m.relative, m.covariance, loop=True), m) for m in matches]
+    graph.optimize()
+    wrong = [edge for edge, _ in added if graph.residual_chi2(edge) > LOOP_CHI2_MAX]
+    if wrong:
+        graph.edges = [e for e in graph.edges if all(e is not w for w in wrong)]
+        graph.poses = before
+        added = [(edge, match) for edge, match in added if all(edge is not w for w in wrong)]
+        if added:
+            graph.optimize()
+    return graph, [match for _, match in added], len(wrong)
 
 
 def _in_frame_of(covariance: np.ndarray, yaw: float) -> np.ndarray:

@@ -92,10 +92,14 @@ def drifting_odometry(truth: np.ndarray, yaw_per_m: float, scale: float) -> np.n
 def feed(mapper: Any, world: np.ndarray, truth: np.ndarray, odom: np.ndarray, first: int = 0) -> None:
     """Scans of ``world`` from ``truth[first:]`` into a mapper with their odometry, at 10 Hz
     (scan k is stamped 0.1·k s)."""
+    for k in range(first, len(truth)):
+        mapper.process(0.1 * k, odom[k - first], scan_rays(world, truth[k], seed=k))
+
+
+def scan_rays(world: np.ndarray, pose: np.ndarray, seed: int) -> Any:
+    """A 640-beam scan of ``world`` from ``pose`` (1 cm noise) as the mapper takes it."""
     from pppbot_slam.occupancy import ScanRays
 
     angles = beam_angles()
-    for k in range(first, len(truth)):
-        rays = ScanRays.from_laser(float(angles[0]), float(angles[1] - angles[0]),
-                                   cast_ranges(world, truth[k], noise=0.01, seed=k), 0.08, 20.0)
-        mapper.process(0.1 * k, odom[k - first], rays)
+    return ScanRays.from_laser(float(angles[0]), float(angles[1] - angles[0]),
+                               cast_ranges(world, pose, noise=0.01, seed=seed), 0.08, 20.0)

@@ -6,8 +6,8 @@ import pytest
 
 from pppbot_common.maps import OCCUPIED
 from pppbot_common.se2 import se2_compose, se2_inverse
-from pppbot_slam.mapper import Mapper, MapperError, MapperSettings
-from slam_synthetic import RING, drifting_odometry, feed, ring_path, wall_points
+from pppbot_slam.mapper import Mapper, MapperError, MapperSettings, solve_loops
+from slam_synthetic import RING, drifting_odometry, feed, ring_path, scan_rays, wall_points
 
 
 def run(settings: MapperSettings) -> tuple[Mapper, np.ndarray]:
@@ -64,6 +64,40 @@ def test_map_frame_relation_and_the_grid(mapped):
     distance = np.min(np.linalg.norm(centres[:, None, :] - walls[None, ::2, :], axis=2), axis=1)
     # Every occupied cell lies on a wall (its centre within a cell and a half): no ghost walls.
     assert np.quantile(distance, 0.99) < 0.08
+
+
+def test_loops_closed_beside_the_scans_merge_with_the_keyframes_added_meanwhile():
+    """As the node's loop-closing thread does it: the search and the solve run on what the
+    mapper was at keyframe i, and the result is merged two keyframes later."""
+    truth = ring_path()
+    odom = drifting_odometry(truth, yaw_per_m=0.01, scale=1.01)
+    mapper = Mapper(MapperSettings(), defer_loops=True)
+    in_flight: list[tuple[int, tuple]] = []  # (keyframe it was solved at, solve_loops' result)
+    moved_tails = 0
+    for k in range(len(truth)):
+        keyframe = mapper.process(0.1 * k, odom[k], scan_rays(RING, truth[k], seed=k))
+        if keyframe is None:
+            continue
+        for solved_at, result in [item for item in in_flight if keyframe.index - item[0] >= 2]:
+            last = len(result[0].poses) - 1
+            tail = [mapper.graph.relative(last, j) for j in range(last + 1, len(mapper.keyframes))]
+            mapper.merge_loops(*result)
+            assert tail, "keyframes were added between the solve and the merge"
+            for j, relative in enumerate(tail, start=last + 1):
+                np.testing.assert_allclose(mapper.graph.relative(last, j), relative, atol=1e-9)
+            moved_tails += 1
+            in_flight.remove((solved_at, result))
+        search = mapper.loop_search(keyframe.index)
+        matches = search.run(mapper.settings) if search is not None else []
+        if matches:
+            in_flight.append((keyframe.index, solve_loops(mapper.graph.copy(), matches)))
+    assert moved_tails >= 1 and len(mapper.loop_closures) >= 1
+    errors = keyframe_errors(mapper, truth)
+    assert np.sqrt(np.mean(errors ** 2)) < 0.05 and errors.max() < 0.1
+    assert len(mapper.loop_closures) == mapper.graph.loop_closures
+    # A solution for another map (one reset since, say) is refused.
+    with pytest.raises(MapperError, match="does not belong to this map"):
+        Mapper().merge_loops(mapper.graph, [object()], 0)
 
 
 def test_without_loop_closing_nothing_is_closed():
