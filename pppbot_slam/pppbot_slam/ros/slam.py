@@ -12,6 +12,10 @@ every ``map_update_interval`` in a thread of its own, so mapping never blocks sc
 ``map_save_name`` + ``.posegraph``), ``~/deserialize_map`` (load ``map_file_name``
 and map on from it; also done at startup when it is set), ``~/pause_new_measurements``
 (SetBool) and ``~/reset``. The algorithm is :mod:`pppbot_slam.mapper`.
+
+Three threads besides the executor's: scan processing (keyframes matched against the
+running buffer), loop closing (each new keyframe's loop search, matched and solved on a
+copy of the graph, then merged), and the map builder. Scans never wait for a loop search.
 """
 from __future__ import annotations
 
@@ -45,7 +49,7 @@ from pppbot_common.ros.planar import planar_transforms, stamp_seconds
 from pppbot_common.ros.qos import LATCHED, SENSOR
 from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_common.transforms import TransformBuffer, TransformError
-from pppbot_slam.mapper import Mapper, MapperError, MapperSettings
+from pppbot_slam.mapper import Mapper, MapperError, MapperSettings, solve_loops
 from pppbot_slam.matcher import MatcherError, MatcherSettings
 from pppbot_slam.occupancy import LogOddsGrid, OccupancyError, ScanRays
 from pppbot_slam.pose_graph import Edge
@@ -59,6 +63,9 @@ WARN_PERIOD_S = 5.0
 MAX_PENDING_S = 10.0
 #: Scans (with their odometry) waiting for the processing thread; beyond this the oldest goes.
 MAX_QUEUED = 200
+#: Keyframes waiting for their loop search; beyond this the oldest goes (a later keyframe
+#: searches the same places).
+MAX_LOOP_QUEUED = 50
 
 
 @dataclass(frozen=True)
@@ -164,7 +171,7 @@ class Slam(Node):
         super().__init__("slam_toolbox", **kwargs)
         self.params = p = declare_parameters(self, SlamParameters)
         on_valid_update(self, lambda: self.params, self._set_params)
-        self.mapper = Mapper(p.mapper_settings())
+        self.mapper = Mapper(p.mapper_settings(), defer_loops=True)
         if p.map_file_name:
             self.mapper = self._load(p.map_file_name)
         self.lock = threading.Lock()  # the mapper: scans write it, the map thread reads it
@@ -177,6 +184,8 @@ class Slam(Node):
         # for TF (in and out) while a keyframe is matched or a loop searched.
         self._work: queue.Queue[tuple[LaserScan, float, str, np.ndarray, np.ndarray] | None] = \
             queue.Queue(maxsize=MAX_QUEUED)
+        # Keyframes (of which mapper: a reset or a loaded graph replaces it) to search for loops.
+        self._loops: queue.Queue[tuple[Mapper, int] | None] = queue.Queue(maxsize=MAX_LOOP_QUEUED)
         self.map_pub = self.create_publisher(OccupancyGridMsg, "/map", LATCHED)
         self.meta_pub = self.create_publisher(MapMetaData, "/map_metadata", LATCHED)
         self.graph_pub = self.create_publisher(MarkerArray, "~/graph_visualization", 1)
@@ -197,6 +206,8 @@ class Slam(Node):
         self._map_thread.start()
         self._worker = threading.Thread(target=self._work_loop, name="scan-processing", daemon=True)
         self._worker.start()
+        self._loop_closer = threading.Thread(target=self._loop_closing, name="loop-closing", daemon=True)
+        self._loop_closer.start()
         self.get_logger().info(f"mapping: {p.scan_topic} with {p.odom_frame} → {p.base_frame}; map every "
                                f"{p.map_update_interval:g} s at {p.resolution} m")
 
@@ -210,6 +221,7 @@ class Slam(Node):
             PoseGraphFileError: the file is missing or bad (the message names it).
         """
         mapper = load_posegraph(name, self.params.mapper_settings())
+        mapper.defer_loops = True
         mapper.start_session(self.params.start_pose())
         start = mapper.predict(np.zeros(3))  # the new session's first keyframe goes here
         self.get_logger().info(f"mapping on from {posegraph_path(name)}: {len(mapper.keyframes)} keyframes, "
@@ -264,13 +276,8 @@ class Slam(Node):
                 self._warn("transform", f"dropping a scan: no transform {p.odom_frame} → {p.base_frame} → {frame} "
                                         f"at t = {stamp:.3f} s ({exc})")
                 continue
-            if self._work.full():
+            if _put_dropping_oldest(self._work, (msg, stamp, frame, odom_pose, sensor)):
                 self._warn("behind", f"scan processing is {MAX_QUEUED} scans behind: dropping the oldest")
-                try:
-                    self._work.get_nowait()
-                except queue.Empty:
-                    pass
-            self._work.put((msg, stamp, frame, odom_pose, sensor))
 
     def _work_loop(self) -> None:
         while True:
@@ -290,27 +297,60 @@ class Slam(Node):
             self._warn("scan", f"dropping a malformed scan: {exc}")
             return
         with self.lock:
-            if self._scan_frame != frame or not np.allclose(self.mapper.sensor_offset, sensor):
-                self.mapper.sensor_offset = sensor
+            mapper = self.mapper
+            if self._scan_frame != frame or not np.allclose(mapper.sensor_offset, sensor):
+                mapper.sensor_offset = sensor
                 self._scan_frame = frame
-            closures, rejected = len(self.mapper.loop_closures), self.mapper.rejected_closures
-            keyframe = self.mapper.process(stamp, odom_pose, rays)
-            rejected = self.mapper.rejected_closures - rejected
-            pose = self.mapper.predict(odom_pose)
-            new_closures = self.mapper.loop_closures[closures:]
-            response = self.mapper.last_response
+            keyframe = mapper.process(stamp, odom_pose, rays)
+            pose = mapper.predict(odom_pose)
+            response = mapper.last_response
         if keyframe is not None:
             self.get_logger().debug(f"keyframe {keyframe.index} at t = {stamp:.2f} s: match response "
                                     f"{response:.2f}, pose ({pose[0]:.2f}, {pose[1]:.2f}, {pose[2]:.3f})")
-            for closure in new_closures:
-                self.get_logger().info(f"loop closure: keyframe {closure.target} with {closure.source} "
-                                       f"(response {closure.response:.2f})")
-            if rejected:
-                self.get_logger().info(f"keyframe {keyframe.index}: {rejected} loop match(es) the pose graph "
-                                       "could not agree with, dropped")
             self._publish_pose(msg.header.stamp, pose)
             if keyframe.index == 0:
                 self._map_wake.set()  # a first map at once
+            if mapper.settings.do_loop_closing and _put_dropping_oldest(self._loops, (mapper, keyframe.index)):
+                self._warn("loops behind", f"loop closing is {MAX_LOOP_QUEUED} keyframes behind: the oldest "
+                                           "keyframe's search is skipped")
+
+    # ---------------------------------------------------------- loop closure
+    def _loop_closing(self) -> None:
+        while True:
+            item = self._loops.get()
+            if item is None or self._stopping.is_set():
+                return
+            try:
+                self._close_loops(*item)
+            except Exception as exc:  # noqa: BLE001 - one failed search must not stop loop closing
+                self._warn("loops", f"a loop search failed: {type(exc).__name__}: {exc}")
+
+    def _close_loops(self, mapper: Mapper, index: int) -> None:
+        """Keyframe ``index``'s loop search: taken from the mapper under the lock, matched and
+        solved outside it (scans go on), merged under it. A mapper replaced meanwhile (reset,
+        a loaded graph) is left alone."""
+        with self.lock:
+            if mapper is not self.mapper:
+                return
+            search = mapper.loop_search(index)
+        matches = search.run(mapper.settings) if search is not None else []
+        if not matches:
+            return
+        with self.lock:
+            if mapper is not self.mapper:
+                return
+            graph = mapper.graph.copy()
+        solved, accepted, rejected = solve_loops(graph, matches)
+        with self.lock:
+            if mapper is not self.mapper:
+                return
+            mapper.merge_loops(solved, accepted, rejected)
+        for match in accepted:
+            self.get_logger().info(f"loop closure: keyframe {match.target} with {match.source} "
+                                   f"(response {match.response:.2f})")
+        if rejected:
+            self.get_logger().info(f"keyframe {index}: {rejected} loop match(es) the pose graph "
+                                   "could not agree with, dropped")
 
     def _publish_pose(self, stamp: Any, pose: np.ndarray) -> None:
         msg = PoseWithCovarianceStamped()
@@ -415,25 +455,33 @@ class Slam(Node):
 
     def _reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         with self.lock:
-            self.mapper = Mapper(self.params.mapper_settings(), self.mapper.sensor_offset)
+            self.mapper = Mapper(self.params.mapper_settings(), self.mapper.sensor_offset, defer_loops=True)
         response.success, response.message = True, "the map and pose graph are cleared"
         return response
 
     def destroy_node(self) -> None:
         self._stopping.set()
         self._map_wake.set()
-        while True:  # make room for the stop sign
-            try:
-                self._work.put_nowait(None)
-                break
-            except queue.Full:
-                try:
-                    self._work.get_nowait()
-                except queue.Empty:
-                    pass
-        self._worker.join(timeout=5.0)
-        self._map_thread.join(timeout=5.0)
+        _put_dropping_oldest(self._work, None)
+        _put_dropping_oldest(self._loops, None)
+        for thread in (self._worker, self._loop_closer, self._map_thread):
+            thread.join(timeout=3.0)
         super().destroy_node()
+
+
+def _put_dropping_oldest(work: queue.Queue[Any], item: Any) -> bool:
+    """Put ``item``, first dropping the oldest entries while ``work`` is full; whether any went."""
+    dropped = False
+    while True:
+        try:
+            work.put_nowait(item)
+            return dropped
+        except queue.Full:
+            try:
+                work.get_nowait()
+                dropped = True
+            except queue.Empty:
+                pass
 
 
 def graph_markers(poses: np.ndarray, edges: list[Edge], frame: str, stamp: Any) -> MarkerArray:
