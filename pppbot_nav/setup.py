@@ -20,6 +20,7 @@ setup(
         'console_scripts': [
             'map_saver = pppbot_nav.ros.map_saver:main',
             'map_saver_cli = pppbot_nav.ros.map_saver_cli:cli_main',
+            'map_server = pppbot_nav.ros.map_server:main',
         ],
     },
 )
