@@ -47,6 +47,12 @@ MIN_MATCH_POINTS = 10
 LOOP_CHI2_MAX = 16.3
 #: A loop candidate chain searched without a match is searched again only this many keyframes later.
 LOOP_RETRY_KEYFRAMES = 3
+#: A running match below this response is searched again over every heading in a wider
+#: window (``recovery_matcher``): a collision or a skid can turn the robot far beyond the
+#: usual ±20° between two scans, and accepting the best pose inside that window would draw
+#: the scan rotated into the map. The wider match is taken when it is this much better.
+RECOVERY_RESPONSE = 0.5
+RECOVERY_MARGIN = 0.1
 
 
 class MapperError(PppbotError, ValueError):
@@ -74,6 +80,8 @@ class MapperSettings:
     # loop_search_space_dimension 8.0 and its smear 0.03; searched coarsely at 0.1 m
     loop_matcher: MatcherSettings = MatcherSettings(search_size_m=8.0, coarse_resolution_m=0.1, smear_m=0.03,
                                                     coarse_points=100)
+    # after a poor running match: every heading, ±0.75 m (see RECOVERY_RESPONSE)
+    recovery_matcher: MatcherSettings = MatcherSettings(search_size_m=1.5, search_angle_rad=math.pi)
 
     def __post_init__(self) -> None:
         for name in ("resolution", "max_laser_range", "scan_buffer_maximum_scan_distance",
@@ -124,6 +132,7 @@ class Mapper:
     session: int = 0  # the current odometry session
     tried: dict[int, int] = field(default_factory=dict)  # loop chain (its first keyframe) → keyframe that last tried it
     rejected_closures: int = 0  # loop matches the graph could not agree with
+    recoveries: int = 0  # running matches replaced by the wider search (see RECOVERY_RESPONSE)
     start_pose: np.ndarray | None = None  # where the current session's first keyframe is (continued maps)
     #: With True, :meth:`process` leaves loop closing to the caller (a loop-closing thread:
     #: :meth:`loop_search`, :meth:`LoopSearch.run`, :func:`solve_loops`, :meth:`merge_loops`).
@@ -133,7 +142,7 @@ class Mapper:
         """A copy to read (save, draw) while this one maps on; keyframes are shared, never changed."""
         return Mapper(self.settings, self.sensor_offset.copy(), list(self.keyframes), self.graph.copy(),
                       list(self.loop_closures), self.last_response, session=self.session, tried=dict(self.tried),
-                      rejected_closures=self.rejected_closures,
+                      rejected_closures=self.rejected_closures, recoveries=self.recoveries,
                       start_pose=None if self.start_pose is None else self.start_pose.copy(),
                       defer_loops=self.defer_loops)
 
@@ -252,7 +261,13 @@ class Mapper:
         if not buffer or len(points) < MIN_MATCH_POINTS:
             return None
         world, world_normals = self._world_points(buffer)
-        return ScanMatcher(world, self.settings.matcher, world_normals).match(points, predicted, normals)
+        result = ScanMatcher(world, self.settings.matcher, world_normals).match(points, predicted, normals)
+        if result.response < RECOVERY_RESPONSE:
+            wide = ScanMatcher(world, self.settings.recovery_matcher, world_normals).match(points, predicted, normals)
+            if wide.response >= result.response + RECOVERY_MARGIN:
+                self.recoveries += 1
+                return wide
+        return result
 
     # ----------------------------------------------------------- loop closure
     def loop_candidates(self, index: int) -> list[list[int]]:

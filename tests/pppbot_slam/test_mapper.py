@@ -100,6 +100,30 @@ def test_loops_closed_beside_the_scans_merge_with_the_keyframes_added_meanwhile(
         Mapper().merge_loops(mapper.graph, [object()], 0)
 
 
+def jumped_run(jump: bool) -> tuple[Mapper, np.ndarray]:
+    """The ring without loop closing; with ``jump``, a collision at scan 60 turns the robot
+    0.8 rad and shifts it 0.3 m unseen by odometry (the usual window is ±0.35 rad)."""
+    truth = ring_path()
+    odom = drifting_odometry(truth, yaw_per_m=0.0, scale=1.0)
+    if jump:
+        unseen = se2_compose(se2_compose(odom[60], [0.2, -0.2, 0.8]), se2_inverse(odom[60]))
+        odom[60:] = [se2_compose(unseen, pose) for pose in odom[60:]]
+    mapper = Mapper(MapperSettings(do_loop_closing=False))
+    feed(mapper, RING, truth, odom)
+    return mapper, keyframe_errors(mapper, truth)
+
+
+def test_a_jump_in_odometry_beyond_the_search_window_is_recovered(monkeypatch):
+    _, smooth = jumped_run(jump=False)
+    mapper, errors = jumped_run(jump=True)
+    assert mapper.recoveries >= 1
+    assert errors.max() < smooth.max() + 0.02, (errors.max(), smooth.max())
+    # Without the wider search the scan is placed inside the usual window: far off.
+    monkeypatch.setattr("pppbot_slam.mapper.RECOVERY_RESPONSE", 0.0)
+    _, unrecovered = jumped_run(jump=True)
+    assert unrecovered.max() > 0.2
+
+
 def test_without_loop_closing_nothing_is_closed():
     mapper, truth = run(MapperSettings(do_loop_closing=False))
     assert mapper.loop_closures == [] and mapper.graph.loop_closures == 0

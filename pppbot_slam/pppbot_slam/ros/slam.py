@@ -301,12 +301,19 @@ class Slam(Node):
             if self._scan_frame != frame or not np.allclose(mapper.sensor_offset, sensor):
                 mapper.sensor_offset = sensor
                 self._scan_frame = frame
+            recoveries = mapper.recoveries
             keyframe = mapper.process(stamp, odom_pose, rays)
+            recovered = mapper.recoveries > recoveries
             pose = mapper.predict(odom_pose)
             response = mapper.last_response
         if keyframe is not None:
             self.get_logger().debug(f"keyframe {keyframe.index} at t = {stamp:.2f} s: match response "
                                     f"{response:.2f}, pose ({pose[0]:.2f}, {pose[1]:.2f}, {pose[2]:.3f})")
+            if recovered:
+                self.get_logger().warning(
+                    f"keyframe {keyframe.index}: the scan did not fit where odometry put it (a collision or a "
+                    f"skid?); found at ({pose[0]:.2f}, {pose[1]:.2f}, {pose[2]:.3f}) by a search over every heading "
+                    f"(response {response:.2f})")
             self._publish_pose(msg.header.stamp, pose)
             if keyframe.index == 0:
                 self._map_wake.set()  # a first map at once
