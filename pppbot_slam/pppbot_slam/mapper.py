@@ -321,23 +321,28 @@ class Mapper:
         if matches:
             self.merge_loops(*solve_loops(self.graph.copy(), matches))
 
-    def merge_loops(self, solved: PoseGraph, accepted: list[LoopMatch], rejected: int) -> None:
+    def merge_loops(self, solved: PoseGraph, accepted: list[LoopMatch], rejected: int) -> np.ndarray:
         """Take a graph that :func:`solve_loops` solved from a copy of this one. Keyframes
         added since the copy keep their poses relative to the copy's last keyframe, which
-        moves as the solution moved it (and their edges are kept)."""
+        moves as the solution moved it (and their edges are kept). Returns how the newest
+        keyframe moved (x, y, yaw in the map; zeros when nothing was accepted)."""
         self.rejected_closures += rejected
         if not accepted:
-            return
+            return np.zeros(3)
         known = len(solved.poses)
         if known > len(self.graph.poses):
             raise MapperError(f"a solved graph of {known} keyframes does not belong to this map "
                               f"({len(self.graph.poses)})")
         last = known - 1
+        newest_before = self.graph.poses[-1].copy()
         correction = se2_compose(solved.poses[last], se2_inverse(self.graph.poses[last]))
         self.graph.poses = [p.copy() for p in solved.poses] + [
             np.asarray(se2_compose(correction, p)) for p in self.graph.poses[known:]]
         self.graph.edges += [e for e in solved.edges[len(solved.edges) - len(accepted):]]
         self.loop_closures += [LoopClosure(m.source, m.target, m.response) for m in accepted]
+        moved = self.graph.poses[-1] - newest_before
+        moved[2] = float(wrap_angles(moved[2]))
+        return moved
 
     # -------------------------------------------------------------------- map
     def grid_inputs(self) -> tuple[OccupancySettings, list[np.ndarray], list[ScanRays]]:

@@ -81,7 +81,9 @@ def test_loops_closed_beside_the_scans_merge_with_the_keyframes_added_meanwhile(
         for solved_at, result in [item for item in in_flight if keyframe.index - item[0] >= 2]:
             last = len(result[0].poses) - 1
             tail = [mapper.graph.relative(last, j) for j in range(last + 1, len(mapper.keyframes))]
-            mapper.merge_loops(*result)
+            newest = mapper.graph.poses[-1].copy()
+            moved = mapper.merge_loops(*result)
+            np.testing.assert_allclose(mapper.graph.poses[-1][:2] - newest[:2], moved[:2], atol=1e-12)
             assert tail, "keyframes were added between the solve and the merge"
             for j, relative in enumerate(tail, start=last + 1):
                 np.testing.assert_allclose(mapper.graph.relative(last, j), relative, atol=1e-9)

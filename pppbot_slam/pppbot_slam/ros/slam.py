@@ -351,12 +351,16 @@ class Slam(Node):
         with self.lock:
             if mapper is not self.mapper:
                 return
-            mapper.merge_loops(solved, accepted, rejected)
+            moved = mapper.merge_loops(solved, accepted, rejected)
+            stamp = mapper.keyframes[index].stamp_s
         for match in accepted:
-            self.get_logger().info(f"loop closure: keyframe {match.target} with {match.source} "
-                                   f"(response {match.response:.2f})")
+            self.get_logger().info(f"loop closure: keyframe {match.target} (scan at t = {stamp:.2f} s) with "
+                                   f"{match.source} (response {match.response:.2f})")
+        if accepted:
+            self.get_logger().info(f"the graph solved with keyframe {index}'s closures moved the newest keyframe "
+                                   f"{float(np.hypot(moved[0], moved[1])):.3f} m, {float(moved[2]):+.4f} rad")
         if rejected:
-            self.get_logger().info(f"keyframe {index}: {rejected} loop match(es) the pose graph "
+            self.get_logger().info(f"keyframe {index} (t = {stamp:.2f} s): {rejected} loop match(es) the pose graph "
                                    "could not agree with, dropped")
 
     def _publish_pose(self, stamp: Any, pose: np.ndarray) -> None:
