@@ -25,7 +25,7 @@ import threading
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from geometry_msgs.msg import Point, PoseWithCovarianceStamped, TransformStamped
@@ -204,9 +204,13 @@ class Slam(Node):
         self._stopping = threading.Event()
         self._map_thread = threading.Thread(target=self._map_loop, name="map-builder", daemon=True)
         self._map_thread.start()
-        self._worker = threading.Thread(target=self._work_loop, name="scan-processing", daemon=True)
+        self._worker = threading.Thread(
+            target=self._serve, args=(self._work, self._process, "process", "a scan could not be processed"),
+            name="scan-processing", daemon=True)
         self._worker.start()
-        self._loop_closer = threading.Thread(target=self._loop_closing, name="loop-closing", daemon=True)
+        self._loop_closer = threading.Thread(
+            target=self._serve, args=(self._loops, self._close_loops, "loops", "a loop search failed"),
+            name="loop-closing", daemon=True)
         self._loop_closer.start()
         self.get_logger().info(f"mapping: {p.scan_topic} with {p.odom_frame} → {p.base_frame}; map every "
                                f"{p.map_update_interval:g} s at {p.resolution} m")
@@ -279,15 +283,17 @@ class Slam(Node):
             if _put_dropping_oldest(self._work, (msg, stamp, frame, odom_pose, sensor)):
                 self._warn("behind", f"scan processing is {MAX_QUEUED} scans behind: dropping the oldest")
 
-    def _work_loop(self) -> None:
+    def _serve(self, work: queue.Queue[Any], handle: Callable[..., None], kind: str, failure: str) -> None:
+        """A thread's loop: ``handle`` each item of ``work`` until the stop sign; one that fails
+        is warned about (``failure``, throttled per ``kind``) and the thread goes on."""
         while True:
-            item = self._work.get()
+            item = work.get()
             if item is None or self._stopping.is_set():
                 return
             try:
-                self._process(*item)
-            except Exception as exc:  # noqa: BLE001 - one bad scan must not stop mapping
-                self._warn("process", f"a scan could not be processed: {type(exc).__name__}: {exc}")
+                handle(*item)
+            except Exception as exc:  # noqa: BLE001 - one bad scan or search must not stop the thread
+                self._warn(kind, f"{failure}: {type(exc).__name__}: {exc}")
 
     def _process(self, msg: LaserScan, stamp: float, frame: str, odom_pose: np.ndarray, sensor: np.ndarray) -> None:
         try:
@@ -322,16 +328,6 @@ class Slam(Node):
                                            "keyframe's search is skipped")
 
     # ---------------------------------------------------------- loop closure
-    def _loop_closing(self) -> None:
-        while True:
-            item = self._loops.get()
-            if item is None or self._stopping.is_set():
-                return
-            try:
-                self._close_loops(*item)
-            except Exception as exc:  # noqa: BLE001 - one failed search must not stop loop closing
-                self._warn("loops", f"a loop search failed: {type(exc).__name__}: {exc}")
-
     def _close_loops(self, mapper: Mapper, index: int) -> None:
         """Keyframe ``index``'s loop search: taken from the mapper under the lock, matched and
         solved outside it (scans go on), merged under it. A mapper replaced meanwhile (reset,
