@@ -21,6 +21,7 @@ from types import FrameType
 from typing import Any
 
 from geometry_msgs.msg import Twist, TwistStamped
+from rclpy.duration import Duration
 from rclpy.node import Node
 
 from pppbot_common.params import ParameterError, check_finite_range, param
@@ -31,6 +32,8 @@ from pppbot_control.teleop import Twist as CoreTwist
 
 STATUS_LINES_PER_HELP = 14
 SUBSCRIBER_WAIT_S = 5.0
+#: How long the stop on the way out may wait for its subscribers to acknowledge it (s).
+STOP_DELIVERY_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -141,6 +144,9 @@ def terminal_session(node: Teleop) -> None:
         for s, handler in previous.items():
             signal.signal(s, handler)
         node.publish(CoreTwist())  # stop the robot on the way out
+        # ... and see it delivered: the node is destroyed next, which can drop a message
+        # its subscribers have not acknowledged yet (a CI run saw the stop lost).
+        node.pub.wait_for_all_acked(Duration(seconds=STOP_DELIVERY_S))
 
 
 def main(args: list[str] | None = None) -> int:
