@@ -212,6 +212,16 @@ def load_map(path: str | Path) -> tuple[OccupancyGrid, MapMetadata]:
     """
     path = Path(path)
     meta = read_map_metadata(path)
+    return load_map_image(path, meta), meta
+
+
+def load_map_image(path: str | Path, meta: MapMetadata) -> OccupancyGrid:
+    """The grid of the map file ``path`` whose YAML says ``meta`` (its image, read by Nav2's rule).
+
+    Raises:
+        MapFileError: the image is missing or unreadable, naming the file.
+    """
+    path = Path(path)
     image_path = Path(meta.image) if Path(meta.image).is_absolute() else path.parent / meta.image
     try:
         with Image.open(image_path) as image:
@@ -224,7 +234,7 @@ def load_map(path: str | Path) -> tuple[OccupancyGrid, MapMetadata]:
     except (UnidentifiedImageError, OSError) as exc:
         raise MapFileError(f"{image_path}: not a readable image ({exc})") from exc
     cells = pixels_to_occupancy(pixels, meta, alpha)[::-1]
-    return OccupancyGrid(cells, meta.resolution, meta.origin), meta
+    return OccupancyGrid(cells, meta.resolution, meta.origin)
 
 
 def save_map(grid: OccupancyGrid, path: str | Path, mode: MapMode = MapMode.TRINARY,

@@ -29,7 +29,7 @@ from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.srv import GetMap
 from rclpy.node import Node
 
-from pppbot_common.maps import MapFileError, load_map, read_map_metadata
+from pppbot_common.maps import MapFileError, load_map_image, read_map_metadata
 from pppbot_common.params import ParameterError, param
 from pppbot_common.resources import maps_directory
 from pppbot_common.ros.maps import grid_message
@@ -90,11 +90,11 @@ def load_map_file(name: str) -> tuple[Path, Any]:
     """
     path = resolve_map_path(name)
     try:
-        read_map_metadata(path)
+        meta = read_map_metadata(path)
     except MapFileError as exc:
         raise MapLoadError(str(exc), LoadMap.Response.RESULT_INVALID_MAP_METADATA) from exc
     try:
-        grid, _ = load_map(path)
+        grid = load_map_image(path, meta)
     except MapFileError as exc:
         raise MapLoadError(str(exc), LoadMap.Response.RESULT_INVALID_MAP_DATA) from exc
     return path, grid
