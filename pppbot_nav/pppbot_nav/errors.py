@@ -7,3 +7,8 @@ from pppbot_common.errors import PppbotError
 class MapSaverError(PppbotError, ValueError):
     """A map save request cannot be carried out as asked (bad mode, format or thresholds);
     the message names the value and what is allowed."""
+
+
+class AmclError(PppbotError, ValueError):
+    """AMCL cannot do what was asked (bad settings, an empty map, a malformed scan or pose);
+    the message names the value and what is allowed."""

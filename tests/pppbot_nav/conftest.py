@@ -1,6 +1,8 @@
-"""A small known map, published from the test's node, and an independent reader of saved map files."""
+"""A small known map, published from the test's node, and an independent reader of saved map files;
+this folder's synthetic AMCL world (``amcl_synthetic``) on the import path."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Any, Callable
 
@@ -12,6 +14,8 @@ from PIL import Image
 from pppbot_common.maps import OccupancyGrid
 from pppbot_common.ros.maps import grid_message
 from pppbot_common.ros.qos import LATCHED
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 RESOLUTION = 0.1
 ORIGIN = (-1.5, 2.0, 0.0)

@@ -1,0 +1,174 @@
+"""AMCL without ROS: odometry and scans in, a pose estimate and the map → odom correction out.
+
+:class:`Localizer` is what Nav2's ``amcl`` node does between its callbacks: it keeps the
+particle filter, applies the motion model for the odometry since the last filter update,
+weighs the particles with the laser model once the robot has moved ``update_min_d``
+(either axis, in the odometry frame) or turned ``update_min_a`` (or when forced: the
+first scan, a new initial pose, a no-motion update request), resamples every
+``resample_interval`` updates, and reports the heaviest cluster. Until an initial pose
+is set (or global localization asked for) it does nothing.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pppbot_common.maps import OccupancyGrid
+from pppbot_common.se2 import se2_compose, se2_inverse, wrap_angle
+from pppbot_nav.amcl.filter import Cluster, FilterSettings, ParticleFilter, uniform_poses
+from pppbot_nav.amcl.laser import LaserModelType, LaserSettings, MapField, Scan, laser_model
+from pppbot_nav.amcl.motion import MotionNoise, RobotModel, motion_model
+from pppbot_nav.amcl.refine import ScanFitter
+from pppbot_nav.errors import AmclError
+
+
+@dataclass(frozen=True)
+class LocalizerSettings:
+    filter: FilterSettings = field(default_factory=FilterSettings)
+    laser: LaserSettings = field(default_factory=LaserSettings)
+    laser_model_type: LaserModelType = LaserModelType.LIKELIHOOD_FIELD
+    robot_model_type: RobotModel = RobotModel.DIFFERENTIAL
+    motion_noise: MotionNoise = field(default_factory=MotionNoise)
+    update_min_d: float = 0.25
+    update_min_a: float = 0.2
+    resample_interval: int = 1
+    refine_estimate: bool = True  # polish the estimate with every beam (pppbot_nav.amcl.refine)
+
+
+@dataclass(frozen=True)
+class Update:
+    """One filter update: the estimate (heaviest cluster) and ``map_to_odom`` that puts
+    the robot there, both at the scan's time."""
+
+    estimate: Cluster
+    map_to_odom: np.ndarray
+    resampled: bool
+    refined: bool = False  # the estimate's mean is the scan fit's, not the particles'
+
+
+class Localizer:
+    def __init__(self, settings: LocalizerSettings, grid: OccupancyGrid, rng: np.random.Generator) -> None:
+        """Raises AmclError: bad filter settings, or a map without free space."""
+        self.settings = settings
+        self.rng = rng
+        self.filter = ParticleFilter(settings.filter)
+        self.motion = motion_model(settings.robot_model_type, settings.motion_noise)
+        self.set_map(grid)
+        self.initialized = False
+        self._odom: np.ndarray | None = None  # odometry pose at the last filter update
+        self._force = False
+        self._updates = 0
+        self.last: Update | None = None
+
+    def set_map(self, grid: OccupancyGrid) -> None:
+        """Localize on ``grid`` from now on (particles are kept; Nav2 re-initialises on a new map
+        only when asked to).
+
+        Raises:
+            AmclError: the map has no free cell, or a rotated origin.
+        """
+        self.field = MapField(grid)
+        self.laser = laser_model(self.settings.laser_model_type, self.field, self.settings.laser)
+        self.fitter = ScanFitter(self.field)
+        self._free_xy = self.field.free_cell_centres()
+
+    # -------------------------------------------------------------- initial poses
+    def set_initial_pose(self, mean: np.ndarray, covariance: np.ndarray) -> None:
+        """Particles around ``mean`` (x, y, yaw in the map) with the 3 × 3 ``covariance``; the next
+        scan updates the filter whether or not the robot moved.
+
+        Raises:
+            AmclError: a non-finite pose or a covariance that is not positive semi-definite.
+        """
+        self.filter.init_gaussian(mean, covariance, self.rng)
+        self._initialized()
+
+    def global_localization(self) -> None:
+        """Particles spread uniformly over the map's free space (``reinitialize_global_localization``)."""
+        self.filter.init_uniform(self._free_xy, self.field.grid.resolution, self.rng)
+        self._initialized()
+
+    def _initialized(self) -> None:
+        self.initialized = True
+        self._force = True
+        self._odom = None
+        self.last = None
+
+    def request_nomotion_update(self) -> None:
+        """Update the filter on the next scan even if the robot has not moved."""
+        self._force = True
+
+    def random_poses(self, count: int, rng: np.random.Generator) -> np.ndarray:
+        return uniform_poses(self._free_xy, self.field.grid.resolution, count, rng)
+
+    # -------------------------------------------------------------------- update
+    def moved_enough(self, odom_pose: np.ndarray) -> bool:
+        """Whether the odometry since the last update passes ``update_min_d`` / ``update_min_a``."""
+        if self._odom is None:
+            return True
+        d = np.asarray(odom_pose, dtype=float) - self._odom
+        s = self.settings
+        return abs(d[0]) > s.update_min_d or abs(d[1]) > s.update_min_d or abs(wrap_angle(d[2])) > s.update_min_a
+
+    def update(self, odom_pose: np.ndarray, scan: Scan, full_scan: Scan | None = None) -> Update | None:
+        """Process one scan taken at odometry pose ``odom_pose`` (base in the odometry frame):
+        ``scan`` has the beams the particles are weighed with, ``full_scan`` (default ``scan``)
+        the beams the estimate is refined with.
+
+        Returns the new estimate when the filter updated, None when not (not initialised, or the
+        robot has not moved enough since the last update).
+
+        Raises:
+            AmclError: a non-finite odometry pose.
+        """
+        odom_pose = np.asarray(odom_pose, dtype=float)
+        if odom_pose.shape != (3,) or not np.isfinite(odom_pose).all():
+            raise AmclError(f"an odometry pose must be three finite numbers, not {odom_pose.tolist()}")
+        if not self.initialized:
+            return None
+        if not (self._force or self.moved_enough(odom_pose)):
+            return None
+        if self._odom is not None:
+            self.motion.sample(self.filter.particles, self._odom, odom_pose, self.rng)
+        self._odom = odom_pose.copy()
+        self._force = False
+        self.filter.update_sensor(self.laser.likelihoods(self.filter.particles, scan))
+        self._updates += 1
+        resampled = self._updates % max(1, self.settings.resample_interval) == 0
+        estimate = self.filter.estimate()  # before resampling, on the weighted set, as Nav2 does
+        if resampled:
+            self.filter.resample(self.rng, self.random_poses)
+        refined = None
+        if self.settings.refine_estimate:
+            refined = self.fitter.refine(estimate.mean, scan if full_scan is None else full_scan)
+            if refined is not None:
+                estimate = Cluster(estimate.weight, refined.pose, estimate.covariance)
+        self.last = Update(estimate, self.map_to_odom(estimate.mean, odom_pose), resampled, refined is not None)
+        return self.last
+
+    @staticmethod
+    def map_to_odom(map_pose: np.ndarray, odom_pose: np.ndarray) -> np.ndarray:
+        """The map → odom transform that puts the base, at ``odom_pose`` in odom, at ``map_pose``."""
+        return se2_compose(map_pose, se2_inverse(odom_pose))
+
+
+def covariance_from_message(covariance: np.ndarray | list[float]) -> np.ndarray:
+    """The x, y, yaw 3 × 3 block of a ROS 6 × 6 pose covariance (row-major, 36 values).
+
+    Raises:
+        AmclError: not 36 finite values.
+    """
+    c = np.asarray(covariance, dtype=float)
+    if c.size != 36 or not np.isfinite(c).all():
+        raise AmclError("a pose covariance must be 36 finite numbers (6 × 6, row-major)")
+    full = c.reshape(6, 6)
+    return full[np.ix_((0, 1, 5), (0, 1, 5))]
+
+
+def covariance_to_message(covariance: np.ndarray) -> list[float]:
+    """A 3 × 3 x, y, yaw covariance as the 36 values of a ROS pose covariance."""
+    full = np.zeros((6, 6))
+    full[np.ix_((0, 1, 5), (0, 1, 5))] = covariance
+    return [float(v) for v in full.ravel()]
+

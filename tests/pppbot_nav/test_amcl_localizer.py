@@ -1,0 +1,134 @@
+"""The localizer on a synthetic room: convergence, global localization, update gating, refinement."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from amcl_synthetic import drive, grid, scan
+from pppbot_nav.amcl.filter import FilterSettings
+from pppbot_nav.amcl.localizer import (
+    Localizer,
+    LocalizerSettings,
+    covariance_from_message,
+    covariance_to_message,
+)
+from pppbot_nav.errors import AmclError
+
+NAV2_INITIAL_COVARIANCE = np.diag([0.5 ** 2, 0.5 ** 2, (math.pi / 12) ** 2])
+
+
+def localizer(seed: int = 0, **settings) -> Localizer:
+    return Localizer(LocalizerSettings(**settings), grid(), np.random.default_rng(seed))
+
+
+def run(loc: Localizer, seed: int = 0, noise_m: float = 0.01) -> list[tuple[float, float, float, int]]:
+    """Drive the route; (distance, position error, yaw error, particles) at each filter update."""
+    rng = np.random.default_rng(seed + 100)
+    errors = []
+    for distance, truth, odom in drive(seed=seed):
+        update = loc.update(odom, scan(truth, noise_m=noise_m, rng=rng), scan(truth, max_beams=360, noise_m=noise_m,
+                                                                                 rng=rng))
+        if update is not None:
+            e = update.estimate.mean - truth
+            errors.append((distance, math.hypot(e[0], e[1]), abs(math.remainder(e[2], 2 * math.pi)), len(loc.filter)))
+    return errors
+
+
+def converged_at(errors: list[tuple[float, float, float, int]], position_m: float, yaw_rad: float) -> float:
+    """Distance after which every update is within the bounds."""
+    bad = [d for d, p, y, _ in errors if p > position_m or y > yaw_rad]
+    return max(bad, default=0.0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_converges_from_half_a_metre_and_0_3_rad_within_2_m(seed):
+    start = drive()[0][1]
+    loc = localizer(seed)
+    off = np.array([0.5 * math.cos(seed), 0.5 * math.sin(seed), 0.3 if seed % 2 else -0.3])
+    loc.set_initial_pose(start + off, NAV2_INITIAL_COVARIANCE)
+    errors = run(loc, seed)
+    assert converged_at(errors, 0.05, math.radians(1.0)) < 2.0
+    late = np.array([e for e in errors if e[0] > 2.0])
+    assert np.sqrt(np.mean(late[:, 1] ** 2)) < 0.03
+    assert np.sqrt(np.mean(late[:, 2] ** 2)) < math.radians(1.0)
+    assert late[-1, 3] < 2000  # KLD shrank the set once it converged
+
+
+def test_global_localization_finds_the_robot_from_uniform_particles():
+    loc = localizer(3, filter=FilterSettings(min_particles=500, max_particles=5000))
+    loc.global_localization()
+    assert len(loc.filter) == 5000
+    errors = run(loc, 3)
+    assert converged_at(errors, 0.1, 0.05) < 10.0
+
+
+def test_refinement_is_more_accurate_than_the_particle_mean():
+    start = drive()[0][1]
+    results = {}
+    for refine in (False, True):
+        loc = localizer(4, refine_estimate=refine)
+        loc.set_initial_pose(start, NAV2_INITIAL_COVARIANCE / 25)
+        late = np.array([e for e in run(loc, 4) if e[0] > 2.0])
+        results[refine] = np.sqrt(np.mean(late[:, 1] ** 2))
+    assert results[True] < 0.5 * results[False]
+
+
+def test_nothing_happens_before_an_initial_pose():
+    loc = localizer()
+    _, truth, odom = drive()[0]
+    assert loc.update(odom, scan(truth)) is None
+    assert not loc.initialized
+
+
+def test_updates_wait_for_update_min_d_or_a_unless_forced():
+    loc = localizer(update_min_d=0.25, update_min_a=0.2)
+    _, truth, odom = drive()[0]
+    loc.set_initial_pose(truth, NAV2_INITIAL_COVARIANCE / 100)
+    s = scan(truth)
+    assert loc.update(odom, s) is not None  # the first scan after an initial pose
+    assert loc.update(odom + [0.2, 0.0, 0.0], s) is None
+    assert loc.update(odom + [0.0, 0.0, 0.15], s) is None
+    assert loc.update(odom + [0.3, 0.0, 0.0], s) is not None
+    loc.request_nomotion_update()
+    assert loc.update(odom + [0.3, 0.0, 0.0], s) is not None
+    assert loc.update(odom + [0.3, 0.0, 0.0], s) is None
+    assert loc.update(odom + [0.3, 0.0, 0.25], s) is not None
+
+
+def test_resample_interval_skips_resampling_between_updates():
+    loc = localizer(resample_interval=2)
+    _, truth, odom = drive()[0]
+    loc.set_initial_pose(truth, NAV2_INITIAL_COVARIANCE / 100)
+    flags = []
+    for k in range(4):
+        loc.request_nomotion_update()
+        flags.append(loc.update(odom, scan(truth)).resampled)
+    assert flags == [False, True, False, True]
+
+
+def test_map_to_odom_puts_the_base_at_the_estimate():
+    loc = localizer()
+    _, truth, _ = drive()[0]
+    odom = np.array([1.0, -0.5, 0.7])
+    loc.set_initial_pose(truth, NAV2_INITIAL_COVARIANCE / 1e4)
+    update = loc.update(odom, scan(truth))
+    from pppbot_common.se2 import se2_compose
+    assert np.allclose(se2_compose(update.map_to_odom, odom), update.estimate.mean, atol=1e-9)
+
+
+def test_a_non_finite_odometry_pose_is_refused():
+    loc = localizer()
+    loc.global_localization()
+    with pytest.raises(AmclError, match="odometry pose"):
+        loc.update(np.array([0.0, math.inf, 0.0]), scan(np.array([0.5, -1.0, 0.0])))
+
+
+def test_covariance_round_trips_through_the_ros_layout():
+    cov = np.array([[0.2, 0.01, 0.003], [0.01, 0.3, 0.002], [0.003, 0.002, 0.05]])
+    ros = covariance_to_message(cov)
+    assert ros[0] == 0.2 and ros[7] == 0.3 and ros[35] == 0.05 and ros[5] == 0.003
+    assert np.array_equal(covariance_from_message(ros), cov)
+    with pytest.raises(AmclError, match="36"):
+        covariance_from_message([0.0] * 35)
