@@ -22,7 +22,6 @@ from __future__ import annotations
 import queue
 import sys
 import threading
-from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -45,10 +44,9 @@ from pppbot_common.resources import maps_directory
 from pppbot_common.ros.maps import grid_message, map_metadata
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
-from pppbot_common.ros.planar import planar_transforms, stamp_seconds
 from pppbot_common.ros.qos import LATCHED, SENSOR
+from pppbot_common.ros.scan_odometry import ScanOdometry
 from pppbot_common.se2 import quaternion_from_yaw
-from pppbot_common.transforms import TransformBuffer, TransformError
 from pppbot_slam.mapper import Mapper, MapperError, MapperSettings, solve_loops
 from pppbot_slam.matcher import MatcherError, MatcherSettings
 from pppbot_slam.occupancy import LogOddsGrid, OccupancyError, ScanRays
@@ -56,11 +54,6 @@ from pppbot_slam.pose_graph import Edge
 from pppbot_slam.serialization import PoseGraphFileError, load_posegraph, posegraph_path, save_posegraph
 
 WARN_PERIOD_S = 5.0
-#: Scans wait for odometry to reach their stamps for at most this much scan time (s): the
-#: oldest is dropped once a pending scan is this much newer. While a keyframe is processed,
-#: /tf (100+ messages a second) backs up far more than /scan, and the executor takes one
-#: message of each per turn, so scans arrive well ahead of their odometry for a while.
-MAX_PENDING_S = 10.0
 #: Scans (with their odometry) waiting for the processing thread; beyond this the oldest goes.
 MAX_QUEUED = 200
 #: Keyframes waiting for their loop search; beyond this the oldest goes (a later keyframe
@@ -175,11 +168,10 @@ class Slam(Node):
         if p.map_file_name:
             self.mapper = self._load(p.map_file_name)
         self.lock = threading.Lock()  # the mapper: scans write it, the map thread reads it
-        self.tf = TransformBuffer(cache_s=p.tf_buffer_duration)
         self.paused = False
         self._warn = Warnings(self, WARN_PERIOD_S)
+        self.scans = ScanOdometry(self, p.odom_frame, p.base_frame, self._queue, self._warn, p.tf_buffer_duration)
         self._scan_frame: str | None = None
-        self._pending: deque[LaserScan] = deque()
         # Scans with their odometry, processed in a worker thread: the executor stays free
         # for TF (in and out) while a keyframe is matched or a loop searched.
         self._work: queue.Queue[tuple[LaserScan, float, str, np.ndarray, np.ndarray] | None] = \
@@ -191,8 +183,6 @@ class Slam(Node):
         self.graph_pub = self.create_publisher(MarkerArray, "~/graph_visualization", 1)
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "pose", 10)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
-        self.create_subscription(TFMessage, "/tf", self._on_tf, 200)
-        self.create_subscription(TFMessage, "/tf_static", self._on_tf_static, LATCHED)
         self.create_subscription(LaserScan, p.scan_topic, guarded(self, self.on_scan, "LaserScan"), SENSOR)
         self.create_service(Trigger, "~/save_map", self._save_map)
         self.create_service(Trigger, "~/serialize_map", self._serialize)
@@ -232,56 +222,17 @@ class Slam(Node):
                                f"starting at ({start[0]:.2f}, {start[1]:.2f}, {start[2]:.3f})")
         return mapper
 
-    # ------------------------------------------------------------------- TF
-    def _store(self, msg: TFMessage, static: bool) -> None:
-        for t in planar_transforms(msg):
-            try:
-                self.tf.set_transform(t.parent, t.child, t.stamp_s, (t.x, t.y, t.yaw), static)
-            except ValueError as exc:
-                self._warn("tf", f"ignoring a transform: {exc}")
-
-    def _on_tf(self, msg: TFMessage) -> None:
-        self._store(msg, static=False)
-        if self._pending:
-            self._drain()
-
-    def _on_tf_static(self, msg: TFMessage) -> None:
-        self._store(msg, static=True)
-
     # ----------------------------------------------------------------- scans
     def on_scan(self, msg: LaserScan) -> None:
         """Queue the scan until odometry reaches its stamp (as tf2's message filter does)."""
         if self.paused:
             return
-        self._pending.append(msg)
-        self._drain()
+        self.scans.odom_frame, self.scans.base_frame = self.params.odom_frame, self.params.base_frame
+        self.scans.add(msg)
 
-    def _drain(self) -> None:
-        p = self.params
-        while self._pending:
-            msg = self._pending[0]
-            stamp = stamp_seconds(msg.header.stamp)
-            frame = msg.header.frame_id.lstrip("/")
-            try:
-                newest = self.tf.latest_time(p.odom_frame, p.base_frame)
-            except TransformError:
-                newest = None
-            waited_s = stamp_seconds(self._pending[-1].header.stamp) - stamp
-            if (newest is None or newest < stamp) and waited_s <= MAX_PENDING_S:
-                # Odometry has not reached this scan yet. Waiting is bounded by the scans'
-                # own stamps, not by the clock: while a keyframe is processed, /clock and /tf
-                # queue up alike, and the clock would say "late" for transforms already queued.
-                return
-            self._pending.popleft()
-            try:
-                odom_pose = np.array(self.tf.lookup(p.odom_frame, p.base_frame, stamp))
-                sensor = np.array(self.tf.lookup(p.base_frame, frame))
-            except TransformError as exc:
-                self._warn("transform", f"dropping a scan: no transform {p.odom_frame} → {p.base_frame} → {frame} "
-                                        f"at t = {stamp:.3f} s ({exc})")
-                continue
-            if _put_dropping_oldest(self._work, (msg, stamp, frame, odom_pose, sensor)):
-                self._warn("behind", f"scan processing is {MAX_QUEUED} scans behind: dropping the oldest")
+    def _queue(self, msg: LaserScan, stamp: float, frame: str, odom_pose: np.ndarray, sensor: np.ndarray) -> None:
+        if _put_dropping_oldest(self._work, (msg, stamp, frame, odom_pose, sensor)):
+            self._warn("behind", f"scan processing is {MAX_QUEUED} scans behind: dropping the oldest")
 
     def _serve(self, work: queue.Queue[Any], handle: Callable[..., None], kind: str, failure: str) -> None:
         """A thread's loop: ``handle`` each item of ``work`` until the stop sign; one that fails

@@ -1,0 +1,90 @@
+"""Scans paired with odometry at their stamps: what tf2's message filter does for slam_toolbox and AMCL.
+
+A :class:`ScanOdometry` listens to ``/tf`` and ``/tf_static`` into a planar
+:class:`~pppbot_common.transforms.TransformBuffer` and holds each scan until the
+``odom_frame → base_frame`` transform reaches its stamp. Then it hands the scan on with
+the base's pose in the odometry frame at that stamp and the lidar's mounting in the base
+frame. A scan that cannot be transformed is dropped with a throttled warning naming the
+frames.
+"""
+from __future__ import annotations
+
+from collections import deque
+from typing import Callable
+
+import numpy as np
+from rclpy.node import Node
+from sensor_msgs.msg import LaserScan
+from tf2_msgs.msg import TFMessage
+
+from pppbot_common.ros.node_main import Warnings
+from pppbot_common.ros.planar import planar_transforms, stamp_seconds
+from pppbot_common.ros.qos import LATCHED
+from pppbot_common.transforms import TransformBuffer, TransformError
+
+#: Scans wait for odometry to reach their stamps for at most this much scan time (s): the
+#: oldest is dropped once a pending scan is this much newer. While a node is busy, /tf
+#: (100+ messages a second) backs up far more than /scan, and the executor takes one
+#: message of each per turn, so scans arrive well ahead of their odometry for a while.
+MAX_PENDING_S = 10.0
+
+#: ``ready(scan, stamp_s, scan_frame, odom_pose, sensor_pose)``: poses are (x, y, yaw) arrays.
+Ready = Callable[[LaserScan, float, str, np.ndarray, np.ndarray], None]
+
+
+class ScanOdometry:
+    def __init__(self, node: Node, odom_frame: str, base_frame: str, ready: Ready, warn: Warnings,
+                 cache_s: float = 10.0) -> None:
+        self.odom_frame, self.base_frame = odom_frame, base_frame  # the owner may change them
+        self.tf = TransformBuffer(cache_s=cache_s)
+        self._ready = ready
+        self._warn = warn
+        self._pending: deque[LaserScan] = deque()
+        node.create_subscription(TFMessage, "/tf", self._on_tf, 200)
+        node.create_subscription(TFMessage, "/tf_static", self._on_tf_static, LATCHED)
+
+    def add(self, msg: LaserScan) -> None:
+        """Queue the scan until odometry reaches its stamp."""
+        self._pending.append(msg)
+        self._drain()
+
+    def _store(self, msg: TFMessage, static: bool) -> None:
+        for t in planar_transforms(msg):
+            try:
+                self.tf.set_transform(t.parent, t.child, t.stamp_s, (t.x, t.y, t.yaw), static)
+            except ValueError as exc:
+                self._warn("tf", f"ignoring a transform: {exc}")
+
+    def _on_tf(self, msg: TFMessage) -> None:
+        self._store(msg, static=False)
+        if self._pending:
+            self._drain()
+
+    def _on_tf_static(self, msg: TFMessage) -> None:
+        self._store(msg, static=True)
+
+    def _drain(self) -> None:
+        odom, base = self.odom_frame, self.base_frame
+        while self._pending:
+            msg = self._pending[0]
+            stamp = stamp_seconds(msg.header.stamp)
+            frame = msg.header.frame_id.lstrip("/")
+            try:
+                newest = self.tf.latest_time(odom, base)
+            except TransformError:
+                newest = None
+            waited_s = stamp_seconds(self._pending[-1].header.stamp) - stamp
+            if (newest is None or newest < stamp) and waited_s <= MAX_PENDING_S:
+                # Odometry has not reached this scan yet. Waiting is bounded by the scans'
+                # own stamps, not by the clock: while the node is busy, /clock and /tf queue
+                # up alike, and the clock would say "late" for transforms already queued.
+                return
+            self._pending.popleft()
+            try:
+                odom_pose = np.array(self.tf.lookup(odom, base, stamp))
+                sensor = np.array(self.tf.lookup(base, frame))
+            except TransformError as exc:
+                self._warn("transform", f"dropping a scan: no transform {odom} → {base} → {frame} "
+                                        f"at t = {stamp:.3f} s ({exc})")
+                continue
+            self._ready(msg, stamp, frame, odom_pose, sensor)
