@@ -21,6 +21,7 @@ setup(
             'map_saver = pppbot_nav.ros.map_saver:main',
             'map_saver_cli = pppbot_nav.ros.map_saver_cli:cli_main',
             'map_server = pppbot_nav.ros.map_server:main',
+            'amcl = pppbot_nav.ros.amcl:main',
         ],
     },
 )

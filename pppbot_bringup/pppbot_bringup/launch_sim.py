@@ -72,7 +72,7 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
     """The nodes to start, in ppp_bot's order, and notes for the user.
 
     Raises:
-        ArgumentError: ``localization:=true`` without a map file, or a part not built yet.
+        ArgumentError: ``localization:=true`` without a map file, or a bag path that exists.
     """
     level = values["log_level"]
     config = config_directory()
@@ -113,8 +113,20 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
         if not map_file.is_file():
             raise ArgumentError(f"localization:=true needs a map; {map_file} does not exist "
                                 f"(save one while mapping, or give map:=path/to/map.yaml)")
-        raise ArgumentError("localization:=true needs map_server and amcl, which are not built yet in this checkout")
-    if values["use_slam"]:
+        nav2_params = config / "nav2_params.yaml"
+        nodes.append(NodeSpec("map_server", [resolve("pppbot_nav", "map_server"), *ros_args(
+            level, {"yaml_filename": map_file.resolve()}, params_file=nav2_params)],
+            after=("simulator",), required=True,
+            ready=ReadyCheck("/map", probe("/map", "nav_msgs/msg/OccupancyGrid", True))))
+        # AMCL starts where the robot was spawned (the shipped maps' frame is the world's, the
+        # spawn pose of a map made with the default spawn); RViz's 2D Pose Estimate moves it.
+        nodes.append(NodeSpec("amcl", [resolve("pppbot_nav", "amcl"), *ros_args(level, {
+            "set_initial_pose": True, "initial_pose.x": values["x"], "initial_pose.y": values["y"],
+            "initial_pose.yaw": values["yaw"]}, params_file=nav2_params)],
+            after=("map_server", "diff_drive_base_controller"), required=True,
+            ready=ReadyCheck("an initial pose", output_pattern=r"initial pose \(")))
+        notes.append(f"localizing on {map_file}")
+    elif values["use_slam"]:
         slam_params = Path(values["slam_params_file"] or config / "mapper_params_online_async.yaml")
         if not slam_params.is_file():
             raise ArgumentError(f"slam_params_file: {slam_params} does not exist")

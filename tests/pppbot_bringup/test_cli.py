@@ -132,7 +132,7 @@ def test_map_saver_is_a_verb_and_an_executable_of_pppbot_nav():
 
 
 def test_an_eval_scenario_not_built_yet_names_what_it_needs():
-    result = pppbot("eval", "localization", "--json")
+    result = pppbot("eval", "navigation", "--json")
     assert result.returncode == 2
-    assert "needs map_server and AMCL (pppbot_nav), which is not built yet" in result.stderr
+    assert "needs the planner, controller and navigator (pppbot_nav), which is not built yet" in result.stderr
     assert result.stdout == ""

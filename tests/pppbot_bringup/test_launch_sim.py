@@ -114,6 +114,23 @@ def test_plan_without_terminal_rviz_or_mapping_says_so():
     assert [n.name for n in fake_plan()[0].nodes][-1] == "slam_toolbox"
 
 
+def test_localization_serves_the_worlds_map_and_starts_amcl_at_the_spawn_pose_instead_of_slam():
+    p, probes = fake_plan("world:=maze", "localization:=true", "x:=1.5", "yaw:=0.5")
+    by_name = {n.name: n for n in p.nodes}
+    assert "slam_toolbox" not in by_name
+    server = " ".join(by_name["map_server"].cmd)
+    assert server.startswith("/bin/pppbot_nav/map_server ") and "nav2_params.yaml" in server
+    assert f"yaml_filename:={ROOT / 'maps' / 'maze.yaml'}" in server
+    amcl = " ".join(by_name["amcl"].cmd)
+    assert amcl.startswith("/bin/pppbot_nav/amcl ") and "nav2_params.yaml" in amcl
+    assert "set_initial_pose:=true" in amcl and "initial_pose.x:=1.5" in amcl and "initial_pose.yaw:=0.5" in amcl
+    assert by_name["amcl"].after == ("map_server", "diff_drive_base_controller")
+    assert by_name["amcl"].required and by_name["map_server"].required
+    assert ("/map", "nav_msgs/msg/OccupancyGrid", True) in probes
+    other = {n.name: n for n in fake_plan("localization:=true", f"map:={ROOT / 'maps' / 'room.yaml'}")[0].nodes}
+    assert f"yaml_filename:={ROOT / 'maps' / 'room.yaml'}" in " ".join(other["map_server"].cmd)
+
+
 def test_record_adds_a_recorder_right_after_the_simulator(tmp_path):
     p, _ = fake_plan("record:=true", f"bag_path:={tmp_path / 'b'}")
     recorder = p.nodes[1]

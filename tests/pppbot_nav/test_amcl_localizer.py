@@ -23,8 +23,9 @@ def localizer(seed: int = 0, **settings) -> Localizer:
     return Localizer(LocalizerSettings(**settings), grid(), np.random.default_rng(seed))
 
 
-def run(loc: Localizer, seed: int = 0, noise_m: float = 0.01) -> list[tuple[float, float, float, int]]:
-    """Drive the route; (distance, position error, yaw error, particles) at each filter update."""
+def run(loc: Localizer, seed: int = 0, noise_m: float = 0.01) -> list[tuple[float, float, float, int, float]]:
+    """Drive the route; (distance, position error, yaw error, particles, error of the particles'
+    weighted mean position) at each filter update."""
     rng = np.random.default_rng(seed + 100)
     errors = []
     for distance, truth, odom in drive(seed=seed):
@@ -32,13 +33,15 @@ def run(loc: Localizer, seed: int = 0, noise_m: float = 0.01) -> list[tuple[floa
                                                                                  rng=rng))
         if update is not None:
             e = update.estimate.mean - truth
-            errors.append((distance, math.hypot(e[0], e[1]), abs(math.remainder(e[2], 2 * math.pi)), len(loc.filter)))
+            mean = np.average(loc.filter.particles[:, :2], axis=0, weights=loc.filter.weights)
+            errors.append((distance, math.hypot(e[0], e[1]), abs(math.remainder(e[2], 2 * math.pi)), len(loc.filter),
+                           float(np.hypot(*(mean - truth[:2])))))
     return errors
 
 
-def converged_at(errors: list[tuple[float, float, float, int]], position_m: float, yaw_rad: float) -> float:
+def converged_at(errors: list[tuple[float, float, float, int, float]], position_m: float, yaw_rad: float) -> float:
     """Distance after which every update is within the bounds."""
-    bad = [d for d, p, y, _ in errors if p > position_m or y > yaw_rad]
+    bad = [d for d, p, y, *_ in errors if p > position_m or y > yaw_rad]
     return max(bad, default=0.0)
 
 
@@ -132,3 +135,24 @@ def test_covariance_round_trips_through_the_ros_layout():
     assert np.array_equal(covariance_from_message(ros), cov)
     with pytest.raises(AmclError, match="36"):
         covariance_from_message([0.0] * 35)
+
+
+def test_particles_redrawn_around_the_refined_estimate_keep_the_particles_on_the_robot():
+    start = drive()[0][1]
+    mean_error = {}
+    for fraction in (0.0, 0.1):
+        loc = localizer(5, refined_particle_fraction=fraction)
+        loc.set_initial_pose(start, NAV2_INITIAL_COVARIANCE / 25)
+        errors = np.array(run(loc, 5))
+        mean_error[fraction] = float(np.sqrt(np.mean(errors[:, 4] ** 2)))
+    assert mean_error[0.1] < 0.7 * mean_error[0.0]
+
+
+def test_replacing_particles_keeps_the_weights_normalised():
+    from pppbot_nav.amcl.filter import ParticleFilter
+    pf = ParticleFilter(FilterSettings(min_particles=10, max_particles=100))
+    pf.init_gaussian(np.zeros(3), np.eye(3) * 0.01, np.random.default_rng(0))
+    pf.update_sensor(np.linspace(1.0, 5.0, 100))
+    pf.replace_some(np.tile([9.0, 9.0, 0.0], (10, 1)), np.random.default_rng(1))
+    assert np.sum(pf.particles[:, 0] == 9.0) == 10
+    assert pf.weights.sum() == pytest.approx(1.0)

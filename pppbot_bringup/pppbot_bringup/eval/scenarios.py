@@ -9,6 +9,9 @@ a scenario turns that into the report's metrics and plots.
   (``odom → base_link``), whose frame is the spawn pose: how far dead reckoning drifts.
 * ``slam``: the same with the SLAM node; the estimate is ``map → odom → base_link``
   from TF, and the last ``/map`` is scored against the ground truth.
+* ``localization``: map_server and AMCL on a saved map, started from a wrong initial
+  pose (or globally); the estimate is ``map → odom → base_link``, scored once it has
+  converged (``amcl_*``), with the travel it took to converge.
 """
 from __future__ import annotations
 
@@ -26,6 +29,7 @@ from pppbot_bringup.eval.report import plot_errors, plot_map_overlay, plot_traje
 from pppbot_bringup.eval.routes import Route
 from pppbot_bringup.eval.trajectory import (
     PoseSeries,
+    TrajectoryError,
     absolute_trajectory_error,
     compose_chain,
     relative_pose_error,
@@ -48,9 +52,13 @@ class Scenario(enum.Enum):
     NAVIGATION = "navigation"
 
 
+#: Localization has converged once its error stays within these for CONVERGED_TRAVEL_M of travel.
+CONVERGED_M = 0.1
+CONVERGED_RAD = 0.05
+CONVERGED_TRAVEL_M = 1.0
+
 #: Scenarios whose stack is not in this checkout yet: named, never faked.
 NOT_BUILT = {
-    Scenario.LOCALIZATION: "map_server and AMCL (pppbot_nav)",
     Scenario.NAVIGATION: "the planner, controller and navigator (pppbot_nav)",
 }
 
@@ -70,9 +78,11 @@ class Estimate:
 #: the same pose as the odom → base_link transform: /tf also carries every wheel
 #: transform at the joint-state rate, which is a lot to listen to at 10× real time.
 ESTIMATES = {Scenario.DRIVE: Estimate(("odom", "base_link"), topic="/odom"),
-             Scenario.SLAM: Estimate(("map", "odom", "base_link"))}
+             Scenario.SLAM: Estimate(("map", "odom", "base_link")),
+             Scenario.LOCALIZATION: Estimate(("map", "odom", "base_link"))}
 #: How each scenario's estimate is labelled in plots.
-ESTIMATE_LABELS = {Scenario.DRIVE: "wheel odometry", Scenario.SLAM: "SLAM (map → base_link)"}
+ESTIMATE_LABELS = {Scenario.DRIVE: "wheel odometry", Scenario.SLAM: "SLAM (map → base_link)",
+                   Scenario.LOCALIZATION: "AMCL (map → base_link)"}
 
 
 @dataclass
@@ -139,11 +149,38 @@ def estimate_series(recording: Recording, estimate: Estimate) -> PoseSeries:
     return series
 
 
+def localization_metrics(ate: TrajectoryError, truth: PoseSeries) -> dict[str, Any]:
+    """AMCL's figures: the travel until the error stays within :data:`CONVERGED_M` and
+    :data:`CONVERGED_RAD` for :data:`CONVERGED_TRAVEL_M`, and the error from then on
+    (``amcl_rms_m``, ``amcl_yaw_rms_rad``, ``amcl_max_m``); ``converged`` false when it never did."""
+    travel = np.interp(ate.t_s, truth.t_s, truth.cumulative_length_m())
+    travel = travel - travel[0]
+    good = (ate.position_error_m <= CONVERGED_M) & (np.abs(ate.yaw_error_rad) <= CONVERGED_RAD)
+    # The first sample from which every sample within CONVERGED_TRAVEL_M of travel is good.
+    bad_travel = np.where(good, np.inf, travel)
+    next_bad = np.minimum.accumulate(bad_travel[::-1])[::-1]
+    stays = good & (next_bad - travel >= CONVERGED_TRAVEL_M)
+    stays &= travel[-1] - travel >= min(CONVERGED_TRAVEL_M, travel[-1])
+    metrics: dict[str, Any] = {"initial_position_error_m": float(ate.position_error_m[0]),
+                               "initial_yaw_error_rad": float(abs(ate.yaw_error_rad[0]))}
+    if not stays.any():
+        return {**metrics, "converged": False, "converged_after_m": None}
+    first = int(np.argmax(stays))
+    steady = slice(first, None)
+    return {**metrics, "converged": True, "converged_after_m": round(float(travel[first]), 3),
+            "amcl_rms_m": float(np.sqrt(np.mean(ate.position_error_m[steady] ** 2))),
+            "amcl_yaw_rms_rad": float(np.sqrt(np.mean(ate.yaw_error_rad[steady] ** 2))),
+            "amcl_max_m": float(ate.position_error_m[steady].max()),
+            "amcl_yaw_max_rad": float(np.abs(ate.yaw_error_rad[steady]).max())}
+
+
 def route_metrics(scenario: Scenario, recording: Recording, route: Route, truth_map: OccupancyGrid, out: Path,
-                  title: str) -> tuple[dict[str, Any], str | None]:
+                  title: str, map_to_world: tuple[float, float, float] | None = None
+                  ) -> tuple[dict[str, Any], str | None]:
     """The estimate's error along the route (ATE, RPE, final error), clearance and collisions;
     writes the trajectory and error plots. For ``drive`` the estimate is wheel odometry,
-    for ``slam`` the map → base_link chain (the map frame is the spawn pose).
+    for ``slam`` the map → base_link chain (the map frame is the spawn pose unless
+    ``map_to_world`` says where it is), for ``localization`` the same with AMCL's figures.
 
     Returns the metrics and what kept some of them from being measured (None: nothing).
 
@@ -165,14 +202,17 @@ def route_metrics(scenario: Scenario, recording: Recording, route: Route, truth_
         metrics["min_clearance_m"] = round(float(clearance.min()), 3)
     if len(truth) < 2 or len(estimate) < 2:
         return metrics, f"too little data: {len(truth)} true poses, {len(estimate)} estimated poses"
-    ate = absolute_trajectory_error(estimate, truth, route.start)
-    rpe = relative_pose_error(estimate, truth, route.start)
+    frame = route.start if map_to_world is None else map_to_world
+    ate = absolute_trajectory_error(estimate, truth, frame)
+    rpe = relative_pose_error(estimate, truth, frame)
     metrics.update(ate.as_dict("ate"))
     metrics.update(rpe.as_dict("rpe"))
     metrics["final_position_error_m"] = float(ate.position_error_m[-1])
     metrics["final_yaw_error_rad"] = float(ate.yaw_error_rad[-1])
+    if scenario is Scenario.LOCALIZATION:
+        metrics.update(localization_metrics(ate, truth))
     label = ESTIMATE_LABELS[scenario]
-    plot_trajectories(out / "trajectory.png", truth_map, truth, estimate.transformed(route.start),
+    plot_trajectories(out / "trajectory.png", truth_map, truth, estimate.transformed(frame),
                       label, [(x, y) for _, x, y in recording.collisions], title)
     plot_errors(out / "error.png", ate, f"{title} — {label} error")
     return metrics, None

@@ -31,6 +31,9 @@ from pppbot_bringup.eval.report import write_json
 from pppbot_bringup.eval.errors import MapQualityError, RouteError
 from pppbot_bringup.eval.routes import Route, load_routes, routes_file, select_route
 from pppbot_bringup.eval.scenarios import (
+    CONVERGED_M,
+    CONVERGED_RAD,
+    CONVERGED_TRAVEL_M,
     ESTIMATES,
     NOT_BUILT,
     Recording,
@@ -61,6 +64,11 @@ READY_TIMEOUT_S = 120.0
 STALL_TIMEOUT_S = 30.0
 #: Wall seconds to wait for SLAM's map after the route (it updates every map_update_interval sim s).
 FINAL_MAP_TIMEOUT_S = 60.0
+#: Wall seconds between initial poses sent while AMCL has not answered.
+INITIAL_POSE_RESEND_S = 5.0
+#: The covariance RViz's 2D Pose Estimate sends: 0.5 m and π/12 rad standard deviations.
+INITIAL_POSE_COVARIANCE = [0.25, 0, 0, 0, 0, 0, 0, 0.25, 0, 0, 0, 0, *[0] * 6, *[0] * 6, *[0] * 6,
+                           0, 0, 0, 0, 0, (math.pi / 12) ** 2]
 
 
 class Run:
@@ -88,7 +96,9 @@ class Run:
         values.update(world=str(self.world_file), x=x, y=y, yaw=yaw, use_teleop=False, use_rviz=False,
                       headless=True, record=False, real_time_factor=self.args.real_time_factor,
                       seed=self.args.seed, wheel_slip=self.args.wheel_slip, log_level=self.args.log_level,
-                      use_slam=self.scenario is Scenario.SLAM)
+                      use_slam=self.scenario is Scenario.SLAM,
+                      localization=self.scenario is Scenario.LOCALIZATION,
+                      map=str(self.args.map or ""))
         return values
 
     def execute(self, progress: Progress) -> None:
@@ -115,7 +125,8 @@ class Run:
     def _run_stack(self, supervisor: Supervisor, names: list[str], probe: GraphProbe, progress: Progress) -> None:
         thread = threading.Thread(target=supervisor.run, kwargs={"until": self.stop.is_set}, name="supervisor")
         driver = RouteDriver(self.route.points, DriverSettings(speed_mps=self.args.speed))
-        node = EvalNode(ESTIMATES[self.scenario], driver, self.recording, wants_map=self.scenario is Scenario.SLAM)
+        node = EvalNode(ESTIMATES[self.scenario], driver, self.recording, wants_map=self.scenario is Scenario.SLAM,
+                        localizes=self.scenario is Scenario.LOCALIZATION)
         wall0 = time.monotonic()
         thread.start()
         try:
@@ -123,6 +134,8 @@ class Run:
             if not self._wait_ready(supervisor, names, thread, node):
                 return
             probe.close()
+            if self.scenario is Scenario.LOCALIZATION and not self._start_localization(node, thread, progress):
+                return
             self._drive(node, thread, progress)
             if self.scenario is Scenario.SLAM and self.recording.failure is None:
                 self._wait_for_final_map(node, thread, progress)
@@ -150,6 +163,39 @@ class Run:
                 self.recording.failure = f"not ready after {READY_TIMEOUT_S:.0f} s: {', '.join(waiting)}"
                 return False
             node.spin_once(0.05)
+        return True
+
+    def _start_localization(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> bool:
+        """Put AMCL off: the spawn pose moved by ``--initial-offset`` (sent as RViz does), or
+        global localization; then wait for its first estimate from there."""
+        deadline = time.monotonic() + READY_TIMEOUT_S
+        # First its estimate at the spawn pose (the launch's initial pose): after that, a standing
+        # robot gets no new estimate until the one asked for here.
+        while node.amcl_pose_stamp_s < 0.0:
+            node.spin_pending(0.05)
+            if self.interrupted or not thread.is_alive() or time.monotonic() > deadline:
+                self.recording.failure = "interrupted" if self.interrupted else "no /amcl_pose at the spawn pose"
+                return False
+        sent_s = node.sim_now_s or 0.0
+        if self.args.global_localization:
+            progress.message("global localization: particles over the whole map")
+            if not node.start_global_localization():
+                self.recording.failure = "amcl's reinitialize_global_localization did not answer"
+                return False
+        else:
+            x, y, yaw = self.route.start
+            dx, dy, dyaw = self.args.initial_offset
+            progress.message(f"initial pose off by ({dx:g} m, {dy:g} m, {dyaw:g} rad)")
+        next_send = time.monotonic()
+        while node.amcl_pose_stamp_s < sent_s:
+            if not self.args.global_localization and time.monotonic() >= next_send and node.amcl_listens():
+                # Sent again until AMCL answers: a message sent as discovery completes can be lost.
+                node.send_initial_pose(x + dx, y + dy, yaw + dyaw, INITIAL_POSE_COVARIANCE)
+                next_send = time.monotonic() + INITIAL_POSE_RESEND_S
+            node.spin_pending(0.05)
+            if self.interrupted or not thread.is_alive() or time.monotonic() > deadline:
+                self.recording.failure = "interrupted" if self.interrupted else "no /amcl_pose after the initial pose"
+                return False
         return True
 
     def _drive(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> None:
@@ -204,7 +250,9 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     problem = None
     if rec.truth_rows:
         try:
-            metrics, problem = route_metrics(run.scenario, rec, run.route, truth_map, run.out, title)
+            map_pose = tuple(run.args.map_pose) if run.scenario is Scenario.LOCALIZATION else None
+            metrics, problem = route_metrics(run.scenario, rec, run.route, truth_map, run.out, title,
+                                             map_pose)
             if run.scenario is Scenario.SLAM and rec.final_map is not None:
                 map_truth = world_truth(run.world_file, run.route, rec.final_map.resolution)
                 metrics.update(map_metrics(rec.final_map, map_truth, run.route.start, run.out, title + " — map"))
@@ -215,6 +263,9 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
         failure = "route not finished"
     if failure is None and metrics.get("collisions", 0):
         failure = f"{metrics['collisions']} collision(s)"
+    if failure is None and metrics.get("converged") is False:
+        failure = (f"AMCL never converged (error within {CONVERGED_M} m and {CONVERGED_RAD} rad for "
+                   f"{CONVERGED_TRAVEL_M} m of travel)")
     failure = failure or problem
     drive_wall = rec.drive_wall_seconds
     result: dict[str, Any] = {
@@ -241,7 +292,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.description = __doc__.strip().splitlines()[0]
     parser.add_argument("scenario", choices=[s.value for s in Scenario],
                         help="map: score a saved map; drive: odometry drift along a route; slam: mapping "
-                             "along a route (trajectory and map); localization, navigation: as their parts land")
+                             "along a route (trajectory and map); localization: AMCL on a saved map from a wrong "
+                             "initial pose; navigation: as its parts land")
     parser.add_argument("--world", default="maze", help="world name or path (default maze)")
     parser.add_argument("--route", default=None, help="route name in the world's routes file (default: the first)")
     parser.add_argument("--route-file", type=Path, default=None,
@@ -257,10 +309,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="give up after this many sim seconds (default 2.5 × route time + 60)")
     parser.add_argument("--out", type=Path, default=None,
                         help="report directory (default eval_<scenario>_<world>_YYYY_MM_DD-HH_MM_SS)")
-    parser.add_argument("--map", type=Path, default=None, help="map: the Nav2 map YAML to score")
+    parser.add_argument("--map", type=Path, default=None,
+                        help="map: the Nav2 map YAML to score; localization: the map to localize on "
+                             "(default maps/<world>.yaml)")
     parser.add_argument("--map-pose", type=float, nargs=3, default=(0.0, 0.0, 0.0), metavar=("X", "Y", "YAW"),
-                        help="map: where the map's frame is in the world (default 0 0 0: the spawn pose "
-                             "where mapping started)")
+                        help="map, localization: where the map's frame is in the world (default 0 0 0: the "
+                             "world's own frame, which is the default spawn pose where mapping starts)")
+    parser.add_argument("--initial-offset", type=float, nargs=3, default=(0.35, 0.35, 0.3),
+                        metavar=("DX", "DY", "DYAW"),
+                        help="localization: how far off the initial pose sent to AMCL is (default 0.35 0.35 0.3: "
+                             "0.5 m and 0.3 rad)")
+    parser.add_argument("--global", dest="global_localization", action="store_true",
+                        help="localization: start AMCL with global localization (particles over the whole map)")
     parser.add_argument("--json", action="store_true", help="print the report as one JSON object on the last line")
     parser.add_argument("--log-level", default="info", choices=("debug", "info", "warn", "error", "fatal"),
                         help="log level of the stack's nodes (default info; their output goes to the log "
@@ -277,8 +337,12 @@ def _check(args: argparse.Namespace) -> None:
         raise ArgumentError(f"--wheel-slip {args.wheel_slip}: must be in [0, {MAX_SLIP_STDDEV}]")
     if not all(math.isfinite(v) for v in args.map_pose):
         raise ArgumentError(f"--map-pose {' '.join(map(str, args.map_pose))}: must be three finite numbers")
-    if (args.scenario == Scenario.MAP.value) != (args.map is not None):
-        raise ArgumentError("--map: the map scenario needs it, and only the map scenario takes it")
+    if args.scenario == Scenario.MAP.value and args.map is None:
+        raise ArgumentError("--map: the map scenario needs it")
+    if args.map is not None and args.scenario not in (Scenario.MAP.value, Scenario.LOCALIZATION.value):
+        raise ArgumentError(f"--map: only the map and localization scenarios take it, not {args.scenario}")
+    if not all(math.isfinite(v) for v in args.initial_offset):
+        raise ArgumentError(f"--initial-offset {' '.join(map(str, args.initial_offset))}: must be three finite numbers")
     if args.seed < 0:
         raise ArgumentError(f"--seed {args.seed}: must be a non-negative integer")
     if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):

@@ -8,11 +8,12 @@ from __future__ import annotations
 import time
 
 import rclpy
-from geometry_msgs.msg import PointStamped, Twist, Vector3
+from geometry_msgs.msg import PointStamped, PoseWithCovarianceStamped, Twist, Vector3
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
+from std_srvs.srv import Empty
 from tf2_msgs.msg import TFMessage
 
 from pppbot_bringup.eval.driver import RouteDriver
@@ -20,7 +21,7 @@ from pppbot_bringup.eval.scenarios import Estimate, Recording
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.planar import planar_transforms, stamp_seconds
 from pppbot_common.ros.qos import DEFAULT, LATCHED
-from pppbot_common.se2 import yaw_from_quaternion
+from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
 
 #: The route driver commands at 20 Hz of sim time, a teleop's or a controller's rate
 #: (every ground-truth message would be 500 commands a wall second at 10× real time).
@@ -31,7 +32,8 @@ MAX_CALLBACKS_PER_SPIN = 100
 class EvalNode:
     """Records ground truth, the estimate and collisions; drives the route on ground truth."""
 
-    def __init__(self, estimate: Estimate, driver: RouteDriver, recording: Recording, wants_map: bool = False) -> None:
+    def __init__(self, estimate: Estimate, driver: RouteDriver, recording: Recording, wants_map: bool = False,
+                 localizes: bool = False) -> None:
         self.context = rclpy.Context()
         rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node("pppbot_eval", context=self.context, start_parameter_services=False)
@@ -55,6 +57,36 @@ class EvalNode:
         self.node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100)
         if wants_map:
             self.node.create_subscription(OccupancyGridMsg, "/map", self._on_map, LATCHED)
+        self.amcl_pose_stamp_s = -1.0
+        if localizes:
+            self.initial_pose_pub = self.node.create_publisher(PoseWithCovarianceStamped, "/initialpose", DEFAULT)
+            self.node.create_subscription(PoseWithCovarianceStamped, "/amcl_pose", self._on_amcl_pose, LATCHED)
+            self.global_client = self.node.create_client(Empty, "/reinitialize_global_localization")
+
+    def _on_amcl_pose(self, msg: PoseWithCovarianceStamped) -> None:
+        self.amcl_pose_stamp_s = stamp_seconds(msg.header.stamp)
+
+    def amcl_listens(self) -> bool:
+        return self.initial_pose_pub.get_subscription_count() > 0
+
+    def send_initial_pose(self, x: float, y: float, yaw: float, covariance: list[float]) -> None:
+        """What RViz's 2D Pose Estimate sends: a pose in ``map`` with its covariance."""
+        msg = PoseWithCovarianceStamped()
+        msg.header.frame_id = "map"
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        msg.pose.pose.position.x, msg.pose.pose.position.y = float(x), float(y)
+        o = msg.pose.pose.orientation
+        o.x, o.y, o.z, o.w = quaternion_from_yaw(yaw)
+        msg.pose.covariance = [float(v) for v in covariance]
+        self.initial_pose_pub.publish(msg)
+
+    def start_global_localization(self) -> bool:
+        """Ask AMCL to spread its particles over the map; False when the service did not answer."""
+        if not self.global_client.wait_for_service(timeout_sec=10.0):
+            return False
+        future = self.global_client.call_async(Empty.Request())
+        self.executor.spin_until_future_complete(future, timeout_sec=10.0)
+        return future.done()
 
     def _on_truth(self, msg: Odometry) -> None:
         t = stamp_seconds(msg.header.stamp)

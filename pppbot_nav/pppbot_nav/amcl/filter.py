@@ -174,6 +174,16 @@ class ParticleFilter:
         self.particles = candidates[:n].copy()
         self.weights = np.full(n, 1.0 / n)
 
+    def replace_some(self, poses: np.ndarray, rng: np.random.Generator) -> None:
+        """Put ``poses`` in place of as many particles chosen at random, each with the mean weight."""
+        count = min(len(poses), len(self.particles))
+        if count == 0:
+            return
+        chosen = rng.choice(len(self.particles), size=count, replace=False)
+        self.particles[chosen] = poses[:count]
+        self.weights[chosen] = 1.0 / len(self.weights)
+        self.weights /= self.weights.sum()
+
     # ----------------------------------------------------------------- clusters
     def clusters(self) -> list[Cluster]:
         """The particle clusters, heaviest first."""

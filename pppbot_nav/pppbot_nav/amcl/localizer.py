@@ -15,12 +15,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pppbot_common.maps import OccupancyGrid
-from pppbot_common.se2 import se2_compose, se2_inverse, wrap_angle
+from pppbot_common.se2 import se2_compose, se2_inverse, wrap_angle, wrap_angles
 from pppbot_nav.amcl.filter import Cluster, FilterSettings, ParticleFilter, uniform_poses
 from pppbot_nav.amcl.laser import LaserModelType, LaserSettings, MapField, Scan, laser_model
 from pppbot_nav.amcl.motion import MotionNoise, RobotModel, motion_model
 from pppbot_nav.amcl.refine import ScanFitter
 from pppbot_nav.errors import AmclError
+
+
+#: Standard deviations (m, m, rad) of the particles redrawn around a refined estimate.
+REFINED_SPREAD = np.array([0.02, 0.02, 0.01])
 
 
 @dataclass(frozen=True)
@@ -34,6 +38,9 @@ class LocalizerSettings:
     update_min_a: float = 0.2
     resample_interval: int = 1
     refine_estimate: bool = True  # polish the estimate with every beam (pppbot_nav.amcl.refine)
+    #: After each update, this share of the particles is redrawn around a refined estimate
+    #: (sensor resetting, Lenser & Veloso 2000, with the scan fit as the sensor's pose).
+    refined_particle_fraction: float = 0.1
 
 
 @dataclass(frozen=True)
@@ -144,8 +151,33 @@ class Localizer:
             refined = self.fitter.refine(estimate.mean, scan if full_scan is None else full_scan)
             if refined is not None:
                 estimate = Cluster(estimate.weight, refined.pose, estimate.covariance)
+                self._reset_around(refined.pose)
         self.last = Update(estimate, self.map_to_odom(estimate.mean, odom_pose), resampled, refined is not None)
         return self.last
+
+    def track(self, odom_pose: np.ndarray, full_scan: Scan) -> np.ndarray | None:
+        """Between filter updates, with ``refine_estimate``: the map → odom that fits ``full_scan``
+        (taken at ``odom_pose``) to the map, starting from the last one, so that odometry's drift
+        since the last update is taken out at every scan; None when there is nothing to refine
+        or the fit is not trusted (the last map → odom stands). The particles are left alone.
+        """
+        if not (self.settings.refine_estimate and self.initialized and self.last is not None):
+            return None
+        odom_pose = np.asarray(odom_pose, dtype=float)
+        refined = self.fitter.refine(se2_compose(self.last.map_to_odom, odom_pose), full_scan)
+        if refined is None:
+            return None
+        map_to_odom = self.map_to_odom(refined.pose, odom_pose)
+        self.last = Update(Cluster(self.last.estimate.weight, refined.pose, self.last.estimate.covariance),
+                           map_to_odom, resampled=False, refined=True)
+        return map_to_odom
+
+    def _reset_around(self, pose: np.ndarray) -> None:
+        count = int(round(self.settings.refined_particle_fraction * len(self.filter)))
+        if count > 0:
+            poses = pose + self.rng.normal(0.0, 1.0, size=(count, 3)) * REFINED_SPREAD
+            poses[:, 2] = wrap_angles(poses[:, 2])
+            self.filter.replace_some(poses, self.rng)
 
     @staticmethod
     def map_to_odom(map_pose: np.ndarray, odom_pose: np.ndarray) -> np.ndarray:
