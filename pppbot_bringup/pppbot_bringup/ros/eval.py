@@ -171,12 +171,12 @@ class Run:
         deadline = time.monotonic() + READY_TIMEOUT_S
         # First its estimate at the spawn pose (the launch's initial pose): after that, a standing
         # robot gets no new estimate until the one asked for here.
-        while node.amcl_pose_stamp_s < 0.0:
+        while node.amcl_poses == 0:
             node.spin_pending(0.05)
             if self.interrupted or not thread.is_alive() or time.monotonic() > deadline:
                 self.recording.failure = "interrupted" if self.interrupted else "no /amcl_pose at the spawn pose"
                 return False
-        sent_s = node.sim_now_s or 0.0
+        before = node.amcl_poses  # AMCL publishes a pose only when its filter updates
         if self.args.global_localization:
             progress.message("global localization: particles over the whole map")
             if not node.start_global_localization():
@@ -187,7 +187,7 @@ class Run:
             dx, dy, dyaw = self.args.initial_offset
             progress.message(f"initial pose off by ({dx:g} m, {dy:g} m, {dyaw:g} rad)")
         next_send = time.monotonic()
-        while node.amcl_pose_stamp_s < sent_s:
+        while node.amcl_poses == before:
             if not self.args.global_localization and time.monotonic() >= next_send and node.amcl_listens():
                 # Sent again until AMCL answers: a message sent as discovery completes can be lost.
                 node.send_initial_pose(x + dx, y + dy, yaw + dyaw, INITIAL_POSE_COVARIANCE)

@@ -57,14 +57,14 @@ class EvalNode:
         self.node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100)
         if wants_map:
             self.node.create_subscription(OccupancyGridMsg, "/map", self._on_map, LATCHED)
-        self.amcl_pose_stamp_s = -1.0
+        self.amcl_poses = 0
         if localizes:
             self.initial_pose_pub = self.node.create_publisher(PoseWithCovarianceStamped, "/initialpose", DEFAULT)
             self.node.create_subscription(PoseWithCovarianceStamped, "/amcl_pose", self._on_amcl_pose, LATCHED)
             self.global_client = self.node.create_client(Empty, "/reinitialize_global_localization")
 
     def _on_amcl_pose(self, msg: PoseWithCovarianceStamped) -> None:
-        self.amcl_pose_stamp_s = stamp_seconds(msg.header.stamp)
+        self.amcl_poses += 1
 
     def amcl_listens(self) -> bool:
         return self.initial_pose_pub.get_subscription_count() > 0

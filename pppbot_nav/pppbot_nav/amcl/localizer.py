@@ -23,6 +23,13 @@ from pppbot_nav.amcl.refine import ScanFitter
 from pppbot_nav.errors import AmclError
 
 
+#: Global localization's search grid: position step (m) and headings over a turn, scored
+#: this many poses at a time.
+GLOBAL_STEP_M = 0.25
+GLOBAL_HEADINGS = 60
+GLOBAL_CHUNK_POSES = 60000
+#: The heaviest cluster's share of the weight from which the filter counts as settled on it.
+SETTLED_WEIGHT = 0.9
 #: Standard deviations (m, m, rad) of the particles redrawn around a refined estimate.
 REFINED_SPREAD = np.array([0.02, 0.02, 0.01])
 
@@ -65,6 +72,7 @@ class Localizer:
         self.initialized = False
         self._odom: np.ndarray | None = None  # odometry pose at the last filter update
         self._force = False
+        self._global_search = False  # place the particles by a search on the next scan
         self._updates = 0
         self.last: Update | None = None
 
@@ -92,11 +100,20 @@ class Localizer:
         self._initialized()
 
     def global_localization(self) -> None:
-        """Particles spread uniformly over the map's free space (``reinitialize_global_localization``)."""
+        """Particles spread uniformly over the map's free space (``reinitialize_global_localization``).
+
+        Beyond Nav2: the next scan places them. Every pose of a grid over the free space
+        (:data:`GLOBAL_STEP_M`, :data:`GLOBAL_HEADINGS` headings) is scored with the laser model,
+        and the ``max_particles`` best, jittered within their grid cell, become the particles.
+        Uniform particles alone rarely put one near enough to the robot for the laser model to
+        tell it from the many half-fitting places of a maze.
+        """
         self.filter.init_uniform(self._free_xy, self.field.grid.resolution, self.rng)
         self._initialized()
+        self._global_search = True
 
     def _initialized(self) -> None:
+        self._global_search = False
         self.initialized = True
         self._force = True
         self._odom = None
@@ -136,7 +153,11 @@ class Localizer:
             return None
         if not (self._force or self.moved_enough(odom_pose)):
             return None
-        if self._odom is not None:
+        if self._global_search:
+            self._global_search = False
+            self.filter.particles = self._best_poses(scan)
+            self.filter.weights = np.full(len(self.filter.particles), 1.0 / len(self.filter.particles))
+        elif self._odom is not None:
             self.motion.sample(self.filter.particles, self._odom, odom_pose, self.rng)
         self._odom = odom_pose.copy()
         self._force = False
@@ -151,7 +172,10 @@ class Localizer:
             refined = self.fitter.refine(estimate.mean, scan if full_scan is None else full_scan)
             if refined is not None:
                 estimate = Cluster(estimate.weight, refined.pose, estimate.covariance)
-                self._reset_around(refined.pose)
+                if estimate.weight >= SETTLED_WEIGHT:
+                    # Only once one hypothesis holds the weight: while several compete (global
+                    # localization, a symmetric place), redrawing would crown the leader early.
+                    self._reset_around(refined.pose)
         self.last = Update(estimate, self.map_to_odom(estimate.mean, odom_pose), resampled, refined is not None)
         return self.last
 
@@ -171,6 +195,33 @@ class Localizer:
         self.last = Update(Cluster(self.last.estimate.weight, refined.pose, self.last.estimate.covariance),
                            map_to_odom, resampled=False, refined=True)
         return map_to_odom
+
+    def _best_poses(self, scan: Scan) -> np.ndarray:
+        """The ``max_particles`` best-scoring poses of a grid over the free space, jittered within their cell."""
+        res = self.field.grid.resolution
+        stride = max(1, round(GLOBAL_STEP_M / res))
+        free = self._free_xy
+        keys = np.floor(free / (stride * res)).astype(np.int64)
+        _, first = np.unique(keys, axis=0, return_index=True)
+        cells = free[np.sort(first)]
+        step = stride * res
+        headings = np.linspace(-np.pi, np.pi, GLOBAL_HEADINGS, endpoint=False)
+        count = self.settings.filter.max_particles
+        best_p = np.full(0, -np.inf)
+        best = np.zeros((0, 3))
+        chunk = max(1, GLOBAL_CHUNK_POSES // GLOBAL_HEADINGS)
+        for start in range(0, len(cells), chunk):
+            xy = cells[start:start + chunk]
+            poses = np.column_stack([np.repeat(xy, GLOBAL_HEADINGS, axis=0), np.tile(headings, len(xy))])
+            p = self.laser.likelihoods(poses, scan)
+            best_p, best = np.concatenate([best_p, p]), np.vstack([best, poses])
+            if len(best_p) > count:
+                keep = np.argpartition(-best_p, count)[:count]
+                best_p, best = best_p[keep], best[keep]
+        jitter = self.rng.uniform(-0.5, 0.5, size=best.shape) * (step, step, 2 * np.pi / GLOBAL_HEADINGS)
+        poses = best + jitter
+        poses[:, 2] = wrap_angles(poses[:, 2])
+        return poses
 
     def _reset_around(self, pose: np.ndarray) -> None:
         count = int(round(self.settings.refined_particle_fraction * len(self.filter)))

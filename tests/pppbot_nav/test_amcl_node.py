@@ -1,0 +1,173 @@
+"""The ``amcl`` node over DDS: a map, TF and scans of the synthetic room in; pose, cloud and map → odom out."""
+from __future__ import annotations
+
+import math
+import os
+from typing import Any
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
+from nav2_msgs.msg import ParticleCloud
+from rclpy.time import Time
+from sensor_msgs.msg import LaserScan
+from std_srvs.srv import Empty
+from tf2_msgs.msg import TFMessage
+
+from amcl_synthetic import BEAMS, LIDAR, RANGE_MAX, drive, grid, ranges
+from pppbot_bringup.run import find_executable
+from pppbot_common.ros.maps import grid_message
+from pppbot_common.ros.qos import LATCHED, SENSOR
+from pppbot_common.ros.wait import wait_until
+from pppbot_common.se2 import quaternion_from_yaw, se2_compose, yaw_from_quaternion
+
+pytestmark = pytest.mark.ros
+
+
+def transform(parent: str, child: str, stamp: Any, pose: np.ndarray) -> TransformStamped:
+    t = TransformStamped()
+    t.header.stamp, t.header.frame_id, t.child_frame_id = stamp, parent, child
+    t.transform.translation.x, t.transform.translation.y = float(pose[0]), float(pose[1])
+    r = t.transform.rotation
+    r.x, r.y, r.z, r.w = quaternion_from_yaw(float(pose[2]))
+    return t
+
+
+class Robot:
+    """The test's side: the map, the lidar mounting, odometry on /tf and scans of the synthetic room."""
+
+    def __init__(self, node: Any) -> None:
+        self.node = node
+        self.map_pub = node.create_publisher(type(grid_message(grid(), Time().to_msg())), "/map", LATCHED)
+        self.static_pub = node.create_publisher(TFMessage, "/tf_static", LATCHED)
+        self.tf_pub = node.create_publisher(TFMessage, "/tf", 100)
+        self.scan_pub = node.create_publisher(LaserScan, "/scan", SENSOR)
+        self.pose_pub = node.create_publisher(PoseWithCovarianceStamped, "/initialpose", 10)
+        self.poses: list[PoseWithCovarianceStamped] = []
+        self.clouds: list[ParticleCloud] = []
+        self.map_to_odom: list[TransformStamped] = []
+        node.create_subscription(PoseWithCovarianceStamped, "/amcl_pose", self.poses.append, LATCHED)
+        node.create_subscription(ParticleCloud, "/particle_cloud", self.clouds.append, SENSOR)
+        node.create_subscription(TFMessage, "/tf", lambda m: self.map_to_odom.extend(
+            t for t in m.transforms if t.header.frame_id == "map"), 100)
+        self.t_s = 100.0
+        self.map_pub.publish(grid_message(grid(), Time(seconds=1).to_msg()))
+        self.static_pub.publish(TFMessage(transforms=[transform("base_footprint", "lidar_frame",
+                                                               Time(seconds=1).to_msg(), np.array(LIDAR))]))
+
+    def step(self, truth: np.ndarray, odom: np.ndarray) -> None:
+        """One scan at the truth pose, its odometry on /tf just after it, 0.1 s later than the last."""
+        self.t_s += 0.1
+        stamp = Time(seconds=self.t_s).to_msg()
+        after = Time(seconds=self.t_s + 0.01).to_msg()
+        scan = LaserScan()
+        scan.header.stamp, scan.header.frame_id = stamp, "lidar_frame"
+        scan.angle_min, scan.angle_increment = -math.pi, 2 * math.pi / BEAMS
+        scan.angle_max = math.pi - scan.angle_increment
+        scan.range_min, scan.range_max = 0.12, RANGE_MAX
+        scan.ranges = [float(r) for r in ranges(truth)]
+        self.tf_pub.publish(TFMessage(transforms=[transform("odom", "base_footprint", stamp, odom)]))
+        self.scan_pub.publish(scan)
+        self.tf_pub.publish(TFMessage(transforms=[transform("odom", "base_footprint", after, odom)]))
+        for _ in range(5):
+            import rclpy
+            rclpy.spin_once(self.node, timeout_sec=0.02)
+
+    def initial_pose(self, pose: tuple[float, float, float], frame: str = "map") -> None:
+        msg = PoseWithCovarianceStamped()
+        msg.header.frame_id = frame
+        msg.pose.pose.position.x, msg.pose.pose.position.y = pose[0], pose[1]
+        o = msg.pose.pose.orientation
+        o.x, o.y, o.z, o.w = quaternion_from_yaw(pose[2])
+        cov = np.zeros((6, 6))
+        cov[0, 0] = cov[1, 1] = 0.25
+        cov[5, 5] = (math.pi / 12) ** 2
+        msg.pose.covariance = cov.ravel().tolist()
+        self.pose_pub.publish(msg)
+
+
+def start_amcl(spawn: Any, *params: str) -> Any:
+    ros_args = [a for p in ("seed:=3", *params) for a in ("-p", p)]
+    return spawn([str(find_executable("pppbot_nav", "amcl")), "--ros-args", *ros_args], name="amcl", env={**os.environ})
+
+
+def pose_of(msg: PoseWithCovarianceStamped) -> np.ndarray:
+    p, o = msg.pose.pose.position, msg.pose.pose.orientation
+    return np.array([p.x, p.y, yaw_from_quaternion(o.x, o.y, o.z, o.w)])
+
+
+def test_localizes_from_an_initial_pose_and_publishes_pose_cloud_and_map_to_odom(ros_node, spawn):
+    amcl = start_amcl(spawn)
+    robot = Robot(ros_node)
+    path = drive()
+    _, truth0, odom0 = path[0]
+    amcl.wait_for_output(r"map: \d+ × \d+ cells at 0.05 m", 30)
+    wait_until(lambda: robot.pose_pub.get_subscription_count() > 0 or None, 20, "amcl on /initialpose",
+               node=ros_node)
+    # Scans before any initial pose: Nav2's reminder, and no pose.
+    deadline_steps = 0
+    while "Please set the initial pose" not in amcl.output and deadline_steps < 100:
+        robot.step(truth0, odom0)
+        deadline_steps += 1
+    assert "Please set the initial pose" in amcl.output and not robot.poses
+
+    robot.initial_pose((truth0[0] + 0.3, truth0[1] - 0.2, truth0[2] + 0.2), frame="odom")  # the wrong frame
+    amcl.wait_for_output(r"ignoring an initial pose in frame 'odom'", 20)
+    robot.initial_pose((truth0[0] + 0.3, truth0[1] - 0.2, truth0[2] + 0.2))
+    amcl.wait_for_output(r"initial pose \(0\.800, -1\.200, 0\.200\)", 20)
+    for _, truth, odom in path[:60]:  # 2.5 m along the room's first leg
+        robot.step(truth, odom)
+    wait_until(lambda: len(robot.poses) >= 5 or None, 20, "amcl poses", node=ros_node)
+    truth, odom = path[59][1], path[59][2]
+    wait_until(lambda: robot.map_to_odom or None, 20, "map → odom", node=ros_node)
+    last = robot.map_to_odom[-1]
+    tr = last.transform
+    map_to_odom = np.array([tr.translation.x, tr.translation.y,
+                            yaw_from_quaternion(tr.rotation.x, tr.rotation.y, tr.rotation.z, tr.rotation.w)])
+    estimate = se2_compose(map_to_odom, odom)
+    assert np.hypot(*(estimate[:2] - truth[:2])) < 0.05
+    assert abs(math.remainder(estimate[2] - truth[2], 2 * math.pi)) < math.radians(1.0)
+    assert last.child_frame_id == "odom"
+    # Stamped with the scan's time plus transform_tolerance (1 s).
+    assert Time.from_msg(last.header.stamp).nanoseconds / 1e9 == pytest.approx(robot.t_s + 1.0, abs=0.15)
+    assert robot.poses[-1].header.frame_id == "map"
+    assert np.hypot(*(pose_of(robot.poses[-1])[:2] - truth[:2])) < 0.3  # at its last filter update
+    assert robot.poses[-1].pose.covariance[0] > 0.0 and robot.poses[-1].pose.covariance[35] > 0.0
+    wait_until(lambda: robot.clouds or None, 20, "a particle cloud", node=ros_node)
+    assert 500 <= len(robot.clouds[-1].particles) <= 2000
+    assert sum(p.weight for p in robot.clouds[-1].particles) == pytest.approx(1.0)
+
+
+def test_services_and_bad_input_keep_the_node_running(ros_node, spawn):
+    amcl = start_amcl(spawn, "set_initial_pose:=true", "initial_pose.x:=0.5", "initial_pose.y:=-1.0")
+    robot = Robot(ros_node)
+    amcl.wait_for_output(r"initial pose \(0\.500, -1\.000, 0\.000\)", 30)
+    client = ros_node.create_client(Empty, "/reinitialize_global_localization")
+    wait_until(lambda: client.service_is_ready() or None, 20, "the service", node=ros_node)
+    future = client.call_async(Empty.Request())
+    wait_until(lambda: future.done() or None, 20, "a reply", node=ros_node)
+    amcl.wait_for_output(r"global localization: 2000 particles over the free space", 10)
+    wait_until(lambda: robot.pose_pub.get_subscription_count() > 0 or None, 20, "amcl on /initialpose",
+               node=ros_node)
+    robot.initial_pose((math.nan, 0.0, 0.0))
+    amcl.wait_for_output(r"ignoring an initial pose: an initial pose must be finite", 20)
+    _, truth, odom = drive()[0]
+    robot.step(truth, odom)  # odometry at t, then a scan stamped t with no ranges at all
+    bad = LaserScan()
+    bad.header.frame_id = "lidar_frame"
+    bad.header.stamp = Time(seconds=robot.t_s).to_msg()
+    bad.range_min, bad.range_max = 0.1, 10.0
+    robot.scan_pub.publish(bad)
+    amcl.wait_for_output(r"dropping a scan: a scan with no ranges", 20)
+    assert amcl.running()
+
+
+@pytest.mark.parametrize("param, message", [
+    ("laser_model_type:=sonar", "parameter 'laser_model_type' = 'sonar': must be one of likelihood_field, beam"),
+    ("min_particles:=3000", "min_particles"),
+    ("sigma_hit:=0.0", "parameter 'sigma_hit' = 0.0"),
+])
+def test_a_bad_parameter_stops_the_node_naming_it(spawn, param, message):
+    amcl = start_amcl(spawn, param)
+    assert amcl.wait(30) == 1
+    assert message in amcl.output
