@@ -82,3 +82,21 @@ def test_slam_scenario_maps_the_room_and_tracks_the_robot(spawn, tmp_path: Path)
     with np.load(out / "recording.npz") as recording:
         map_to_odom = recording["tf_map__odom"]
     assert len(np.unique(map_to_odom[:, 1:].round(4), axis=0)) > 3
+
+
+def test_localization_scenario_recovers_from_a_wrong_initial_pose_on_the_rooms_map(spawn, tmp_path: Path):
+    # The room's ground-truth map, as maps/<world>.yaml would hold it.
+    saver = spawn([PPPBOT, "run", "pppbot_sim", "ground_truth_map", f"world:={BOX_ROOM}",
+                   f"output:={tmp_path / 'box_room'}"], name="ground_truth_map")
+    assert saver.wait(timeout_s=120) == 0, saver.output
+    out = tmp_path / "localization"
+    code, report, output = run_eval(spawn, out, "--seed", "1", "--map", str(tmp_path / "box_room.yaml"),
+                                    "--initial-offset", "0.3", "-0.4", "0.3", scenario="localization")
+    assert code == 0, output
+    assert report["scenario"] == "localization" and report["ok"] is True and report["collisions"] == 0
+    # Off by 0.5 m and 0.3 rad at the start; near issue 10's targets once converged (they are measured on
+    # the maze and room by eval; this small room's map is drawn half a cell off its walls in places).
+    assert report["initial_position_error_m"] > 0.15
+    assert report["converged"] is True and report["converged_after_m"] <= 2.0
+    assert report["amcl_rms_m"] <= 0.05 and report["amcl_yaw_rms_rad"] <= 0.03
+    assert report["plots"] == ["error.png", "trajectory.png"]
