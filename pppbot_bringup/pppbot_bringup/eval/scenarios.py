@@ -134,8 +134,10 @@ def save_recording(path: Path, recording: Recording) -> None:
     np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
 
 
-def estimate_series(recording: Recording, estimate: Estimate) -> PoseSeries:
+def estimate_series(recording: Recording, estimate: Estimate, outer_ahead_s: float = 0.0) -> PoseSeries:
     """The estimated pose stream: the topic's poses, or the TF chain composed at the innermost edge's stamps.
+    ``outer_ahead_s``: the outer edges are stamped this far ahead of the data they were computed
+    from (AMCL's ``transform_tolerance``), and are taken back to that time.
 
     Raises:
         PoseSeriesError: an edge of the chain was never received.
@@ -143,6 +145,8 @@ def estimate_series(recording: Recording, estimate: Estimate) -> PoseSeries:
     if estimate.topic is not None:
         return PoseSeries.from_rows(recording.estimate_rows)
     edges = [PoseSeries.from_rows(recording.edge_rows.get(edge, [])) for edge in estimate.edges()]
+    if outer_ahead_s:
+        edges[:-1] = [PoseSeries(e.t_s - outer_ahead_s, e.xy, e.yaw_rad) for e in edges[:-1]]
     series = edges[-1]
     for outer in reversed(edges[:-1]):
         series = compose_chain(outer, series)
@@ -175,12 +179,13 @@ def localization_metrics(ate: TrajectoryError, truth: PoseSeries) -> dict[str, A
 
 
 def route_metrics(scenario: Scenario, recording: Recording, route: Route, truth_map: OccupancyGrid, out: Path,
-                  title: str, map_to_world: tuple[float, float, float] | None = None
-                  ) -> tuple[dict[str, Any], str | None]:
+                  title: str, map_to_world: tuple[float, float, float] | None = None,
+                  estimate_ahead_s: float = 0.0) -> tuple[dict[str, Any], str | None]:
     """The estimate's error along the route (ATE, RPE, final error), clearance and collisions;
     writes the trajectory and error plots. For ``drive`` the estimate is wheel odometry,
     for ``slam`` the map → base_link chain (the map frame is the spawn pose unless
-    ``map_to_world`` says where it is), for ``localization`` the same with AMCL's figures.
+    ``map_to_world`` says where it is), for ``localization`` the same with AMCL's figures,
+    taken at the scans' times (``estimate_ahead_s``: how far ahead map → odom is stamped).
 
     Returns the metrics and what kept some of them from being measured (None: nothing).
 
@@ -210,7 +215,10 @@ def route_metrics(scenario: Scenario, recording: Recording, route: Route, truth_
     metrics["final_position_error_m"] = float(ate.position_error_m[-1])
     metrics["final_yaw_error_rad"] = float(ate.yaw_error_rad[-1])
     if scenario is Scenario.LOCALIZATION:
-        metrics.update(localization_metrics(ate, truth))
+        # AMCL's own estimate: map → odom at the scan it was computed from, not at the stamp
+        # transform_tolerance ahead that TF users interpolate (which the ate_* keys measure).
+        at_scan = estimate_series(recording, ESTIMATES[scenario], estimate_ahead_s)
+        metrics.update(localization_metrics(absolute_trajectory_error(at_scan, truth, frame), truth))
     label = ESTIMATE_LABELS[scenario]
     plot_trajectories(out / "trajectory.png", truth_map, truth, estimate.transformed(frame),
                       label, [(x, y) for _, x, y in recording.collisions], title)

@@ -25,6 +25,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from pppbot_bringup.eval.driver import DriverSettings, RouteDriver
 from pppbot_bringup.eval.progress import Progress
 from pppbot_bringup.eval.report import write_json
@@ -45,6 +47,7 @@ from pppbot_bringup.eval.scenarios import (
     world_truth,
 )
 from pppbot_bringup.launch_sim import ARGUMENTS, plan
+from pppbot_bringup.paths import config_directory
 from pppbot_bringup.ros.eval_node import EvalNode
 from pppbot_bringup.ros.graph_probe import GraphProbe
 from pppbot_bringup.run import RunError, find_executable
@@ -242,6 +245,13 @@ class Run:
                 return
 
 
+def amcl_transform_tolerance() -> float:
+    """How far ahead AMCL stamps map → odom: ``transform_tolerance`` of the parameter file the
+    bringup gives it (``config/nav2_params.yaml``)."""
+    values = yaml.safe_load((config_directory() / "nav2_params.yaml").read_text()) or {}
+    return float(values.get("amcl", {}).get("ros__parameters", {}).get("transform_tolerance", 1.0))
+
+
 def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     rec = run.recording
     title = f"{run.scenario.value} in {run.world_file.stem}, route {run.route.name}"
@@ -250,9 +260,10 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     problem = None
     if rec.truth_rows:
         try:
-            map_pose = tuple(run.args.map_pose) if run.scenario is Scenario.LOCALIZATION else None
-            metrics, problem = route_metrics(run.scenario, rec, run.route, truth_map, run.out, title,
-                                             map_pose)
+            localizing = run.scenario is Scenario.LOCALIZATION
+            map_pose = tuple(run.args.map_pose) if localizing else None
+            metrics, problem = route_metrics(run.scenario, rec, run.route, truth_map, run.out, title, map_pose,
+                                             amcl_transform_tolerance() if localizing else 0.0)
             if run.scenario is Scenario.SLAM and rec.final_map is not None:
                 map_truth = world_truth(run.world_file, run.route, rec.final_map.resolution)
                 metrics.update(map_metrics(rec.final_map, map_truth, run.route.start, run.out, title + " — map"))
