@@ -12,3 +12,7 @@ class MapSaverError(PppbotError, ValueError):
 class AmclError(PppbotError, ValueError):
     """AMCL cannot do what was asked (bad settings, an empty map, a malformed scan or pose);
     the message names the value and what is allowed."""
+
+
+class CostmapError(PppbotError, ValueError):
+    """A costmap or layer cannot be built or updated as asked; the message names the value."""

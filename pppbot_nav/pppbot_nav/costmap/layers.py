@@ -1,0 +1,191 @@
+"""Costmap layers (Nav2's ``nav2_costmap_2d`` plugins), applied in order onto a master costmap.
+
+* :class:`StaticLayer` (``nav2_costmap_2d::StaticLayer``): a map (nav_msgs/OccupancyGrid
+  values): cells at or above ``lethal_cost_threshold`` are lethal, unknown cells stay
+  unknown with ``track_unknown_space`` (else free), the rest free. It overwrites the master.
+* :class:`ObstacleLayer` (``nav2_costmap_2d::ObstacleLayer``, and what pppbot gives for
+  ``VoxelLayer`` on a 2D lidar): marks the cells of scan end points within
+  ``obstacle_max_range``, and clears the cells along each beam up to the end point (or up to
+  ``raytrace_max_range`` for a beam with no return); its cells are combined with the master by
+  maximum, its unknown cells leaving the master alone and its known ones replacing an unknown master.
+* :class:`InflationLayer` (``nav2_costmap_2d::InflationLayer``): around every lethal cell,
+  253 within ``inscribed_radius`` (the robot's radius) and ``252·exp(−cost_scaling_factor·(d −
+  inscribed_radius))`` out to ``inflation_radius``, combined by maximum (an unknown master cell
+  takes an inscribed or lethal cost only).
+"""
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+import numpy as np
+from scipy import ndimage
+
+from pppbot_common.maps import OccupancyGrid
+from pppbot_nav.costmap.costs import FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION
+from pppbot_nav.costmap.grid import Costmap
+from pppbot_nav.errors import CostmapError
+
+
+class Layer(Protocol):
+    plugin: str
+
+    def update(self, master: Costmap) -> None:
+        """Apply this layer's costs onto ``master``."""
+
+
+class StaticLayer:
+    plugin = "nav2_costmap_2d::StaticLayer"
+
+    def __init__(self, track_unknown_space: bool = True, lethal_cost_threshold: int = 100) -> None:
+        if not 1 <= lethal_cost_threshold <= 100:
+            raise CostmapError(f"lethal_cost_threshold must be in [1, 100], not {lethal_cost_threshold}")
+        self.track_unknown_space = track_unknown_space
+        self.lethal_cost_threshold = lethal_cost_threshold
+        self.map: OccupancyGrid | None = None
+
+    def set_map(self, grid: OccupancyGrid) -> None:
+        if grid.origin[2] != 0.0:
+            raise CostmapError(f"a map with a rotated origin (yaw {grid.origin[2]}) is not supported")
+        self.map = grid
+
+    def costs_of(self, values: np.ndarray) -> np.ndarray:
+        """Costs of OccupancyGrid values."""
+        unknown = NO_INFORMATION if self.track_unknown_space else FREE_SPACE
+        return np.where(values < 0, unknown, np.where(values >= self.lethal_cost_threshold, LETHAL_OBSTACLE,
+                                                      FREE_SPACE)).astype(np.uint8)
+
+    def update(self, master: Costmap) -> None:
+        if self.map is None:
+            return
+        xs, ys = master.cell_centres()
+        rows, cols = self.map.cell_of(xs, ys)
+        h, w = self.map.data.shape
+        ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        values = self.map.data[np.where(ok, rows, 0), np.where(ok, cols, 0)]
+        master.costs[ok] = self.costs_of(values)[ok]
+
+
+def combine_max(master: Costmap, layer: np.ndarray) -> None:
+    """Nav2's ``updateWithMax``: the layer's unknown cells leave the master alone; its known ones
+    replace an unknown master cell or a lower cost."""
+    known = layer != NO_INFORMATION
+    take = known & ((master.costs == NO_INFORMATION) | (master.costs < layer))
+    master.costs[take] = layer[take]
+
+
+class ObstacleLayer:
+    plugin = "nav2_costmap_2d::ObstacleLayer"
+
+    def __init__(self, obstacle_max_range: float = 2.5, obstacle_min_range: float = 0.0,
+                 raytrace_max_range: float = 3.0, raytrace_min_range: float = 0.0,
+                 track_unknown_space: bool = True) -> None:
+        for name, value in (("obstacle_max_range", obstacle_max_range), ("raytrace_max_range", raytrace_max_range),
+                            ("obstacle_min_range", obstacle_min_range), ("raytrace_min_range", raytrace_min_range)):
+            if not (math.isfinite(value) and value >= 0):
+                raise CostmapError(f"{name} must be a finite number ≥ 0, not {value}")
+        self.obstacle_max_range, self.obstacle_min_range = obstacle_max_range, obstacle_min_range
+        self.raytrace_max_range, self.raytrace_min_range = raytrace_max_range, raytrace_min_range
+        self.unknown = NO_INFORMATION if track_unknown_space else FREE_SPACE
+        self.grid: Costmap | None = None  # this layer's own cells, the master's geometry
+
+    def _match(self, master: Costmap) -> Costmap:
+        g = self.grid
+        if g is None or g.costs.shape != master.costs.shape or g.resolution != master.resolution:
+            g = self.grid = Costmap(np.full(master.costs.shape, self.unknown, dtype=np.uint8), master.resolution,
+                                    master.origin, master.frame_id)
+        elif g.origin != master.origin:
+            g.recentre(master.origin[0] + master.width * master.resolution / 2.0,
+                       master.origin[1] + master.height * master.resolution / 2.0, self.unknown)
+        return g
+
+    def observe(self, master: Costmap, sensor_xy: tuple[float, float], bearings_rad: np.ndarray,
+                ranges_m: np.ndarray) -> None:
+        """One scan from ``sensor_xy`` (in the costmap's frame): beams with world ``bearings_rad`` and
+        ``ranges_m`` (inf or NaN: no return). Clears along each beam, then marks the end points."""
+        grid = self._match(master)
+        ranges = np.asarray(ranges_m, dtype=float)
+        bearings = np.asarray(bearings_rad, dtype=float)
+        hit = np.isfinite(ranges)
+        # Clearing: up to the end point (its own cell is left to marking), or raytrace_max_range.
+        reach = np.minimum(np.where(hit, ranges, np.inf), self.raytrace_max_range)
+        step = grid.resolution / 2.0
+        steps = np.arange(0.0, max(float(reach.max(initial=0.0)), 0.0), step)
+        if steps.size:
+            t = steps[None, :]
+            along = (t >= self.raytrace_min_range) & (t < reach[:, None] - step)
+            xs = sensor_xy[0] + t * np.cos(bearings)[:, None]
+            ys = sensor_xy[1] + t * np.sin(bearings)[:, None]
+            rows, cols = grid.cell_of(xs[along], ys[along])
+            ok = grid.inside(rows, cols)
+            grid.costs[rows[ok], cols[ok]] = FREE_SPACE
+        mark = hit & (ranges <= self.obstacle_max_range) & (ranges >= self.obstacle_min_range)
+        ex = sensor_xy[0] + ranges[mark] * np.cos(bearings[mark])
+        ey = sensor_xy[1] + ranges[mark] * np.sin(bearings[mark])
+        rows, cols = grid.cell_of(ex, ey)
+        ok = grid.inside(rows, cols)
+        grid.costs[rows[ok], cols[ok]] = LETHAL_OBSTACLE
+
+    def clear(self) -> None:
+        """Forget every observation (Nav2's clear_entirely_* services)."""
+        if self.grid is not None:
+            self.grid.costs[:] = self.unknown
+
+    def update(self, master: Costmap) -> None:
+        combine_max(master, self._match(master).costs)
+
+
+class InflationLayer:
+    plugin = "nav2_costmap_2d::InflationLayer"
+
+    def __init__(self, inflation_radius: float = 0.55, cost_scaling_factor: float = 3.0,
+                 inscribed_radius: float = 0.3, inflate_unknown: bool = False) -> None:
+        if not (math.isfinite(inflation_radius) and inflation_radius >= 0):
+            raise CostmapError(f"inflation_radius must be a finite number ≥ 0, not {inflation_radius}")
+        if not (math.isfinite(cost_scaling_factor) and cost_scaling_factor >= 0):
+            raise CostmapError(f"cost_scaling_factor must be a finite number ≥ 0, not {cost_scaling_factor}")
+        if not (math.isfinite(inscribed_radius) and inscribed_radius >= 0):
+            raise CostmapError(f"the robot's inscribed radius must be a finite number ≥ 0, not {inscribed_radius}")
+        self.inflation_radius, self.cost_scaling_factor = inflation_radius, cost_scaling_factor
+        self.inscribed_radius, self.inflate_unknown = inscribed_radius, inflate_unknown
+
+    def cost_at_distance(self, distance_m: np.ndarray) -> np.ndarray:
+        """Nav2's ``computeCost`` of a distance (m) to the nearest lethal cell."""
+        d = np.asarray(distance_m, dtype=float)
+        decay = (INSCRIBED_INFLATED_OBSTACLE - 1) * np.exp(-self.cost_scaling_factor * (d - self.inscribed_radius))
+        cost = np.where(d <= self.inscribed_radius, INSCRIBED_INFLATED_OBSTACLE, decay.astype(int))
+        cost = np.where(d > self.inflation_radius, FREE_SPACE, cost)
+        return np.where(d == 0.0, LETHAL_OBSTACLE, cost).astype(np.uint8)
+
+    def update(self, master: Costmap) -> None:
+        lethal = master.costs == LETHAL_OBSTACLE
+        if not lethal.any():
+            return
+        distance = np.asarray(ndimage.distance_transform_edt(~lethal)) * master.resolution
+        cost = self.cost_at_distance(distance)
+        old = master.costs
+        unknown = old == NO_INFORMATION
+        floor = FREE_SPACE if self.inflate_unknown else INSCRIBED_INFLATED_OBSTACLE - 1
+        take_unknown = unknown & (cost > floor)
+        take_known = ~unknown & (cost > old)
+        master.costs[take_unknown | take_known] = cost[take_unknown | take_known]
+
+
+class LayeredCostmap:
+    """A master costmap rebuilt from its layers in order; ``rolling`` windows follow the robot."""
+
+    def __init__(self, master: Costmap, layers: list[Layer], rolling: bool = False,
+                 default_value: int = NO_INFORMATION) -> None:
+        self.master = master
+        self.layers = layers
+        self.rolling = rolling
+        self.default_value = default_value
+
+    def update(self, robot_xy: tuple[float, float] | None = None) -> Costmap:
+        """Rebuild the master (recentred on ``robot_xy`` first when rolling) and return it."""
+        if self.rolling and robot_xy is not None:
+            self.master.recentre(robot_xy[0], robot_xy[1], self.default_value)
+        self.master.costs[:] = self.default_value
+        for layer in self.layers:
+            layer.update(self.master)
+        return self.master
