@@ -159,3 +159,19 @@ def test_replacing_particles_keeps_the_weights_normalised():
     pf.replace_some(np.tile([9.0, 9.0, 0.0], (10, 1)), np.random.default_rng(1))
     assert np.sum(pf.particles[:, 0] == 9.0) == 10
     assert pf.weights.sum() == pytest.approx(1.0)
+
+
+def test_reconfiguring_keeps_the_particles_and_updates_on_the_next_scan():
+    loc = localizer(update_min_d=0.25)
+    _, truth, odom = drive()[0]
+    loc.set_initial_pose(truth, NAV2_INITIAL_COVARIANCE / 100)
+    s = scan(truth)
+    loc.update(odom, s)
+    before = loc.filter.particles.copy()
+    loc.reconfigure(LocalizerSettings(update_min_d=1.0, laser=loc.settings.laser))
+    assert np.array_equal(loc.filter.particles, before) and loc.initialized
+    assert loc.update(odom, s) is not None  # forced once
+    assert loc.update(odom + [0.5, 0.0, 0.0], s) is None  # under the new update_min_d
+    with pytest.raises(AmclError, match="min_particles"):
+        loc.reconfigure(LocalizerSettings(filter=FilterSettings(min_particles=10, max_particles=5)))
+    assert loc.settings.update_min_d == 1.0  # the refused settings changed nothing

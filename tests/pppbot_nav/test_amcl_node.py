@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from nav2_msgs.msg import ParticleCloud
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
 from rclpy.time import Time
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Empty
@@ -159,6 +161,16 @@ def test_services_and_bad_input_keep_the_node_running(ros_node, spawn):
     bad.range_min, bad.range_max = 0.1, 10.0
     robot.scan_pub.publish(bad)
     amcl.wait_for_output(r"dropping a scan: a scan with no ranges", 20)
+    # Runtime parameter changes are validated like start-up ones.
+    setter = ros_node.create_client(SetParameters, "/amcl/set_parameters")
+    wait_until(lambda: setter.service_is_ready() or None, 20, "amcl's parameter service", node=ros_node)
+    for value, ok in ((ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=1), False),
+                      (ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=30), True)):
+        future = setter.call_async(SetParameters.Request(parameters=[Parameter(name="max_beams", value=value)]))
+        result = wait_until(lambda: future.result(), 20, "a reply", node=ros_node).results[0]
+        assert result.successful is ok
+        if not ok:
+            assert "max_beams" in result.reason and "at least 2" in result.reason
     assert amcl.running()
 
 

@@ -88,6 +88,21 @@ class Localizer:
         self.fitter = ScanFitter(self.field)
         self._free_xy = self.field.free_cell_centres()
 
+    def reconfigure(self, settings: LocalizerSettings) -> None:
+        """Go on with new ``settings`` (a runtime parameter change), keeping the particles and the
+        last estimate; the next scan updates the filter.
+
+        Raises:
+            AmclError: bad filter settings (nothing is changed then).
+        """
+        fresh = ParticleFilter(settings.filter)
+        fresh.particles, fresh.weights = self.filter.particles, self.filter.weights
+        self.settings = settings
+        self.filter = fresh
+        self.motion = motion_model(settings.robot_model_type, settings.motion_noise)
+        self.set_map(self.field.grid)
+        self._force = True
+
     # -------------------------------------------------------------- initial poses
     def set_initial_pose(self, mean: np.ndarray, covariance: np.ndarray) -> None:
         """Particles around ``mean`` (x, y, yaw in the map) with the 3 × 3 ``covariance``; the next

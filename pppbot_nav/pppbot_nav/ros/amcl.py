@@ -191,13 +191,7 @@ class Amcl(Node):
         self.params = params
         self.scans.odom_frame, self.scans.base_frame = params.odom_frame_id, params.base_frame_id
         if self.localizer is not None and params.settings() != old.settings():
-            previous = self.localizer
-            self.localizer = Localizer(params.settings(), previous.field.grid, self.rng)
-            if previous.initialized:
-                self.localizer.filter.particles = previous.filter.particles
-                self.localizer.filter.weights = previous.filter.weights
-                self.localizer.initialized = True
-                self.localizer.request_nomotion_update()
+            self.localizer.reconfigure(params.settings())
 
     # ------------------------------------------------------------------- map
     def _on_map(self, msg: OccupancyGridMsg) -> None:
