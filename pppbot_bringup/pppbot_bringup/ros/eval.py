@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
 from pppbot_bringup.eval.driver import DriverSettings, RouteDriver
@@ -70,8 +71,7 @@ FINAL_MAP_TIMEOUT_S = 60.0
 #: Wall seconds between initial poses sent while AMCL has not answered.
 INITIAL_POSE_RESEND_S = 5.0
 #: The covariance RViz's 2D Pose Estimate sends: 0.5 m and π/12 rad standard deviations.
-INITIAL_POSE_COVARIANCE = [0.25, 0, 0, 0, 0, 0, 0, 0.25, 0, 0, 0, 0, *[0] * 6, *[0] * 6, *[0] * 6,
-                           0, 0, 0, 0, 0, (math.pi / 12) ** 2]
+INITIAL_POSE_COVARIANCE = [float(v) for v in np.diag([0.25, 0.25, 0.0, 0.0, 0.0, (math.pi / 12) ** 2]).ravel()]
 
 
 class Run:
