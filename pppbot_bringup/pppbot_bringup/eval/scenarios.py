@@ -164,6 +164,7 @@ def localization_metrics(ate: TrajectoryError, truth: PoseSeries) -> dict[str, A
     bad_travel = np.where(good, np.inf, travel)
     next_bad = np.minimum.accumulate(bad_travel[::-1])[::-1]
     stays = good & (next_bad - travel >= CONVERGED_TRAVEL_M)
+    # ... and that much travel is left to show it (the whole run, for a run shorter than that).
     stays &= travel[-1] - travel >= min(CONVERGED_TRAVEL_M, travel[-1])
     metrics: dict[str, Any] = {"initial_position_error_m": float(ate.position_error_m[0]),
                                "initial_yaw_error_rad": float(abs(ate.yaw_error_rad[0]))}
