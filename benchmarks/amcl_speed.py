@@ -39,7 +39,7 @@ from slam_dataset import SlamDataset, ensure_dataset, load_dataset  # noqa: E402
 from pppbot_bringup.eval.scenarios import world_truth  # noqa: E402
 from pppbot_common.se2 import se2_compose, wrap_angle  # noqa: E402
 from pppbot_nav.amcl.filter import FilterSettings  # noqa: E402
-from pppbot_nav.amcl.laser import Scan  # noqa: E402
+from pppbot_nav.amcl.laser import laser_scans  # noqa: E402
 from pppbot_nav.amcl.localizer import Localizer  # noqa: E402
 from pppbot_nav.ros.amcl import INITIAL_COVARIANCE, AmclParameters  # noqa: E402
 from pppbot_sim.worlds import find_world  # noqa: E402
@@ -52,12 +52,10 @@ def run(data: SlamDataset, localizer: Localizer, start: np.ndarray) -> dict[str,
     update_ms, track_ms, errors, particles = [], [], [], []
     for odom, truth, ranges in zip(data.odom, data.truth, data.ranges):
         t0 = time.perf_counter()
-        scan = Scan.from_laser(ranges, data.angle_min, data.angle_increment, data.range_min, data.range_max,
-                               sensor, laser)
-        full = Scan.from_laser(ranges, data.angle_min, data.angle_increment, data.range_min, data.range_max,
-                               sensor, laser, max_beams=len(ranges))
+        scan, full = laser_scans(ranges, data.angle_min, data.angle_increment, data.range_min, data.range_max,
+                                 sensor, laser)
         update = localizer.update(odom, scan, full)
-        if update is None:
+        if update is None and full is not None:
             localizer.track(odom, full)
         elapsed_ms = 1000.0 * (time.perf_counter() - t0)
         (update_ms if update is not None else track_ms).append(elapsed_ms)

@@ -11,7 +11,11 @@ class MapSaverError(PppbotError, ValueError):
 
 class AmclError(PppbotError, ValueError):
     """AMCL cannot do what was asked (bad settings, an empty map, a malformed scan or pose);
-    the message names the value and what is allowed."""
+    the message names the value and what is allowed, and ``parameter`` the setting at fault, if one is."""
+
+    def __init__(self, message: str, parameter: str | None = None) -> None:
+        super().__init__(message)
+        self.parameter = parameter
 
 
 class CostmapError(PppbotError, ValueError):

@@ -176,7 +176,7 @@ def test_services_and_bad_input_keep_the_node_running(ros_node, spawn):
 
 @pytest.mark.parametrize("param, message", [
     ("laser_model_type:=sonar", "parameter 'laser_model_type' = 'sonar': must be one of likelihood_field, beam"),
-    ("min_particles:=3000", "min_particles"),
+    ("min_particles:=3000", "parameter 'min_particles' = 3000: min_particles (3000) and max_particles (2000)"),
     ("sigma_hit:=0.0", "parameter 'sigma_hit' = 0.0"),
 ])
 def test_a_bad_parameter_stops_the_node_naming_it(spawn, param, message):

@@ -47,15 +47,15 @@ class FilterSettings:
         """Raises AmclError naming the first bad value."""
         if not 1 <= self.min_particles <= self.max_particles:
             raise AmclError(f"min_particles ({self.min_particles}) and max_particles ({self.max_particles}) must "
-                            "satisfy 1 ≤ min_particles ≤ max_particles")
+                            "satisfy 1 ≤ min_particles ≤ max_particles", "min_particles")
         if not 0.0 < self.pf_err < 1.0:
-            raise AmclError(f"pf_err must be in (0, 1), not {self.pf_err}")
+            raise AmclError(f"pf_err must be in (0, 1), not {self.pf_err}", "pf_err")
         if not 0.5 <= self.pf_z < 1.0:
-            raise AmclError(f"pf_z must be in [0.5, 1), not {self.pf_z}")
+            raise AmclError(f"pf_z must be in [0.5, 1), not {self.pf_z}", "pf_z")
         for name in ("recovery_alpha_slow", "recovery_alpha_fast"):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
-                raise AmclError(f"{name} must be in [0, 1], not {value}")
+                raise AmclError(f"{name} must be in [0, 1], not {value}", name)
 
 
 @dataclass(frozen=True)

@@ -103,6 +103,19 @@ class Scan:
         return particles[:, 0:1] + c * bx - s * by, particles[:, 1:2] + s * bx + c * by
 
 
+def laser_scans(ranges: np.ndarray, angle_min: float, angle_increment: float, range_min: float,
+                range_max: float, laser_pose: tuple[float, float, float], settings: LaserSettings,
+                full: bool = True) -> tuple[Scan, Scan | None]:
+    """What a LaserScan gives the localizer: the ``max_beams`` beams the particles are weighed
+    with, and (``full``) every beam, for the refinement; None when not wanted.
+
+    Raises:
+        AmclError: a malformed scan (see :meth:`Scan.from_laser`).
+    """
+    args = (ranges, angle_min, angle_increment, range_min, range_max, laser_pose, settings)
+    return Scan.from_laser(*args), Scan.from_laser(*args, max_beams=len(ranges)) if full else None
+
+
 class MapField:
     """A map prepared for the laser models: the distance (m) from each cell to the nearest occupied
     cell, and to the nearest cell that stops a ray (occupied or unknown)."""

@@ -186,11 +186,11 @@ class Localizer:
         if self.settings.refine_estimate:
             refined = self.fitter.refine(estimate.mean, scan if full_scan is None else full_scan)
             if refined is not None:
-                estimate = Cluster(estimate.weight, refined.pose, estimate.covariance)
+                estimate = Cluster(estimate.weight, refined, estimate.covariance)
                 if estimate.weight >= SETTLED_WEIGHT:
                     # Only once one hypothesis holds the weight: while several compete (global
                     # localization, a symmetric place), redrawing would crown the leader early.
-                    self._reset_around(refined.pose)
+                    self._reset_around(refined)
         self.last = Update(estimate, self.map_to_odom(estimate.mean, odom_pose), resampled, refined is not None)
         return self.last
 
@@ -206,8 +206,8 @@ class Localizer:
         refined = self.fitter.refine(se2_compose(self.last.map_to_odom, odom_pose), full_scan)
         if refined is None:
             return None
-        map_to_odom = self.map_to_odom(refined.pose, odom_pose)
-        self.last = Update(Cluster(self.last.estimate.weight, refined.pose, self.last.estimate.covariance),
+        map_to_odom = self.map_to_odom(refined, odom_pose)
+        self.last = Update(Cluster(self.last.estimate.weight, refined, self.last.estimate.covariance),
                            map_to_odom, resampled=False, refined=True)
         return map_to_odom
 

@@ -13,8 +13,6 @@ stands. The particles themselves are left as they are.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-
 import numpy as np
 
 from pppbot_nav.amcl.laser import MapField, Scan
@@ -30,14 +28,6 @@ MAX_TURN_RAD = 0.15
 INLIER_DISTANCE_M = 0.3
 #: Fewer inliers than this and there is too little to fit.
 MIN_INLIERS = 20
-
-
-@dataclass(frozen=True)
-class Refinement:
-    pose: np.ndarray
-    inliers: int
-    mean_distance_m: float  # mean end-point distance to the map at the pose (inliers of the start)
-    start_distance_m: float
 
 
 class ScanFitter:
@@ -61,7 +51,7 @@ class ScanFitter:
         gy = ((d10 - d00) * (1 - ax) + (d11 - d01) * ax) / g.resolution
         return value, gx, gy
 
-    def refine(self, start: np.ndarray, scan: Scan) -> Refinement | None:
+    def refine(self, start: np.ndarray, scan: Scan) -> np.ndarray | None:
         """The pose near ``start`` (x, y, yaw) where ``scan``'s end points lie closest to the map's
         walls; None when too few beams hit near a wall or the fit does not improve."""
         if not np.isfinite(self.distance).all():
@@ -97,7 +87,7 @@ class ScanFitter:
         if cost >= start_cost or shift > MAX_SHIFT_M or turn > MAX_TURN_RAD:
             return None
         pose[2] = math.remainder(pose[2], 2.0 * math.pi)
-        return Refinement(pose, int(len(qx)), float(d.mean()), float(d0[inlier].mean()))
+        return pose
 
 
 def _transform(pose: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

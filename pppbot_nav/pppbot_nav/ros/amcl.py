@@ -46,7 +46,7 @@ from pppbot_common.ros.qos import LATCHED, SENSOR
 from pppbot_common.ros.scan_odometry import ScanOdometry
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
 from pppbot_nav.amcl.filter import FilterSettings
-from pppbot_nav.amcl.laser import LaserModelType, LaserSettings, Scan
+from pppbot_nav.amcl.laser import LaserModelType, LaserSettings, laser_scans
 from pppbot_nav.amcl.localizer import (
     Localizer,
     LocalizerSettings,
@@ -139,7 +139,8 @@ class AmclParameters:
         try:
             self.settings().filter.validate()
         except AmclError as exc:
-            raise ParameterError(str(exc).split(" ")[0], "", str(exc)) from exc
+            name = exc.parameter or "min_particles"
+            raise ParameterError(name, getattr(self, name), str(exc)) from exc
 
     def settings(self) -> LocalizerSettings:
         return LocalizerSettings(
@@ -275,12 +276,10 @@ class Amcl(Node):
         ranges = np.asarray(msg.ranges, dtype=float)
         mount = (float(sensor[0]), float(sensor[1]), float(sensor[2]))
         try:
-            scan = Scan.from_laser(ranges, msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max,
-                                   mount, laser)
-            full = Scan.from_laser(ranges, msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max,
-                                   mount, laser, max_beams=ranges.size)
+            scan, full = laser_scans(ranges, msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max,
+                                     mount, laser, full=loc.settings.refine_estimate)
             update = loc.update(odom_pose, scan, full)
-            tracked = loc.track(odom_pose, full) if update is None else None
+            tracked = loc.track(odom_pose, full) if update is None and full is not None else None
         except AmclError as exc:
             self._warn("scan", f"dropping a scan: {exc}")
             return

@@ -207,6 +207,7 @@ class Slam(Node):
 
     def _set_params(self, params: SlamParameters) -> None:
         self.params = params
+        self.scans.odom_frame, self.scans.base_frame = params.odom_frame, params.base_frame
 
     def _load(self, name: str) -> Mapper:
         """A saved pose graph to map on from, the robot starting where the parameters say.
@@ -227,7 +228,6 @@ class Slam(Node):
         """Queue the scan until odometry reaches its stamp (as tf2's message filter does)."""
         if self.paused:
             return
-        self.scans.odom_frame, self.scans.base_frame = self.params.odom_frame, self.params.base_frame
         self.scans.add(msg)
 
     def _queue(self, msg: LaserScan, stamp: float, frame: str, odom_pose: np.ndarray, sensor: np.ndarray) -> None:
