@@ -153,7 +153,9 @@ def test_end_to_end_headless_drive_record_and_clean_sigint(ros_node, spawn, tmp_
     truths: list[Odometry] = []
     ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
     pub = ros_node.create_publisher(Twist, "/cmd_vel_teleop", 10)
-    wait_until(lambda: truths and pub.get_subscription_count() > 0, 20, "ground truth and twist_mux", node=ros_node)
+    # Two subscribers: twist_mux and the recorder, which finds new topics by polling the graph.
+    wait_until(lambda: truths and pub.get_subscription_count() >= 2, 20, "ground truth, twist_mux and the recorder",
+               node=ros_node)
     start = truths[-1].pose.pose.position
     forward = Twist()
     forward.linear.x = 0.4
