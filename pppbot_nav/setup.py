@@ -22,6 +22,9 @@ setup(
             'map_saver_cli = pppbot_nav.ros.map_saver_cli:cli_main',
             'map_server = pppbot_nav.ros.map_server:main',
             'amcl = pppbot_nav.ros.amcl:main',
+            'planner_server = pppbot_nav.ros.planner_server:main',
+            'controller_server = pppbot_nav.ros.controller_server:main',
+            'navigator = pppbot_nav.ros.navigator:main',
         ],
     },
 )

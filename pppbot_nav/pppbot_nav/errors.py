@@ -20,3 +20,18 @@ class AmclError(PppbotError, ValueError):
 
 class CostmapError(PppbotError, ValueError):
     """A costmap or layer cannot be built or updated as asked; the message names the value."""
+
+
+class ControllerError(PppbotError, ValueError):
+    """The path-following controller or a checker cannot do what was asked (bad settings, an empty
+    or non-finite path, a non-finite pose or speed); the message names the value and what is allowed,
+    and ``parameter`` the setting at fault, if one is."""
+
+    def __init__(self, message: str, parameter: str | None = None) -> None:
+        super().__init__(message)
+        self.parameter = parameter
+
+
+class CollisionAhead(PppbotError, RuntimeError):
+    """The command would hit an obstacle within ``max_allowed_time_to_collision_up_to_carrot``; the
+    message says where (the first pose whose cell is inscribed or lethal) and how soon."""

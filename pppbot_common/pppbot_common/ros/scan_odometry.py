@@ -15,12 +15,11 @@ from typing import Callable
 import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
-from tf2_msgs.msg import TFMessage
 
 from pppbot_common.ros.node_main import Warnings
-from pppbot_common.ros.planar import planar_transforms, stamp_seconds
-from pppbot_common.ros.qos import LATCHED
-from pppbot_common.transforms import TransformBuffer, TransformError
+from pppbot_common.ros.planar import stamp_seconds
+from pppbot_common.ros.tf_listener import TfListener
+from pppbot_common.transforms import TransformError
 
 #: Scans wait for odometry to reach their stamps for at most this much scan time (s): the
 #: oldest is dropped once a pending scan is this much newer. While a node is busy, /tf
@@ -36,32 +35,19 @@ class ScanOdometry:
     def __init__(self, node: Node, odom_frame: str, base_frame: str, ready: Ready, warn: Warnings,
                  cache_s: float = 10.0) -> None:
         self.odom_frame, self.base_frame = odom_frame, base_frame  # the owner may change them
-        self.tf = TransformBuffer(cache_s=cache_s)
         self._ready = ready
         self._warn = warn
         self._pending: deque[LaserScan] = deque()
-        node.create_subscription(TFMessage, "/tf", self._on_tf, 200)
-        node.create_subscription(TFMessage, "/tf_static", self._on_tf_static, LATCHED)
+        self.tf = TfListener(node, warn, cache_s, on_tf=self._on_tf).buffer
 
     def add(self, msg: LaserScan) -> None:
         """Queue the scan until odometry reaches its stamp."""
         self._pending.append(msg)
         self._drain()
 
-    def _store(self, msg: TFMessage, static: bool) -> None:
-        for t in planar_transforms(msg):
-            try:
-                self.tf.set_transform(t.parent, t.child, t.stamp_s, (t.x, t.y, t.yaw), static)
-            except ValueError as exc:
-                self._warn("tf", f"ignoring a transform: {exc}")
-
-    def _on_tf(self, msg: TFMessage) -> None:
-        self._store(msg, static=False)
+    def _on_tf(self) -> None:
         if self._pending:
             self._drain()
-
-    def _on_tf_static(self, msg: TFMessage) -> None:
-        self._store(msg, static=True)
 
     def _drain(self) -> None:
         odom, base = self.odom_frame, self.base_frame

@@ -1,0 +1,40 @@
+"""``/tf`` and ``/tf_static`` into a planar transform buffer: tf2_ros's TransformListener for pppbot's nodes."""
+from __future__ import annotations
+
+from typing import Callable
+
+from rclpy.node import Node
+from tf2_msgs.msg import TFMessage
+
+from pppbot_common.ros.node_main import Warnings
+from pppbot_common.ros.planar import planar_transforms
+from pppbot_common.ros.qos import LATCHED
+from pppbot_common.transforms import TransformBuffer
+
+
+class TfListener:
+    """Keeps ``buffer`` (``cache_s`` seconds of history) filled; ``on_tf`` is called after each
+    dynamic TF message. A malformed transform is dropped with a throttled warning."""
+
+    def __init__(self, node: Node, warn: Warnings, cache_s: float = 10.0,
+                 on_tf: Callable[[], None] | None = None) -> None:
+        self.buffer = TransformBuffer(cache_s=cache_s)
+        self._warn = warn
+        self._on_tf = on_tf
+        node.create_subscription(TFMessage, "/tf", self._dynamic, 200)
+        node.create_subscription(TFMessage, "/tf_static", self._static, LATCHED)
+
+    def _store(self, msg: TFMessage, static: bool) -> None:
+        for t in planar_transforms(msg):
+            try:
+                self.buffer.set_transform(t.parent, t.child, t.stamp_s, (t.x, t.y, t.yaw), static)
+            except ValueError as exc:
+                self._warn("tf", f"ignoring a transform: {exc}")
+
+    def _dynamic(self, msg: TFMessage) -> None:
+        self._store(msg, static=False)
+        if self._on_tf is not None:
+            self._on_tf()
+
+    def _static(self, msg: TFMessage) -> None:
+        self._store(msg, static=True)

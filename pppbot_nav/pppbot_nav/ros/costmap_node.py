@@ -1,0 +1,210 @@
+"""A costmap as a ROS node: Nav2's ``Costmap2DROS``, run inside the planner and controller servers.
+
+The node is named after its costmap (``global_costmap`` or ``local_costmap``) in a namespace of
+the same name, as Nav2's, so its parameters sit under ``global_costmap: global_costmap:
+ros__parameters:`` in ``config/nav2_params.yaml`` and it publishes ``/global_costmap/costmap``
+(nav_msgs/OccupancyGrid, Nav2's cost translation, transient local) and serves
+``/global_costmap/clear_entirely_global_costmap`` (nav2_msgs/ClearEntireCostmap).
+
+Layers (``plugins``, applied in order) are chosen by name: ``static_layer`` (the map on
+``static_layer.map_topic``; the costmap takes the map's size and origin unless it rolls),
+``obstacle_layer`` (also accepted as ``voxel_layer``, as ppp_bot's local costmap names it: marks
+and clears from the LaserScan on ``obstacle_layer.scan.topic``) and ``inflation_layer``. A
+rolling window (``rolling_window``) is ``width`` × ``height`` m centred on the robot
+(``global_frame`` → ``robot_base_frame`` from TF). The master is rebuilt at
+``update_frequency`` and published at ``publish_frequency``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from nav2_msgs.srv import ClearEntireCostmap
+from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
+from rclpy.node import Node
+from sensor_msgs.msg import LaserScan
+
+from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.ros.maps import grid_from_message, grid_message
+from pppbot_common.ros.node_main import Warnings, guarded
+from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.planar import stamp_seconds
+from pppbot_common.ros.qos import LATCHED, SENSOR
+from pppbot_common.ros.tf_listener import TfListener
+from pppbot_common.transforms import TransformError
+from pppbot_nav.costmap.costs import NO_INFORMATION
+from pppbot_nav.costmap.grid import Costmap
+from pppbot_nav.costmap.layers import InflationLayer, Layer, LayeredCostmap, ObstacleLayer, StaticLayer
+from pppbot_nav.errors import CostmapError
+
+LAYER_NAMES = ("static_layer", "obstacle_layer", "voxel_layer", "inflation_layer")
+
+
+@dataclass(frozen=True)
+class CostmapParameters:
+    global_frame: str = param("map", "the costmap's frame")
+    robot_base_frame: str = param("base_link", "the robot's frame")
+    update_frequency: float = param(5.0, "layer updates per second (Hz)")
+    publish_frequency: float = param(1.0, "costmap publications per second (Hz)")
+    rolling_window: bool = param(False, "follow the robot (a window of width × height m)")
+    width: int = param(5, "rolling window width (m)")
+    height: int = param(5, "rolling window height (m)")
+    resolution: float = param(0.05, "cell size (m); a static map's own resolution wins")
+    robot_radius: float = param(0.3, "the robot's radius (m): the inscribed zone")
+    track_unknown_space: bool = param(True, "unknown cells stay unknown (else free)")
+    lethal_cost_threshold: int = param(100, "map values at or above this are lethal")
+    plugins: list = param(["static_layer", "obstacle_layer", "inflation_layer"],
+                          "layers in order, of: " + ", ".join(LAYER_NAMES))
+    map_topic: str = param("map", "static layer: the map topic (transient local)",
+                           ros_name="static_layer.map_topic")
+    scan_topic: str = param("/scan", "obstacle layer: the LaserScan topic", ros_name="obstacle_layer.scan.topic")
+    obstacle_max_range: float = param(2.5, "obstacle layer: mark returns up to this range (m)",
+                                      ros_name="obstacle_layer.scan.obstacle_max_range")
+    obstacle_min_range: float = param(0.0, "obstacle layer: mark returns from this range (m)",
+                                      ros_name="obstacle_layer.scan.obstacle_min_range")
+    raytrace_max_range: float = param(3.0, "obstacle layer: clear along beams up to this range (m)",
+                                      ros_name="obstacle_layer.scan.raytrace_max_range")
+    raytrace_min_range: float = param(0.0, "obstacle layer: clear from this range (m)",
+                                      ros_name="obstacle_layer.scan.raytrace_min_range")
+    inflation_radius: float = param(0.55, "inflation layer: radius (m)", ros_name="inflation_layer.inflation_radius")
+    cost_scaling_factor: float = param(3.0, "inflation layer: exponential decay (1/m)",
+                                       ros_name="inflation_layer.cost_scaling_factor")
+    inflate_unknown: bool = param(False, "inflation layer: inflate into unknown cells",
+                                  ros_name="inflation_layer.inflate_unknown")
+
+    def validate(self) -> None:
+        for name in ("update_frequency", "publish_frequency", "resolution"):
+            check_finite_range(name, getattr(self, name), 0.0, 1000.0, low_open=True)
+        check_finite_range("robot_radius", self.robot_radius, 0.0, 100.0)
+        if self.rolling_window and not (self.width > 0 and self.height > 0):
+            raise ParameterError("width", f"{self.width} × {self.height}", "a rolling window needs a positive size")
+        if not 1 <= self.lethal_cost_threshold <= 100:
+            raise ParameterError("lethal_cost_threshold", self.lethal_cost_threshold, "must be in [1, 100]")
+        unknown = [p for p in self.plugins if p not in LAYER_NAMES]
+        if unknown or not self.plugins:
+            raise ParameterError("plugins", self.plugins, f"must be a list of: {', '.join(LAYER_NAMES)}")
+        if self.rolling_window is False and "static_layer" not in self.plugins:
+            raise ParameterError("plugins", self.plugins, "a costmap that does not roll needs static_layer "
+                                                          "(it takes the map's size)")
+        for name in ("global_frame", "robot_base_frame"):
+            if not getattr(self, name):
+                raise ParameterError(name, getattr(self, name), "must not be empty")
+        try:
+            self.layers()
+        except CostmapError as exc:
+            raise ParameterError("plugins", self.plugins, str(exc)) from exc
+
+    def layers(self) -> list[Layer]:
+        made: list[Layer] = []
+        for name in self.plugins:
+            if name == "static_layer":
+                made.append(StaticLayer(self.track_unknown_space, self.lethal_cost_threshold))
+            elif name in ("obstacle_layer", "voxel_layer"):
+                made.append(ObstacleLayer(self.obstacle_max_range, self.obstacle_min_range, self.raytrace_max_range,
+                                          self.raytrace_min_range, self.track_unknown_space))
+            else:
+                made.append(InflationLayer(self.inflation_radius, self.cost_scaling_factor, self.robot_radius,
+                                           self.inflate_unknown))
+        return made
+
+
+class CostmapNode(Node):
+    def __init__(self, name: str, **kwargs: Any) -> None:
+        super().__init__(name, namespace=name, **kwargs)
+        self.costmap_name = name
+        self.params = p = declare_parameters(self, CostmapParameters)
+        self._warn = Warnings(self)
+        self.tf = TfListener(self, self._warn).buffer
+        self.layers = p.layers()
+        self.static = next((la for la in self.layers if isinstance(la, StaticLayer)), None)
+        self.obstacles = [la for la in self.layers if isinstance(la, ObstacleLayer)]
+        self.layered: LayeredCostmap | None = None
+        if p.rolling_window:
+            size = (p.width, p.height)
+            self.layered = LayeredCostmap(Costmap.filled(size[0], size[1], p.resolution, (0.0, 0.0), NO_INFORMATION,
+                                                         p.global_frame), self.layers, rolling=True,
+                                          default_value=NO_INFORMATION if p.track_unknown_space else 0)
+        self.costmap: Costmap | None = None  # the last update, a copy owned by its readers
+        self.pub = self.create_publisher(OccupancyGridMsg, "costmap", LATCHED)
+        if self.static is not None:
+            self.create_subscription(OccupancyGridMsg, p.map_topic, guarded(self, self._on_map, "OccupancyGrid"),
+                                     LATCHED)
+        if self.obstacles:
+            self.create_subscription(LaserScan, p.scan_topic, guarded(self, self._on_scan, "LaserScan"), SENSOR)
+        self.create_service(ClearEntireCostmap, f"clear_entirely_{name}", self._clear)
+        self.create_timer(1.0 / p.update_frequency, self.update)
+        self.create_timer(1.0 / p.publish_frequency, self.publish)
+        self.get_logger().info(f"{name}: {', '.join(p.plugins)} in '{p.global_frame}'"
+                               + (f", rolling {p.width} × {p.height} m" if p.rolling_window else ""))
+
+    # ------------------------------------------------------------------ inputs
+    def _on_map(self, msg: OccupancyGridMsg) -> None:
+        assert self.static is not None
+        grid = grid_from_message(msg)
+        self.static.set_map(grid)
+        if not self.params.rolling_window:
+            old = self.layered.master if self.layered is not None else None
+            if old is None or old.costs.shape != grid.data.shape or old.origin != grid.origin[:2]:
+                master = Costmap.filled(grid.width * grid.resolution, grid.height * grid.resolution, grid.resolution,
+                                        (grid.origin[0], grid.origin[1]), NO_INFORMATION, self.params.global_frame)
+                self.layered = LayeredCostmap(master, self.layers)
+        self.update()
+
+    def robot_pose(self) -> tuple[float, float, float] | None:
+        """The robot's newest (x, y, yaw) in the costmap's frame, or None without TF."""
+        try:
+            return self.tf.lookup(self.params.global_frame, self.params.robot_base_frame)
+        except TransformError as exc:
+            self._warn("robot pose", f"no robot pose: {exc}")
+            return None
+
+    def _on_scan(self, msg: LaserScan) -> None:
+        if self.layered is None:
+            return
+        frame = msg.header.frame_id.lstrip("/")
+        stamp = stamp_seconds(msg.header.stamp)
+        try:
+            try:
+                sensor = self.tf.lookup(self.params.global_frame, frame, stamp)
+            except TransformError:
+                sensor = self.tf.lookup(self.params.global_frame, frame)
+        except TransformError as exc:
+            self._warn("scan transform", f"dropping a scan: {exc}")
+            return
+        ranges = np.asarray(msg.ranges, dtype=float)
+        bearings = sensor[2] + msg.angle_min + msg.angle_increment * np.arange(len(ranges))
+        valid = ~(ranges < msg.range_min)  # NaN stays: no return
+        ranges = np.where(np.isfinite(ranges) & (ranges < msg.range_max), ranges, np.inf)
+        for layer in self.obstacles:
+            layer.observe(self.layered.master, (sensor[0], sensor[1]), bearings[valid], ranges[valid])
+
+    # ---------------------------------------------------------------- outputs
+    def update(self) -> Costmap | None:
+        """Rebuild the master from the layers; returns (and keeps) a copy, or None before there is one."""
+        if self.layered is None:
+            return None
+        robot = None
+        if self.params.rolling_window:
+            pose = self.robot_pose()
+            if pose is None:
+                return None
+            robot = (pose[0], pose[1])
+        master = self.layered.update(robot)
+        self.costmap = Costmap(master.costs.copy(), master.resolution, master.origin, master.frame_id)
+        return self.costmap
+
+    def publish(self) -> None:
+        if self.costmap is not None:
+            self.pub.publish(grid_message(self.costmap.to_occupancy_grid(), self.get_clock().now().to_msg()))
+
+    def clear(self) -> None:
+        for layer in self.obstacles:
+            layer.clear()
+        self.update()
+
+    def _clear(self, request: ClearEntireCostmap.Request,
+               response: ClearEntireCostmap.Response) -> ClearEntireCostmap.Response:
+        self.clear()
+        self.get_logger().info(f"{self.costmap_name}: cleared")
+        return response

@@ -1,0 +1,183 @@
+"""``planner_server``: global paths on the global costmap, in Nav2's ``planner_server`` place.
+
+Runs the ``global_costmap`` (:mod:`pppbot_nav.ros.costmap_node`) in the same process, as Nav2
+does. Serves ``compute_path_to_pose`` (nav2_msgs/action/ComputePathToPose: from the robot's
+pose, or ``start`` with ``use_start``) and publishes each path on ``plan`` (nav_msgs/Path, in
+the costmap's frame; each pose faces along the path, the last one the goal's heading). The
+planner is :mod:`pppbot_nav.planner.grid_astar` under the plugin name ``GridBased``; its
+failures come back as the action's error codes (START_OCCUPIED, GOAL_OCCUPIED, NO_VALID_PATH,
+TIMEOUT, START/GOAL_OUTSIDE_MAP, TF_ERROR) with a message.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from geometry_msgs.msg import PoseStamped
+from nav2_msgs.action import ComputePathToPose
+from nav_msgs.msg import Path
+from rclpy.action import ActionServer
+from rclpy.action.server import ServerGoalHandle
+from rclpy.duration import Duration
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+
+from pppbot_common.params import ParameterError, param
+from pppbot_common.ros.node_main import run_node
+from pppbot_common.ros.params import declare_parameters
+from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
+from pppbot_common.transforms import TransformError, compose
+from pppbot_nav.planner import errors
+from pppbot_nav.planner.grid_astar import GridPlanner, PlannerSettings
+from pppbot_nav.planner.smoother import SmootherSettings
+from pppbot_nav.ros.costmap_node import CostmapNode
+
+Result = ComputePathToPose.Result
+ERROR_CODES: dict[type[errors.PlannerError], int] = {
+    errors.StartOutsideMap: Result.START_OUTSIDE_MAP,
+    errors.GoalOutsideMap: Result.GOAL_OUTSIDE_MAP,
+    errors.StartOccupied: Result.START_OCCUPIED,
+    errors.GoalOccupied: Result.GOAL_OCCUPIED,
+    errors.NoValidPath: Result.NO_VALID_PATH,
+    errors.PlannerTimedOut: Result.TIMEOUT,
+}
+PLANNER_ID = "GridBased"
+
+
+@dataclass(frozen=True)
+class PlannerServerParameters:
+    planner_plugins: list = param([PLANNER_ID], f"planner names (pppbot has one: {PLANNER_ID})")
+    tolerance: float = param(0.5, "how far the goal may move to a reachable cell (m)", "GridBased.tolerance")
+    allow_unknown: bool = param(True, "plan through unknown space", "GridBased.allow_unknown")
+    cost_travel_multiplier: float = param(2.0, "travel cost of a cell: 1 + this · cost / 252",
+                                          "GridBased.cost_travel_multiplier")
+    max_planning_time: float = param(2.0, "a plan taking longer fails with TIMEOUT (s)", "GridBased.max_planning_time")
+    smooth_path: bool = param(True, "straighten and smooth the cell path", "GridBased.smooth_path")
+    w_data: float = param(0.2, "smoother: pull toward the original path", "GridBased.smoother.w_data")
+    w_smooth: float = param(0.3, "smoother: pull toward the neighbours", "GridBased.smoother.w_smooth")
+
+    def validate(self) -> None:
+        if list(self.planner_plugins) != [PLANNER_ID]:
+            raise ParameterError("planner_plugins", self.planner_plugins, f"must be ['{PLANNER_ID}']")
+        self.settings().validate()
+
+    def settings(self) -> PlannerSettings:
+        return PlannerSettings(self.tolerance, self.allow_unknown, self.cost_travel_multiplier,
+                               self.max_planning_time, self.smooth_path,
+                               SmootherSettings(w_data=self.w_data, w_smooth=self.w_smooth))
+
+
+def path_message(points_xy: np.ndarray, goal_yaw: float, frame: str, stamp: Any) -> Path:
+    """A nav_msgs/Path: each pose faces the next point; the last one ``goal_yaw``."""
+    msg = Path()
+    msg.header.frame_id = frame
+    msg.header.stamp = stamp
+    d = np.diff(points_xy, axis=0)
+    yaws = np.append(np.arctan2(d[:, 1], d[:, 0]), goal_yaw) if len(points_xy) > 1 else np.array([goal_yaw])
+    poses = []
+    for (x, y), yaw in zip(points_xy.tolist(), yaws.tolist()):
+        pose = PoseStamped()
+        pose.header = msg.header
+        pose.pose.position.x, pose.pose.position.y = x, y
+        o = pose.pose.orientation
+        o.x, o.y, o.z, o.w = quaternion_from_yaw(yaw)
+        poses.append(pose)
+    msg.poses = poses
+    return msg
+
+
+def planar_pose(msg: PoseStamped) -> tuple[float, float, float]:
+    o = msg.pose.orientation
+    return msg.pose.position.x, msg.pose.position.y, yaw_from_quaternion(o.x, o.y, o.z, o.w)
+
+
+class PlannerServer(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("planner_server", **kwargs)
+        self.params = declare_parameters(self, PlannerServerParameters)
+        self.costmap_node = CostmapNode("global_costmap")
+        self.planner = GridPlanner(self.params.settings())
+        self.plan_pub = self.create_publisher(Path, "plan", 1)
+        self.server = ActionServer(self, ComputePathToPose, "compute_path_to_pose", self._execute)
+        self.get_logger().info(f"planner '{PLANNER_ID}' ready on global_costmap")
+
+    def destroy_node(self) -> None:
+        self.server.destroy()
+        self.costmap_node.destroy_node()
+        super().destroy_node()
+
+    def _in_costmap_frame(self, msg: PoseStamped) -> tuple[float, float, float]:
+        frame = self.costmap_node.params.global_frame
+        pose = planar_pose(msg)
+        source = msg.header.frame_id.lstrip("/") or frame
+        if source == frame:
+            return pose
+        return compose(self.costmap_node.tf.lookup(frame, source), pose)
+
+    def _execute(self, goal_handle: ServerGoalHandle) -> ComputePathToPose.Result:
+        request = goal_handle.request
+        result = Result()
+        t0 = time.perf_counter()
+        try:
+            result.path, result.error_msg = self.compute(request)
+            result.error_code = Result.NONE
+        except errors.PlannerError as exc:
+            result.error_code = ERROR_CODES.get(type(exc), Result.UNKNOWN)
+            result.error_msg = str(exc)
+        except TransformError as exc:
+            result.error_code, result.error_msg = Result.TF_ERROR, str(exc)
+        except RuntimeError as exc:  # no costmap yet
+            result.error_code, result.error_msg = Result.UNKNOWN, str(exc)
+        result.planning_time = Duration(seconds=time.perf_counter() - t0).to_msg()
+        if result.error_code == Result.NONE:
+            goal_handle.succeed()
+        else:
+            self.get_logger().warning(f"planning failed: {result.error_msg}")
+            goal_handle.abort()
+        return result
+
+    def compute(self, request: ComputePathToPose.Goal) -> tuple[Path, str]:
+        """The path for a request and a note ('' or where the goal moved to).
+
+        Raises:
+            PlannerError: a typed planning failure. TransformError: a pose cannot be placed
+            in the costmap's frame. RuntimeError: no costmap yet.
+        """
+        if request.planner_id not in ("", PLANNER_ID):
+            raise errors.PlannerError(f"unknown planner_id '{request.planner_id}' (pppbot has '{PLANNER_ID}')")
+        costmap = self.costmap_node.update()
+        if costmap is None:
+            raise RuntimeError("the global costmap has no map yet")
+        self.planner.set_costmap(costmap)
+        if request.use_start:
+            start = self._in_costmap_frame(request.start)
+        else:
+            pose = self.costmap_node.robot_pose()
+            if pose is None:
+                raise TransformError(f"no robot pose in '{costmap.frame_id}'")
+            start = pose
+        goal = self._in_costmap_frame(request.goal)
+        plan = self.planner.plan((start[0], start[1]), (goal[0], goal[1]))
+        msg = path_message(plan.points_xy, goal[2], costmap.frame_id, self.get_clock().now().to_msg())
+        self.plan_pub.publish(msg)
+        moved = math.hypot(plan.goal_xy[0] - goal[0], plan.goal_xy[1] - goal[1])
+        return msg, (f"goal moved {moved:.2f} m to a reachable cell" if moved > 1e-6 else "")
+
+
+def spin_with_costmap(node: PlannerServer | Any) -> None:
+    """Spin a server and the costmap node it owns in one executor."""
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    executor.add_node(node.costmap_node)
+    try:
+        executor.spin()
+    finally:
+        executor.shutdown()
+
+
+def main(args: list[str] | None = None) -> None:
+    sys.exit(run_node(lambda: PlannerServer(), "planner_server", args, spin=spin_with_costmap))
