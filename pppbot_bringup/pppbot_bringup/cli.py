@@ -19,6 +19,7 @@ VERBS: dict[str, tuple[str, str]] = {
     "launch_sim": ("pppbot_bringup.ros.launch_sim", "the simulation bringup (name:=value arguments; --show-args)"),
     "bag": ("pppbot_bringup.bag.cli", "record, play, inspect and reindex rosbag2 (MCAP) bags (like `ros2 bag`)"),
     "eval": ("pppbot_bringup.ros.eval", "run a headless scenario and measure it against ground truth"),
+    "nav": ("pppbot_nav.ros.nav_cli", "send a navigation goal and print its feedback: nav goto X Y [YAW]"),
     "map_saver": ("pppbot_nav.ros.map_saver_cli",
                   "save /map as a Nav2 map, YAML + PGM (like nav2_map_server's map_saver_cli)"),
 }

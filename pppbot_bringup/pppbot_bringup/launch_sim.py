@@ -5,7 +5,7 @@ The ROS side (readiness probes, running the plan) is ``pppbot_bringup.ros.launch
 Start order, each step waiting for real readiness (a first message, not a sleep):
 simulator (first /clock) → robot_state_publisher (/robot_description) and
 diff_drive_base_controller (first /odom) → twist_mux → mapping or localization
-(when built) → RViz (when on PATH) → keyboard teleop.
+→ navigation (planner, controller, navigator) → RViz (when on PATH) → keyboard teleop.
 """
 from __future__ import annotations
 
@@ -25,6 +25,8 @@ ARGUMENTS = [
     Argument("localization", False, "localize on a saved map (map_server + AMCL) instead of mapping (SLAM)"),
     Argument("map", "", "map YAML for localization; default maps/<world>.yaml"),
     Argument("use_slam", True, "with localization:=false, map with the SLAM node (false: drive on odometry only)"),
+    Argument("navigation", "auto", "planner_server, controller_server and navigator (auto: with localization:=true)",
+             choices=("auto", "true", "false")),
     Argument("slam_params_file", "", "the slam node's parameters; default config/mapper_params_online_async.yaml"),
     Argument("use_teleop", True, "keyboard teleop in this terminal (other nodes' output goes to log files)"),
     Argument("use_rviz", True, "start rviz2 with config/ppp_bot.rviz when rviz2 is on PATH"),
@@ -136,6 +138,18 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
             # Ready once it has mapped its first scan: the map frame is where the robot was
             # then, so nothing should drive it before (eval relies on map = spawn pose).
             ready=ReadyCheck("a first /map", probe("/map", "nav_msgs/msg/OccupancyGrid", True))))
+    localizer = "amcl" if values["localization"] else "slam_toolbox" if values["use_slam"] else None
+    if values["navigation"] == "true" or (values["navigation"] == "auto" and values["localization"]):
+        if localizer is None:
+            raise ArgumentError("navigation:=true needs a map frame: localization:=true or use_slam:=true")
+        nav2_params = config / "nav2_params.yaml"
+        for name, ready in (("planner_server", r"planner 'GridBased' ready"),
+                            ("controller_server", r"controller 'FollowPath'"),
+                            ("navigator", r"navigator ready")):
+            nodes.append(NodeSpec(name, [resolve("pppbot_nav", name), *ros_args(level, params_file=nav2_params)],
+                                  after=(localizer,), required=True, ready=ReadyCheck(name, output_pattern=ready)))
+        notes.append("navigating: send goals with RViz's 2D Goal Pose, ./pppbot nav goto X Y YAW, "
+                     "or the navigate_to_pose action")
     if values["use_rviz"]:
         if rviz is None:
             notes.append("rviz2 is not on PATH: no RViz (use_rviz:=false silences this); "

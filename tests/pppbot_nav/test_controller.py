@@ -159,6 +159,23 @@ def test_no_collision_raised(costmap: Costmap, settings: PurePursuitSettings):
     assert cmd.linear_mps == pytest.approx(0.5)
 
 
+def test_a_robot_inside_the_inscribed_zone_may_leave_it_but_not_hit_a_lethal_cell():
+    from pppbot_nav.costmap.costs import INSCRIBED_INFLATED_OBSTACLE
+    costmap = free_costmap()
+    row, col = costmap.cell_of(0.0, 0.0)
+    costmap.costs[:, : int(col) + 3] = INSCRIBED_INFLATED_OBSTACLE  # the robot stands in the zone
+    cmd = PurePursuit(DEFAULTS).compute((0.0, 0.0, 0.0), (0.3, 0.0), straight(3.0), costmap, DT)
+    assert cmd.linear_mps > 0.0  # driving out of it is allowed
+    costmap.costs[:, int(col) + 3] = LETHAL_OBSTACLE
+    with pytest.raises(CollisionAhead, match="lethal"):
+        PurePursuit(DEFAULTS).compute((0.0, 0.0, 0.0), (0.3, 0.0), straight(3.0), costmap, DT)
+    # Turning in place sweeps nothing new (a circular footprint), even on an inscribed cell.
+    behind = straight(3.0)
+    behind[:, 0] *= -1.0
+    turn = PurePursuit(DEFAULTS).compute((0.0, 0.0, 0.0), (0.0, 0.0), behind, costmap, DT)
+    assert turn.linear_mps == 0.0 and turn.angular_radps != 0.0
+
+
 # ---------------------------------------------------------------------------- approach and goal
 def test_approaching_the_end_slows_down_to_no_less_than_the_approach_minimum():
     path = straight(2.0)

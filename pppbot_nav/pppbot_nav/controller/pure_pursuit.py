@@ -28,7 +28,9 @@ Each control period, :meth:`PurePursuit.compute` does what the plugin's
    below ``min_approach_linear_velocity``); ``ω = v·curvature``.
 6. **Collision check**: the command is followed forward in steps of half a costmap cell for
    up to ``max_allowed_time_to_collision_up_to_carrot`` but no farther than the carrot; a
-   pose on an inscribed or lethal cell raises :class:`~pppbot_nav.errors.CollisionAhead`.
+   pose on an inscribed or lethal cell raises :class:`~pppbot_nav.errors.CollisionAhead`. Turning
+   in place is never a collision (the footprint is a circle), and a robot that is already in
+   the inscribed zone may drive on as long as it meets no lethal cell (so it can leave it).
 
 Where this differs from Nav2:
 
@@ -53,7 +55,13 @@ from enum import Enum
 import numpy as np
 
 from pppbot_common.se2 import PoseLike, wrap_angle
-from pppbot_nav.costmap.costs import FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, MAX_NON_OBSTACLE, NO_INFORMATION
+from pppbot_nav.costmap.costs import (
+    FREE_SPACE,
+    INSCRIBED_INFLATED_OBSTACLE,
+    LETHAL_OBSTACLE,
+    MAX_NON_OBSTACLE,
+    NO_INFORMATION,
+)
 from pppbot_nav.costmap.grid import Costmap
 from pppbot_nav.errors import CollisionAhead, ControllerError
 
@@ -348,9 +356,9 @@ def _check_collision(costmap: Costmap, pose: tuple[float, float, float], linear:
     cell swept by the footprint's rim) for up to max_allowed_time_to_collision_up_to_carrot, stopping
     once farther than the carrot. Unknown cells and cells off the costmap are not collisions."""
     x0, y0, yaw0 = pose
-    if abs(linear) < _STILL_VEL and abs(angular) > _STILL_VEL:
-        step_s = 2.0 * math.sin(costmap.resolution / 2.0 / s.robot_radius) / abs(angular)
-    elif abs(linear) > 0.0:
+    if abs(linear) < _STILL_VEL:
+        return  # the footprint is a circle: turning in place sweeps no new cell
+    if abs(linear) > 0.0:
         step_s = costmap.resolution / _CELL_SUBSTEPS / abs(linear)
     else:
         step_s = math.inf
@@ -370,7 +378,10 @@ def _check_collision(costmap: Costmap, pose: tuple[float, float, float], linear:
         keep = int(np.argmax(beyond))
         xs, ys, t = xs[:keep], ys[:keep], t[:keep]
     costs = costmap.cost_at(xs, ys, NO_INFORMATION)
-    hit = (costs >= INSCRIBED_INFLATED_OBSTACLE) & (costs != NO_INFORMATION)
+    # A robot already inside the inscribed zone (it drifted close to a wall: the zone is the
+    # conservative circle round a smaller body) may drive out of it; only lethal cells stop it then.
+    floor = LETHAL_OBSTACLE if costs[0] == INSCRIBED_INFLATED_OBSTACLE else INSCRIBED_INFLATED_OBSTACLE
+    hit = (costs >= floor) & (costs != NO_INFORMATION)
     if hit.any():
         k = int(np.argmax(hit))
         kind = "lethal" if costs[k] > INSCRIBED_INFLATED_OBSTACLE else "inscribed"

@@ -56,7 +56,7 @@ class CostmapParameters:
     lethal_cost_threshold: int = param(100, "map values at or above this are lethal")
     plugins: list = param(["static_layer", "obstacle_layer", "inflation_layer"],
                           "layers in order, of: " + ", ".join(LAYER_NAMES))
-    map_topic: str = param("map", "static layer: the map topic (transient local)",
+    map_topic: str = param("/map", "static layer: the map topic (transient local)",
                            ros_name="static_layer.map_topic")
     scan_topic: str = param("/scan", "obstacle layer: the LaserScan topic", ros_name="obstacle_layer.scan.topic")
     obstacle_max_range: float = param(2.5, "obstacle layer: mark returns up to this range (m)",

@@ -1,0 +1,265 @@
+"""``controller_server``: follows paths with regulated pure pursuit, in Nav2's ``controller_server`` place.
+
+Runs the ``local_costmap`` (:mod:`pppbot_nav.ros.costmap_node`, rolling in ``odom``) in the same
+process, as Nav2 does. Serves ``follow_path`` (nav2_msgs/action/FollowPath): at
+``controller_frequency`` (sim time) it places the path in the local costmap's frame (TF),
+computes the command (:mod:`pppbot_nav.controller.pure_pursuit`, parameters under
+``FollowPath.``), publishes it on ``cmd_vel`` (geometry_msgs/Twist: twist_mux's
+``navigation`` input) and the part of the path it follows on ``local_plan``, and gives
+feedback (distance to goal, speed). The goal checker (``general_goal_checker.*``) ends the
+goal with success; the progress checker (``progress_checker.*``) fails it with
+FAILED_TO_MAKE_PROGRESS; a collision ahead that lasts longer than ``failure_tolerance`` fails
+it with NO_VALID_CONTROL. A new path preempts the one being followed and keeps the progress
+checker's history, as Nav2's path updates do. The robot is stopped whenever a goal ends.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from geometry_msgs.msg import Twist
+from nav2_msgs.action import FollowPath
+from nav_msgs.msg import Odometry, Path
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+
+from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.ros.node_main import Warnings, guarded, run_node
+from pppbot_common.ros.params import declare_parameters
+from pppbot_common.se2 import yaw_from_quaternion
+from pppbot_common.transforms import TransformError, compose
+from pppbot_nav.controller.checkers import SimpleGoalChecker, SimpleProgressChecker
+from pppbot_nav.controller.pure_pursuit import PurePursuit, PurePursuitSettings
+from pppbot_nav.errors import CollisionAhead, ControllerError
+from pppbot_nav.ros.costmap_node import CostmapNode
+from pppbot_nav.ros.planner_server import path_message
+
+Result = FollowPath.Result
+CONTROLLER_ID = "FollowPath"
+
+
+@dataclass(frozen=True)
+class ControllerServerParameters:
+    controller_frequency: float = param(20.0, "control periods per second (Hz, sim time)")
+    controller_plugins: list = param([CONTROLLER_ID], f"controller names (pppbot has one: {CONTROLLER_ID})")
+    odom_topic: str = param("odom", "odometry: the robot's current speed")
+    failure_tolerance: float = param(0.3, "how long the controller may fail before the goal does (s)")
+    required_movement_radius: float = param(0.5, "progress checker: move this far (m) ...",
+                                            "progress_checker.required_movement_radius")
+    movement_time_allowance: float = param(10.0, "... within this time (s)", "progress_checker.movement_time_allowance")
+    xy_goal_tolerance: float = param(0.25, "goal checker: distance (m)", "general_goal_checker.xy_goal_tolerance")
+    yaw_goal_tolerance: float = param(0.25, "goal checker: heading (rad)", "general_goal_checker.yaw_goal_tolerance")
+    stateful: bool = param(True, "goal checker: once within xy, only the heading is checked",
+                           "general_goal_checker.stateful")
+
+    def validate(self) -> None:
+        check_finite_range("controller_frequency", self.controller_frequency, 0.0, 1000.0, low_open=True)
+        check_finite_range("failure_tolerance", self.failure_tolerance, 0.0, 3600.0)
+        if list(self.controller_plugins) != [CONTROLLER_ID]:
+            raise ParameterError("controller_plugins", self.controller_plugins, f"must be ['{CONTROLLER_ID}']")
+        try:
+            self.goal_checker()
+            self.progress_checker()
+        except ControllerError as exc:
+            raise ParameterError(exc.parameter or "general_goal_checker", "", str(exc)) from exc
+
+    def goal_checker(self) -> SimpleGoalChecker:
+        return SimpleGoalChecker(self.xy_goal_tolerance, self.yaw_goal_tolerance, self.stateful)
+
+    def progress_checker(self) -> SimpleProgressChecker:
+        return SimpleProgressChecker(self.required_movement_radius, self.movement_time_allowance)
+
+
+def _follow_path_parameters() -> type:
+    """``FollowPath.<name>`` parameters: every field of :class:`PurePursuitSettings`."""
+    fields = [(f.name, f.type, param(f.default, f"regulated pure pursuit: {f.name}", f"{CONTROLLER_ID}.{f.name}"))
+              for f in dataclasses.fields(PurePursuitSettings)]
+
+    def validate(self: Any) -> None:
+        try:
+            self.settings().validate()
+        except ControllerError as exc:
+            name = f"{CONTROLLER_ID}.{exc.parameter}" if exc.parameter else CONTROLLER_ID
+            raise ParameterError(name, getattr(self, exc.parameter or "", ""), str(exc)) from exc
+
+    def settings(self: Any) -> PurePursuitSettings:
+        return PurePursuitSettings(**{f.name: getattr(self, f.name) for f in dataclasses.fields(PurePursuitSettings)})
+
+    return dataclasses.make_dataclass("FollowPathParameters", fields, frozen=True,
+                                      namespace={"validate": validate, "settings": settings})
+
+
+FollowPathParameters = _follow_path_parameters()
+
+
+class ControllerServer(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("controller_server", **kwargs)
+        self.params = p = declare_parameters(self, ControllerServerParameters)
+        self.rpp_settings: PurePursuitSettings = declare_parameters(self, FollowPathParameters).settings()
+        self.costmap_node = CostmapNode("local_costmap")
+        self.controller = PurePursuit(self.rpp_settings)
+        self.goal_checker = p.goal_checker()
+        self.progress_checker = p.progress_checker()
+        self._warn = Warnings(self)
+        self._speed = (0.0, 0.0)
+        self._lock = threading.Lock()
+        self._active: ServerGoalHandle | None = None
+        self.cmd_pub = self.create_publisher(Twist, "cmd_vel", 1)
+        self.local_plan_pub = self.create_publisher(Path, "local_plan", 1)
+        group = ReentrantCallbackGroup()
+        self.create_subscription(Odometry, p.odom_topic, guarded(self, self._on_odom, "Odometry"), 10,
+                                 callback_group=group)
+        self.server = ActionServer(self, FollowPath, "follow_path", self._execute, callback_group=group,
+                                   goal_callback=lambda goal: GoalResponse.ACCEPT,
+                                   cancel_callback=lambda goal: CancelResponse.ACCEPT)
+        self.get_logger().info(f"controller '{CONTROLLER_ID}' (regulated pure pursuit) at "
+                               f"{p.controller_frequency} Hz on local_costmap")
+
+    def destroy_node(self) -> None:
+        self.server.destroy()
+        self.costmap_node.destroy_node()
+        super().destroy_node()
+
+    def _on_odom(self, msg: Odometry) -> None:
+        t = msg.twist.twist
+        self._speed = (t.linear.x, t.angular.z)
+
+    def _now_s(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _sleep_until(self, t_s: float) -> None:
+        """Wait (wall clock, in small steps) until the node's clock (sim time) reaches ``t_s``."""
+        deadline = time.monotonic() + 5.0
+        while self._now_s() < t_s and time.monotonic() < deadline:
+            time.sleep(0.002)
+
+    def stop(self) -> None:
+        self.cmd_pub.publish(Twist())
+
+    def _execute(self, goal_handle: ServerGoalHandle) -> FollowPath.Result:
+        with self._lock:
+            preempting = self._active is not None
+            self._active = goal_handle
+        if not preempting:
+            self.progress_checker.reset()
+        self.goal_checker.reset()
+        result = Result()
+        try:
+            code, message = self._follow(goal_handle)
+        except Exception as exc:  # a bug must end the goal, not the server
+            code, message = Result.UNKNOWN, f"{type(exc).__name__}: {exc}"
+        result.error_code, result.error_msg = code, message
+        with self._lock:
+            still_ours = self._active is goal_handle
+            if still_ours:
+                self._active = None
+        if still_ours:
+            self.stop()
+        if code == Result.NONE:
+            goal_handle.succeed()
+        elif goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        else:
+            if code != Result.UNKNOWN or still_ours:
+                self.get_logger().warning(f"following failed: {message}")
+            goal_handle.abort()
+        return result
+
+    def _follow(self, goal_handle: ServerGoalHandle) -> tuple[int, str]:
+        request = goal_handle.request
+        if request.controller_id not in ("", CONTROLLER_ID):
+            return Result.INVALID_CONTROLLER, f"unknown controller_id '{request.controller_id}'"
+        path_msg: Path = request.path
+        if not path_msg.poses:
+            return Result.INVALID_PATH, "the path is empty"
+        path_frame = path_msg.header.frame_id.lstrip("/") or "map"
+        o = path_msg.poses[-1].pose.orientation
+        path = np.array([[ps.pose.position.x, ps.pose.position.y] for ps in path_msg.poses], dtype=float)
+        if not np.isfinite(path).all():
+            return Result.INVALID_PATH, "the path has a point that is not finite"
+        goal = (float(path[-1, 0]), float(path[-1, 1]), yaw_from_quaternion(o.x, o.y, o.z, o.w))
+        path3 = np.column_stack([path, np.full(len(path), goal[2])])
+        self.controller.set_path(path3)
+        period = 1.0 / self.params.controller_frequency
+        failing_since: float | None = None
+        tf = self.costmap_node.tf
+        local_frame = self.costmap_node.params.global_frame
+        base = self.costmap_node.params.robot_base_frame
+        tick = self._now_s()
+        while True:
+            if goal_handle.is_cancel_requested:
+                return Result.UNKNOWN, "canceled"
+            if self._active is not goal_handle:
+                return Result.UNKNOWN, "preempted by a new path"
+            now = self._now_s()
+            try:
+                in_path_frame = tf.lookup(path_frame, base)
+                to_local = tf.lookup(local_frame, path_frame)
+            except TransformError as exc:
+                if failing_since is None:
+                    failing_since = now
+                if now - failing_since > max(self.params.failure_tolerance, 1.0):
+                    return Result.TF_ERROR, f"no transform for the path: {exc}"
+                self.stop()
+                tick += period
+                self._sleep_until(tick)
+                continue
+            if self.goal_checker.is_goal_reached(in_path_frame, goal):
+                return Result.NONE, ""
+            if not self.progress_checker.check(in_path_frame[:2], now):
+                return Result.FAILED_TO_MAKE_PROGRESS, (
+                    f"the robot moved less than {self.params.required_movement_radius} m in "
+                    f"{self.params.movement_time_allowance} s")
+            c, s = math.cos(to_local[2]), math.sin(to_local[2])
+            local_path = np.column_stack([to_local[0] + c * path3[:, 0] - s * path3[:, 1],
+                                          to_local[1] + s * path3[:, 0] + c * path3[:, 1],
+                                          path3[:, 2] + to_local[2]])
+            pose = compose(to_local, in_path_frame)
+            try:
+                command = self.controller.compute(pose, self._speed, local_path, self.costmap_node.costmap, period)
+                failing_since = None
+            except (CollisionAhead, ControllerError) as exc:
+                if failing_since is None:
+                    failing_since = now
+                self.stop()
+                if now - failing_since > self.params.failure_tolerance:
+                    return Result.NO_VALID_CONTROL, str(exc)
+                self._warn("control", f"no command this period: {exc}")
+            else:
+                twist = Twist()
+                twist.linear.x, twist.angular.z = command.linear_mps, command.angular_radps
+                self.cmd_pub.publish(twist)
+                self.local_plan_pub.publish(path_message(command.local_plan, 0.0, local_frame,
+                                                         self.get_clock().now().to_msg()))
+                feedback = FollowPath.Feedback()
+                feedback.distance_to_goal = float(math.hypot(goal[0] - in_path_frame[0], goal[1] - in_path_frame[1]))
+                feedback.speed = float(abs(self._speed[0]))
+                goal_handle.publish_feedback(feedback)
+            tick += period
+            if tick < now:
+                tick = now
+            self._sleep_until(tick)
+
+
+def spin_multithreaded(node: ControllerServer | Any) -> None:
+    executor = MultiThreadedExecutor(num_threads=3)
+    executor.add_node(node)
+    executor.add_node(node.costmap_node)
+    try:
+        executor.spin()
+    finally:
+        executor.shutdown()
+
+
+def main(args: list[str] | None = None) -> None:
+    sys.exit(run_node(lambda: ControllerServer(), "controller_server", args, spin=spin_multithreaded))

@@ -1,0 +1,96 @@
+"""``pppbot nav goto X Y YAW``: send a navigate_to_pose goal and print its feedback until it ends.
+
+Like ``ros2 action send_goal /navigate_to_pose nav2_msgs/action/NavigateToPose ... --feedback``,
+with the pose given as numbers. Ctrl-C cancels the goal. Exit status 0 when the goal
+succeeds, 1 when it fails or is canceled, 2 when no navigator answers.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import rclpy
+from action_msgs.msg import GoalStatus
+from nav2_msgs.action import NavigateToPose
+from rclpy.action import ActionClient
+from rclpy.node import Node
+
+from pppbot_common.se2 import quaternion_from_yaw
+
+STATUS = {GoalStatus.STATUS_SUCCEEDED: "succeeded", GoalStatus.STATUS_ABORTED: "failed",
+          GoalStatus.STATUS_CANCELED: "canceled"}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="command", required=True)
+    goto = sub.add_parser("goto", help="navigate to a pose and print feedback")
+    goto.add_argument("x", type=float, help="goal x (m)")
+    goto.add_argument("y", type=float, help="goal y (m)")
+    goto.add_argument("yaw", type=float, nargs="?", default=0.0, help="goal heading (rad, default 0)")
+    goto.add_argument("--frame", default="map", help="the goal's frame (default map)")
+    goto.add_argument("--server-timeout", type=float, default=10.0, metavar="S",
+                      help="wait this long for the navigator (default 10 s)")
+
+
+def goal_of(x: float, y: float, yaw: float, frame: str) -> NavigateToPose.Goal:
+    if not all(math.isfinite(v) for v in (x, y, yaw)):
+        raise ValueError(f"the goal must be finite numbers, not ({x}, {y}, {yaw})")
+    goal = NavigateToPose.Goal()
+    goal.pose.header.frame_id = frame
+    goal.pose.pose.position.x, goal.pose.pose.position.y = x, y
+    o = goal.pose.pose.orientation
+    o.x, o.y, o.z, o.w = quaternion_from_yaw(yaw)
+    return goal
+
+
+def main(args: argparse.Namespace) -> int:
+    try:
+        goal = goal_of(args.x, args.y, args.yaw, args.frame)
+    except ValueError as exc:
+        print(f"pppbot nav: {exc}")
+        return 2
+    rclpy.init()
+    node = Node("nav_goto")
+    client = ActionClient(node, NavigateToPose, "navigate_to_pose")
+    handle = None
+    try:
+        if not client.wait_for_server(timeout_sec=args.server_timeout):
+            print(f"pppbot nav: no navigate_to_pose server after {args.server_timeout} s "
+                  "(is launch_sim running with navigation?)")
+            return 2
+        last = [0.0]
+
+        def feedback(msg: NavigateToPose.Impl.FeedbackMessage) -> None:
+            fb = msg.feedback
+            if time.monotonic() - last[0] < 1.0:
+                return
+            last[0] = time.monotonic()
+            p = fb.current_pose.pose.position
+            print(f"at ({p.x:.2f}, {p.y:.2f}), {fb.distance_remaining:.2f} m to go, "
+                  f"{fb.navigation_time.sec} s, {fb.number_of_recoveries} recoveries", flush=True)
+
+        future = client.send_goal_async(goal, feedback_callback=feedback)
+        rclpy.spin_until_future_complete(node, future)
+        handle = future.result()
+        if handle is None or not handle.accepted:
+            print("pppbot nav: the goal was refused")
+            return 1
+        print(f"navigating to ({args.x}, {args.y}, {args.yaw}) in '{args.frame}'", flush=True)
+        result_future = handle.get_result_async()
+        rclpy.spin_until_future_complete(node, result_future)
+        response = result_future.result()
+        status = STATUS.get(response.status, f"status {response.status}")
+        detail = f": {response.result.error_msg} (error code {response.result.error_code})" \
+            if response.status != GoalStatus.STATUS_SUCCEEDED else ""
+        print(f"goal {status}{detail}")
+        return 0 if response.status == GoalStatus.STATUS_SUCCEEDED else 1
+    except KeyboardInterrupt:
+        if handle is not None:
+            cancel = handle.cancel_goal_async()
+            rclpy.spin_until_future_complete(node, cancel, timeout_sec=2.0)
+            print("goal canceled")
+        return 1
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()

@@ -1,0 +1,400 @@
+"""``navigator``: goals to the robot's arrival, in Nav2's ``bt_navigator`` (and ``behavior_server``) place.
+
+Accepts goals as the ``navigate_to_pose`` action (nav2_msgs/action/NavigateToPose) and on
+``goal_pose`` (geometry_msgs/PoseStamped, RViz's "2D Goal Pose"); a new goal preempts the
+running one, cancel stops the robot. It runs Nav2's default tree
+(``navigate_to_pose_w_replanning_and_recovery``) as a loop:
+
+* plan (``compute_path_to_pose``) at ``replanning_frequency`` (1 Hz) and hand each path to the
+  controller (``follow_path``), which takes a new path as an update of the one it follows;
+* a failed plan clears the global costmap and tries once more, a failed follow clears the
+  local costmap and tries once more; then one recovery of the round robin (clear both
+  costmaps, spin ``spin_dist``, wait ``wait_duration``, back up ``backup_dist`` at
+  ``backup_speed``; :mod:`pppbot_nav.behaviors`) and the loop again, at most
+  ``number_of_retries`` recoveries per goal.
+
+Feedback: the robot's pose in ``global_frame``, the navigation time, the distance left along
+the path, an estimated time remaining, and the recoveries so far. A goal that fails carries
+the failing server's error code and message. Behaviours command ``cmd_vel`` themselves;
+backing up stops short of an inscribed cell of ``/local_costmap/costmap``.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+from geometry_msgs.msg import PoseStamped, Twist
+from nav2_msgs.action import ComputePathToPose, FollowPath, NavigateToPose
+from nav2_msgs.srv import ClearEntireCostmap
+from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
+from nav_msgs.msg import Path
+from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.duration import Duration
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.task import Future
+
+from pppbot_common.params import check_finite_range, param
+from pppbot_common.ros.maps import grid_from_message
+from pppbot_common.ros.node_main import Warnings, guarded, run_node
+from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.qos import LATCHED
+from pppbot_common.ros.tf_listener import TfListener
+from pppbot_common.se2 import quaternion_from_yaw
+from pppbot_common.transforms import TransformError
+from pppbot_nav.behaviors import BackUp, Recovery, RecoveryRoundRobin, Spin, Wait
+
+#: Occupancy values of the published costmap from which a cell is inscribed or lethal.
+INSCRIBED_OCCUPANCY = 99
+
+
+@dataclass(frozen=True)
+class NavigatorParameters:
+    global_frame: str = param("map", "frame of goals and feedback")
+    robot_base_frame: str = param("base_link", "the robot's frame")
+    replanning_frequency: float = param(1.0, "plans per second while following (Hz, sim time)")
+    number_of_retries: int = param(6, "recoveries per goal before it fails")
+    server_timeout: float = param(10.0, "wait this long for the planner and controller servers (s)")
+    spin_dist: float = param(1.57, "spin recovery: angle (rad)")
+    wait_duration: float = param(5.0, "wait recovery: duration (s)")
+    backup_dist: float = param(0.30, "backup recovery: distance (m)")
+    backup_speed: float = param(0.05, "backup recovery: speed (m/s)")
+
+    def validate(self) -> None:
+        check_finite_range("replanning_frequency", self.replanning_frequency, 0.0, 100.0, low_open=True)
+        check_finite_range("server_timeout", self.server_timeout, 0.0, 3600.0, low_open=True)
+        check_finite_range("spin_dist", self.spin_dist, -2 * math.pi, 2 * math.pi)
+        check_finite_range("wait_duration", self.wait_duration, 0.0, 3600.0)
+        check_finite_range("backup_dist", self.backup_dist, 0.0, 10.0)
+        check_finite_range("backup_speed", self.backup_speed, 0.0, 2.0, low_open=True)
+        check_finite_range("number_of_retries", self.number_of_retries, 0, 1000)
+
+
+class Failed(Exception):
+    """A navigation step failed: ``code`` and ``message`` of the server that failed it."""
+
+    def __init__(self, code: int, message: str) -> None:
+        super().__init__(message)
+        self.code = code
+
+
+class Stopped(Exception):
+    """The goal was canceled or preempted."""
+
+
+def path_length_from(path: np.ndarray, xy: tuple[float, float]) -> float:
+    """Length (m) along ``path`` (K, 2) from its point closest to ``xy`` to its end."""
+    if len(path) == 0:
+        return 0.0
+    i = int(np.argmin(np.hypot(path[:, 0] - xy[0], path[:, 1] - xy[1])))
+    rest = path[i:]
+    return float(math.hypot(rest[0, 0] - xy[0], rest[0, 1] - xy[1]) + np.hypot(*np.diff(rest, axis=0).T).sum())
+
+
+class Navigator(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("navigator", **kwargs)
+        self.params = declare_parameters(self, NavigatorParameters)
+        self._warn = Warnings(self)
+        self.tf = TfListener(self, self._warn).buffer
+        group = ReentrantCallbackGroup()
+        self.planner = ActionClient(self, ComputePathToPose, "compute_path_to_pose", callback_group=group)
+        self.controller = ActionClient(self, FollowPath, "follow_path", callback_group=group)
+        self.clear_global = self.create_client(ClearEntireCostmap, "global_costmap/clear_entirely_global_costmap",
+                                               callback_group=group)
+        self.clear_local = self.create_client(ClearEntireCostmap, "local_costmap/clear_entirely_local_costmap",
+                                              callback_group=group)
+        self.cmd_pub = self.create_publisher(Twist, "cmd_vel", 1)
+        self._local_costmap: OccupancyGridMsg | None = None
+        self.create_subscription(OccupancyGridMsg, "local_costmap/costmap",
+                                 guarded(self, self._on_local_costmap, "OccupancyGrid"), LATCHED, callback_group=group)
+        self._lock = threading.Lock()
+        self._active: ServerGoalHandle | None = None
+        self._self_client = ActionClient(self, NavigateToPose, "navigate_to_pose", callback_group=group)
+        self.server = ActionServer(self, NavigateToPose, "navigate_to_pose", self._execute, callback_group=group,
+                                   goal_callback=lambda goal: GoalResponse.ACCEPT,
+                                   cancel_callback=lambda goal: CancelResponse.ACCEPT)
+        self.create_subscription(PoseStamped, "goal_pose", guarded(self, self._on_goal_pose, "PoseStamped"), 10,
+                                 callback_group=group)
+        self.get_logger().info("navigator ready: navigate_to_pose and goal_pose")
+
+    def destroy_node(self) -> None:
+        self.server.destroy()
+        super().destroy_node()
+
+    # ----------------------------------------------------------------- inputs
+    def _on_local_costmap(self, msg: OccupancyGridMsg) -> None:
+        self._local_costmap = msg
+
+    def _on_goal_pose(self, msg: PoseStamped) -> None:
+        """As bt_navigator does: a goal on the topic becomes a goal of the action."""
+        goal = NavigateToPose.Goal()
+        goal.pose = msg
+        self.get_logger().info(f"goal_pose: ({msg.pose.position.x:.2f}, {msg.pose.position.y:.2f}) "
+                               f"in '{msg.header.frame_id}'")
+        self._self_client.send_goal_async(goal)
+
+    # ---------------------------------------------------------------- helpers
+    def _now_s(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _pose(self, frame: str) -> tuple[float, float, float]:
+        return self.tf.lookup(frame, self.params.robot_base_frame)
+
+    def _check(self, goal_handle: ServerGoalHandle) -> None:
+        if goal_handle.is_cancel_requested:
+            raise Stopped("canceled")
+        if self._active is not goal_handle:
+            raise Stopped("preempted by a new goal")
+
+    def _wait(self, future: Future, goal_handle: ServerGoalHandle, timeout_s: float | None = None) -> Any:
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        while not future.done():
+            self._check(goal_handle)
+            if deadline is not None and time.monotonic() > deadline:
+                raise Failed(0, "a server did not answer in time")
+            time.sleep(0.005)
+        return future.result()
+
+    def _sleep(self, seconds: float, goal_handle: ServerGoalHandle, step: Callable[[], None] | None = None) -> None:
+        """Wait ``seconds`` of sim time, calling ``step`` every 50 ms of it."""
+        end = self._now_s() + seconds
+        while self._now_s() < end:
+            self._check(goal_handle)
+            if step is not None:
+                step()
+            next_step = self._now_s() + 0.05
+            while self._now_s() < min(next_step, end):
+                time.sleep(0.002)
+
+    def stop(self) -> None:
+        self.cmd_pub.publish(Twist())
+
+    # ------------------------------------------------------------ navigation
+    def _execute(self, goal_handle: ServerGoalHandle) -> NavigateToPose.Result:
+        with self._lock:
+            self._active = goal_handle
+        result = NavigateToPose.Result()
+        request: PoseStamped = goal_handle.request.pose
+        if not request.header.frame_id:
+            request.header.frame_id = self.params.global_frame
+        state = _Progress(self._now_s())
+        p = request.pose.position
+        self.get_logger().info(f"navigating to ({p.x:.2f}, {p.y:.2f}) in '{request.header.frame_id}'")
+        try:
+            self._navigate(goal_handle, request, state)
+            goal_handle.succeed()
+            self.get_logger().info(f"goal reached in {self._now_s() - state.start_s:.1f} s "
+                                   f"({state.recoveries} recoveries)")
+        except Stopped as exc:
+            self._cancel_follow(state)
+            if goal_handle.is_cancel_requested:
+                self.stop()
+                goal_handle.canceled()
+            else:
+                goal_handle.abort()
+            result.error_msg = str(exc)
+        except Failed as exc:
+            self._cancel_follow(state)
+            self.stop()
+            result.error_code, result.error_msg = exc.code, str(exc)
+            self.get_logger().warning(f"navigation failed: {exc}")
+            goal_handle.abort()
+        with self._lock:
+            if self._active is goal_handle:
+                self._active = None
+        return result
+
+    def _cancel_follow(self, state: _Progress) -> None:
+        if state.follow is not None:
+            state.follow.cancel_goal_async()
+            state.follow = None
+
+    def _navigate(self, goal_handle: ServerGoalHandle, request: PoseStamped, state: _Progress) -> None:
+        p = self.params
+        for client, name in ((self.planner, "compute_path_to_pose"), (self.controller, "follow_path")):
+            if not client.wait_for_server(timeout_sec=p.server_timeout):
+                raise Failed(0, f"the {name} server is not available")
+        robin = RecoveryRoundRobin()
+        while True:
+            try:
+                self._plan_and_follow(goal_handle, request, state)
+                return
+            except Failed as exc:
+                if state.recoveries >= p.number_of_retries:
+                    raise Failed(exc.code, f"{exc} (after {state.recoveries} recoveries)") from exc
+                self._cancel_follow(state)
+                self.stop()
+                recovery = robin.next()
+                state.recoveries += 1
+                self.get_logger().info(f"recovery {state.recoveries}/{p.number_of_retries}: {recovery.value} "
+                                       f"(after: {exc})")
+                self._recover(recovery, goal_handle)
+
+    def _plan(self, goal_handle: ServerGoalHandle, request: PoseStamped) -> Path:
+        goal = ComputePathToPose.Goal()
+        goal.goal = request
+        for attempt in range(2):
+            handle = self._wait(self.planner.send_goal_async(goal), goal_handle, self.params.server_timeout)
+            response = self._wait(handle.get_result_async(), goal_handle)
+            res = response.result
+            if res.error_code == ComputePathToPose.Result.NONE and res.path.poses:
+                return res.path
+            if attempt == 0:
+                self._clear(self.clear_global, goal_handle)
+        raise Failed(res.error_code, f"planning: {res.error_msg}")
+
+    def _plan_and_follow(self, goal_handle: ServerGoalHandle, request: PoseStamped, state: _Progress) -> None:
+        follow_failures = 0
+        next_plan = -math.inf
+        while True:
+            self._check(goal_handle)
+            now = self._now_s()
+            if now >= next_plan:
+                next_plan = now + 1.0 / self.params.replanning_frequency
+                path = self._plan(goal_handle, request)
+                state.path = np.array([[ps.pose.position.x, ps.pose.position.y] for ps in path.poses])
+                state.path_frame = path.header.frame_id
+                follow = FollowPath.Goal()
+                follow.path = path
+                handle = self._wait(self.controller.send_goal_async(follow, feedback_callback=state.on_feedback),
+                                    goal_handle, self.params.server_timeout)
+                if not handle.accepted:
+                    raise Failed(FollowPath.Result.UNKNOWN, "the controller refused the path")
+                state.follow, state.follow_result = handle, handle.get_result_async()
+            if state.follow_result is not None and state.follow_result.done():
+                res = state.follow_result.result().result
+                state.follow, state.follow_result = None, None
+                if res.error_code == FollowPath.Result.NONE:
+                    return
+                follow_failures += 1
+                if follow_failures > 1:
+                    raise Failed(res.error_code, f"following: {res.error_msg}")
+                self._clear(self.clear_local, goal_handle)
+                next_plan = -math.inf
+            self._feedback(goal_handle, state)
+            self._sleep(0.05, goal_handle)
+
+    def _feedback(self, goal_handle: ServerGoalHandle, state: _Progress) -> None:
+        try:
+            x, y, yaw = self._pose(self.params.global_frame)
+        except TransformError as exc:
+            self._warn("pose", f"no feedback pose: {exc}")
+            return
+        fb = NavigateToPose.Feedback()
+        fb.current_pose.header.frame_id = self.params.global_frame
+        fb.current_pose.header.stamp = self.get_clock().now().to_msg()
+        fb.current_pose.pose.position.x, fb.current_pose.pose.position.y = x, y
+        o = fb.current_pose.pose.orientation
+        o.x, o.y, o.z, o.w = quaternion_from_yaw(yaw)
+        fb.navigation_time = Duration(seconds=max(0.0, self._now_s() - state.start_s)).to_msg()
+        fb.number_of_recoveries = state.recoveries
+        remaining = path_length_from(state.path, (x, y)) if state.path is not None else 0.0
+        fb.distance_remaining = float(remaining)
+        speed = state.speed if state.speed > 0.05 else 0.0
+        fb.estimated_time_remaining = Duration(seconds=remaining / speed if speed else 0.0).to_msg()
+        goal_handle.publish_feedback(fb)
+
+    def _clear(self, client: Any, goal_handle: ServerGoalHandle) -> None:
+        if not client.service_is_ready():
+            self._warn("clear", f"{client.srv_name} is not available: not cleared")
+            return
+        self._wait(client.call_async(ClearEntireCostmap.Request()), goal_handle, self.params.server_timeout)
+
+    # ------------------------------------------------------------ recoveries
+    def _recover(self, recovery: Recovery, goal_handle: ServerGoalHandle) -> None:
+        p = self.params
+        if recovery is Recovery.CLEAR_COSTMAPS:
+            self._clear(self.clear_local, goal_handle)
+            self._clear(self.clear_global, goal_handle)
+            return
+        behavior: Spin | BackUp | Wait
+        if recovery is Recovery.SPIN:
+            behavior = Spin(spin_dist_rad=p.spin_dist)
+        elif recovery is Recovery.BACKUP:
+            behavior = BackUp(backup_dist_m=p.backup_dist, backup_speed=p.backup_speed)
+        else:
+            behavior = Wait(wait_duration_s=p.wait_duration)
+        try:
+            odom_frame = self._local_costmap.header.frame_id if self._local_costmap is not None else "odom"
+            behavior.start(self._pose(odom_frame), self._now_s())
+        except TransformError as exc:
+            self._warn("behavior", f"{recovery.value} skipped: {exc}")
+            return
+        done = threading.Event()
+
+        def step() -> None:
+            if done.is_set():
+                return
+            try:
+                pose = self._pose(odom_frame)
+            except TransformError:
+                return
+            command = behavior.step(pose, self._now_s())
+            if command is None or (command[0] < 0 and self._blocked_behind(pose)):
+                self.stop()
+                done.set()
+                return
+            twist = Twist()
+            twist.linear.x, twist.angular.z = command
+            self.cmd_pub.publish(twist)
+
+        timeout = {Recovery.SPIN: 12.0, Recovery.BACKUP: 12.0}.get(recovery, p.wait_duration + 1.0)
+        self._run_until(done, timeout, goal_handle, step)
+        self.stop()
+
+    def _run_until(self, done: threading.Event, timeout_s: float, goal_handle: ServerGoalHandle,
+                   step: Callable[[], None]) -> None:
+        end = self._now_s() + timeout_s
+        while not done.is_set() and self._now_s() < end:
+            self._sleep(0.05, goal_handle, step)
+
+    def _blocked_behind(self, pose: tuple[float, float, float]) -> bool:
+        """Whether the local costmap is inscribed or lethal just behind the robot (odom frame)."""
+        msg = self._local_costmap
+        if msg is None:
+            return False
+        grid = grid_from_message(msg)
+        distance = 0.1
+        x, y = pose[0] - distance * math.cos(pose[2]), pose[1] - distance * math.sin(pose[2])
+        row, col = grid.cell_of(np.array([x]), np.array([y]))
+        h, w = grid.data.shape
+        if not (0 <= row[0] < h and 0 <= col[0] < w):
+            return False
+        return bool(grid.data[row[0], col[0]] >= INSCRIBED_OCCUPANCY)
+
+
+class _Progress:
+    """One goal's running state."""
+
+    def __init__(self, start_s: float) -> None:
+        self.start_s = start_s
+        self.recoveries = 0
+        self.path: np.ndarray | None = None
+        self.path_frame = ""
+        self.follow: Any = None
+        self.follow_result: Future | None = None
+        self.speed = 0.0
+
+    def on_feedback(self, msg: Any) -> None:
+        self.speed = float(msg.feedback.speed)
+
+
+def spin_multithreaded(node: Navigator) -> None:
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    finally:
+        executor.shutdown()
+
+
+def main(args: list[str] | None = None) -> None:
+    sys.exit(run_node(lambda: Navigator(), "navigator", args, spin=spin_multithreaded))
