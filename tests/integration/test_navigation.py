@@ -1,0 +1,103 @@
+"""Navigation end to end in the room: launch_sim with localization and navigation, goals over DDS.
+
+The real stack (MuJoCo simulator, controller, twist_mux, map_server, AMCL, planner_server,
+controller_server, navigator) runs as launch_sim starts it; the test is an action client
+and a topic user, as RViz and ``ros2 action send_goal`` are. The shipped room map is in the
+world frame, so ground truth is comparable with the goal directly.
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from action_msgs.msg import GoalStatus
+from geometry_msgs.msg import PoseStamped, Twist
+from nav2_msgs.action import NavigateToPose
+from nav_msgs.msg import OccupancyGrid, Odometry, Path as PathMsg
+from rclpy.action import ActionClient
+
+from pppbot_common.ros.qos import LATCHED
+from pppbot_common.ros.wait import wait_until
+from pppbot_common.se2 import quaternion_from_yaw, wrap_angle, yaw_from_quaternion
+
+ROOT = Path(__file__).resolve().parents[2]
+PPPBOT = str(ROOT / "pppbot")
+
+
+def goal_pose(x: float, y: float, yaw: float) -> PoseStamped:
+    pose = PoseStamped()
+    pose.header.frame_id = "map"
+    pose.pose.position.x, pose.pose.position.y = x, y
+    o = pose.pose.orientation
+    o.x, o.y, o.z, o.w = quaternion_from_yaw(yaw)
+    return pose
+
+
+def truth_pose(msg: Odometry) -> tuple[float, float, float]:
+    p, o = msg.pose.pose.position, msg.pose.pose.orientation
+    return p.x, p.y, yaw_from_quaternion(o.x, o.y, o.z, o.w)
+
+
+@pytest.mark.ros
+def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spawn: Any) -> None:
+    launch = spawn([PPPBOT, "launch_sim", "world:=room", "localization:=true", "use_teleop:=false",
+                    "use_rviz:=false", "real_time_factor:=3.0"], name="launch_sim")
+    launch.wait_for_output(r"ppp_bot is up in 'room'", 90)
+    truths: list[Odometry] = []
+    plans: list[PathMsg] = []
+    costmaps: dict[str, OccupancyGrid] = {}
+    commands: list[Twist] = []
+    ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
+    ros_node.create_subscription(PathMsg, "/plan", plans.append, 10)
+    ros_node.create_subscription(Twist, "/cmd_vel", commands.append, 10)
+    for name in ("global_costmap", "local_costmap"):
+        ros_node.create_subscription(OccupancyGrid, f"/{name}/costmap",
+                                     lambda msg, name=name: costmaps.__setitem__(name, msg), LATCHED)
+    client = ActionClient(ros_node, NavigateToPose, "navigate_to_pose")
+    assert client.wait_for_server(timeout_sec=20)
+
+    # 1. A goal reached: the robot ends within the goal checker's tolerances, with feedback on the way.
+    feedback: list[Any] = []
+    goal = NavigateToPose.Goal(pose=goal_pose(1.5, 0.5, 1.57))
+    sent = client.send_goal_async(goal, feedback_callback=lambda msg: feedback.append(msg.feedback))
+    handle = wait_until(lambda: sent.result() if sent.done() else None, 10, "the goal accepted", node=ros_node)
+    assert handle.accepted
+    done = handle.get_result_async()
+    wait_until(lambda: done.done(), 120, "the first goal's result", node=ros_node)
+    assert done.result().status == GoalStatus.STATUS_SUCCEEDED, done.result().result.error_msg
+    x, y, yaw = truth_pose(truths[-1])
+    assert math.hypot(x - 1.5, y - 0.5) < 0.35 and abs(wrap_angle(yaw - 1.57)) < 0.35
+    distances = [f.distance_remaining for f in feedback]
+    assert distances and max(distances) > 1.2 and min(distances) < 0.5
+    assert plans and plans[0].header.frame_id == "map" and max(len(p.poses) for p in plans) > 5
+    assert any(abs(c.linear.x) > 0.2 for c in commands)
+    wait_until(lambda: len(costmaps) == 2, 10, "both costmaps", node=ros_node)
+    local = costmaps["local_costmap"]
+    assert local.header.frame_id == "odom" and local.info.width == local.info.height == 100
+    assert costmaps["global_costmap"].header.frame_id == "map"
+    assert any(v == 100 for v in costmaps["global_costmap"].data)  # walls are lethal
+
+    # 2. A goal canceled on the way: the goal ends canceled and the robot stops.
+    far = NavigateToPose.Goal(pose=goal_pose(-1.5, -1.0, 0.0))
+    sent = client.send_goal_async(far)
+    handle = wait_until(lambda: sent.result() if sent.done() else None, 10, "the far goal accepted", node=ros_node)
+    start = truth_pose(truths[-1])
+    wait_until(lambda: math.hypot(truth_pose(truths[-1])[0] - start[0], truth_pose(truths[-1])[1] - start[1]) > 0.3,
+               60, "the robot under way", node=ros_node)
+    cancel = handle.cancel_goal_async()
+    wait_until(lambda: cancel.done(), 10, "the cancel answered", node=ros_node)
+    result = handle.get_result_async()
+    wait_until(lambda: result.done(), 20, "the canceled goal's result", node=ros_node)
+    assert result.result().status == GoalStatus.STATUS_CANCELED
+    wait_until(lambda: abs(truths[-1].twist.twist.linear.x) < 0.02, 10, "the robot stopped", node=ros_node)
+
+    # 3. A goal on /goal_pose (RViz's 2D Goal Pose) is navigated to as well.
+    pub = ros_node.create_publisher(PoseStamped, "/goal_pose", 10)
+    wait_until(lambda: pub.get_subscription_count() > 0, 10, "the navigator on /goal_pose", node=ros_node)
+    pub.publish(goal_pose(0.0, 0.0, 0.0))
+    t0 = time.monotonic()
+    wait_until(lambda: math.hypot(*truth_pose(truths[-1])[:2]) < 0.3 and abs(truths[-1].twist.twist.linear.x) < 0.02
+               and time.monotonic() - t0 > 1.0, 120, "the robot back at (0, 0)", node=ros_node)
