@@ -101,6 +101,8 @@ class Run:
                       seed=self.args.seed, wheel_slip=self.args.wheel_slip, log_level=self.args.log_level,
                       use_slam=self.scenario is Scenario.SLAM,
                       localization=self.scenario is Scenario.LOCALIZATION,
+                      # The scenarios drive their own routes: no navigation nodes to share the CPU.
+                      navigation="false",
                       map=str(self.args.map or ""))
         return values
 
