@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import rclpy
 from geometry_msgs.msg import Twist
 from nav2_msgs.action import FollowPath
 from nav_msgs.msg import Odometry, Path
@@ -197,6 +198,8 @@ class ControllerServer(Node):
         base = self.costmap_node.params.robot_base_frame
         tick = self._now_s()
         while True:
+            if not rclpy.ok():  # shutting down: the goal must not keep its thread (and the process) alive
+                return Result.UNKNOWN, "the controller is shutting down"
             if goal_handle.is_cancel_requested:
                 return Result.UNKNOWN, "canceled"
             if self._active is not goal_handle:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
+import rclpy
 from geometry_msgs.msg import PoseStamped, Twist
 from nav2_msgs.action import ComputePathToPose, FollowPath, NavigateToPose
 from nav2_msgs.srv import ClearEntireCostmap
@@ -149,6 +150,8 @@ class Navigator(Node):
         return self.tf.lookup(frame, self.params.robot_base_frame)
 
     def _check(self, goal_handle: ServerGoalHandle) -> None:
+        if not rclpy.ok():  # shutting down: a waiting goal must not keep its thread (and the process) alive
+            raise Stopped("the navigator is shutting down")
         if goal_handle.is_cancel_requested:
             raise Stopped("canceled")
         if self._active is not goal_handle:
