@@ -11,7 +11,7 @@ import time
 from typing import Any, Callable, TypeVar
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
@@ -49,6 +49,18 @@ def run_node(factory: Callable[[], N], name: str, args: list[str] | None = None,
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def spin_together(*nodes: Node, threads: int = 1) -> None:
+    """Spin several nodes of one process in one executor (``threads`` > 1: a multi-threaded one,
+    for servers whose goals wait while other callbacks run)."""
+    executor = SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(num_threads=threads)
+    for node in nodes:
+        executor.add_node(node)
+    try:
+        executor.spin()
+    finally:
+        executor.shutdown()
 
 
 def _shutting_down(grace_s: float = 2.0) -> bool:

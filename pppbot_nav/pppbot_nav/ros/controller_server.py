@@ -30,11 +30,10 @@ from nav_msgs.msg import Odometry, Path
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.node_main import Warnings, guarded, run_node
+from pppbot_common.ros.node_main import Warnings, guarded, run_node, spin_together
 from pppbot_common.ros.params import declare_parameters
 from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_common.transforms import TransformError, compose
@@ -254,15 +253,6 @@ class ControllerServer(Node):
             self._sleep_until(tick)
 
 
-def spin_multithreaded(node: ControllerServer | Any) -> None:
-    executor = MultiThreadedExecutor(num_threads=3)
-    executor.add_node(node)
-    executor.add_node(node.costmap_node)
-    try:
-        executor.spin()
-    finally:
-        executor.shutdown()
-
-
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run_node(lambda: ControllerServer(), "controller_server", args, spin=spin_multithreaded))
+    sys.exit(run_node(lambda: ControllerServer(), "controller_server", args,
+                      spin=lambda node: spin_together(node, node.costmap_node, threads=3)))

@@ -38,13 +38,12 @@ from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalRespons
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.duration import Duration
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future
 
 from pppbot_common.params import check_finite_range, param
 from pppbot_common.ros.maps import grid_from_message
-from pppbot_common.ros.node_main import Warnings, guarded, run_node
+from pppbot_common.ros.node_main import Warnings, guarded, run_node, spin_together
 from pppbot_common.ros.params import declare_parameters
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.tf_listener import TfListener
@@ -264,7 +263,6 @@ class Navigator(Node):
                 next_plan = now + 1.0 / self.params.replanning_frequency
                 path = self._plan(goal_handle, request)
                 state.path = np.array([[ps.pose.position.x, ps.pose.position.y] for ps in path.poses])
-                state.path_frame = path.header.frame_id
                 follow = FollowPath.Goal()
                 follow.path = path
                 handle = self._wait(self.controller.send_goal_async(follow, feedback_callback=state.on_feedback),
@@ -381,7 +379,6 @@ class _Progress:
         self.start_s = start_s
         self.recoveries = 0
         self.path: np.ndarray | None = None
-        self.path_frame = ""
         self.follow: Any = None
         self.follow_result: Future | None = None
         self.speed = 0.0
@@ -390,14 +387,5 @@ class _Progress:
         self.speed = float(msg.feedback.speed)
 
 
-def spin_multithreaded(node: Navigator) -> None:
-    executor = MultiThreadedExecutor(num_threads=4)
-    executor.add_node(node)
-    try:
-        executor.spin()
-    finally:
-        executor.shutdown()
-
-
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run_node(lambda: Navigator(), "navigator", args, spin=spin_multithreaded))
+    sys.exit(run_node(lambda: Navigator(), "navigator", args, spin=lambda node: spin_together(node, threads=4)))

@@ -23,11 +23,10 @@ from nav_msgs.msg import Path
 from rclpy.action import ActionServer
 from rclpy.action.server import ServerGoalHandle
 from rclpy.duration import Duration
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from pppbot_common.params import ParameterError, param
-from pppbot_common.ros.node_main import run_node
+from pppbot_common.ros.node_main import run_node, spin_together
 from pppbot_common.ros.params import declare_parameters
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
 from pppbot_common.transforms import TransformError, compose
@@ -168,16 +167,6 @@ class PlannerServer(Node):
         return msg, (f"goal moved {moved:.2f} m to a reachable cell" if moved > 1e-6 else "")
 
 
-def spin_with_costmap(node: PlannerServer | Any) -> None:
-    """Spin a server and the costmap node it owns in one executor."""
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    executor.add_node(node.costmap_node)
-    try:
-        executor.spin()
-    finally:
-        executor.shutdown()
-
-
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run_node(lambda: PlannerServer(), "planner_server", args, spin=spin_with_costmap))
+    sys.exit(run_node(lambda: PlannerServer(), "planner_server", args,
+                      spin=lambda node: spin_together(node, node.costmap_node)))
