@@ -10,6 +10,10 @@ them identically (fixed seeds). Worlds:
 * ``room``: a furnished 12 × 9 m flat: four rooms with doors, a sofa, a bed,
   tables on legs, shelves, a column and plant pots.
 * ``office``: 44 × 44 m: corridors, 20 offices with doors, desks and pillars.
+* ``maze_boxes``, ``room_boxes``: the maze and the room with boxes that their maps
+  (``maps/maze.yaml``, ``maps/room.yaml``) do not have, for navigating around
+  obstacles the map does not know: in the maze, boxes that narrow corridors and two
+  that close corridors on loops; in the room, boxes in the open floor.
 """
 from __future__ import annotations
 
@@ -168,14 +172,19 @@ def table(name: str, x: float, y: float, sx: float, sy: float) -> list[str]:
     return legs + [box(f"{name}_top", x, y, sx, sy, 0.03, z0=0.72)]
 
 
+#: The room's doors: a grid map shows a 1.1 m door about 0.95 m wide (its jambs' cells are
+#: occupied), which leaves a robot with Nav2's inscribed radius of 0.3 m room to steer.
+ROOM_DOOR_M = 1.1
+
+
 def make_room() -> str:
     w, h = 12.0, 9.0
     x0, y0 = -2.5, -4.5  # the origin (the default spawn) is in the living room
     segments = [
         (x0, y0, x0 + w, y0), (x0 + w, y0, x0 + w, y0 + h), (x0 + w, y0 + h, x0, y0 + h), (x0, y0 + h, x0, y0),
-        *door_wall(x0 + 5.0, y0, x0 + 5.0, y0 + h, doors=[2.0, 7.0]),     # living | kitchen/bedroom side
-        *door_wall(x0 + 5.0, y0 + 4.5, x0 + w, y0 + 4.5, doors=[1.5]),    # bedroom | study
-        *door_wall(x0 + 9.0, y0 + 4.5, x0 + 9.0, y0 + h, doors=[2.2]),    # bedroom | bath
+        *door_wall(x0 + 5.0, y0, x0 + 5.0, y0 + h, doors=[2.0, 7.0], width=ROOM_DOOR_M),   # living | kitchen/bedroom
+        *door_wall(x0 + 5.0, y0 + 4.5, x0 + w, y0 + 4.5, doors=[1.5], width=ROOM_DOOR_M),  # bedroom | study
+        *door_wall(x0 + 9.0, y0 + 4.5, x0 + 9.0, y0 + h, doors=[2.2], width=ROOM_DOOR_M),  # bedroom | bath
     ]
     links = wall_segments(segments, "wall")
     furniture = [
@@ -287,9 +296,33 @@ def make_cones() -> str:
     return HEADER.format(name="cones") + includes + FOOTER
 
 
+# ---------------------------------------------------------------- with boxes
+BOX_H = 0.5  # above the lidar's 0.2 m: the scan sees them
+#: (x, y, size x, size y) of the maze's unmapped boxes. Cells are 1.4 m with their centres on
+#: multiples of 1.4 and 1.25 m between wall faces; a 0.35 m box in a cell's corner (0.45 m off
+#: its centre both ways) leaves 0.9 m whether a wall or an opening is beside it. The two long
+#: ones close corridors that lie on loops.
+MAZE_BOXES = [(3.25, 1.85, 0.35, 0.35), (-1.85, -3.25, 0.35, 0.35), (4.65, 4.65, 0.35, 0.35),
+              (-4.65, 2.35, 0.35, 0.35), (0.95, -3.75, 0.35, 0.35), (-2.35, 5.15, 0.35, 0.35),
+              (6.05, -0.95, 0.35, 0.35), (-5.15, -5.15, 0.35, 0.35),
+              (0.0, 2.8, 0.35, 1.2), (1.4, -4.2, 0.35, 1.2)]
+#: The room's: on the open floor of each room, clear of doors and furniture.
+ROOM_BOXES = [(0.5, 1.2, 0.4, 0.4), (-1.0, -3.2, 0.5, 0.3), (6.5, -1.5, 0.4, 0.4), (3.5, -3.2, 0.4, 0.4),
+              (3.2, 1.2, 0.4, 0.4), (8.0, 2.0, 0.4, 0.4)]
+
+
+def with_boxes(base: str, world: str, boxes: list[tuple[float, float, float, float]]) -> str:
+    """The world ``base`` (its SDF text) as ``<base>_boxes``, with one static model of ``boxes``."""
+    links = [box(f"box{i}", x, y, sx, sy, BOX_H) for i, (x, y, sx, sy) in enumerate(boxes)]
+    renamed = world.replace(f'<world name="{base}">', f'<world name="{base}_boxes">', 1)
+    return renamed.removesuffix(FOOTER) + model("unmapped_boxes", links) + FOOTER
+
+
 def main() -> None:
     make_cone_model()
-    for name, make in (("cones", make_cones), ("maze", make_maze), ("room", make_room), ("office", make_office)):
+    for name, make in (("cones", make_cones), ("maze", make_maze), ("room", make_room), ("office", make_office),
+                       ("maze_boxes", lambda: with_boxes("maze", make_maze(), MAZE_BOXES)),
+                       ("room_boxes", lambda: with_boxes("room", make_room(), ROOM_BOXES))):
         (WORLDS / f"{name}.sdf").write_text(make())
         print(f"wrote worlds/{name}.sdf")
 

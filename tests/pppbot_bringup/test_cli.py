@@ -131,8 +131,14 @@ def test_map_saver_is_a_verb_and_an_executable_of_pppbot_nav():
     assert "usage: map_saver_cli [-h] [-f PATH]" in result.stdout
 
 
-def test_an_eval_scenario_not_built_yet_names_what_it_needs():
-    result = pppbot("eval", "navigation", "--json")
-    assert result.returncode == 2
-    assert "needs the planner, controller and navigator (pppbot_nav), which is not built yet" in result.stderr
-    assert result.stdout == ""
+@pytest.mark.parametrize("args, message", [
+    (["--goals", "0"], "--goals 0: must be at least 1"),
+    (["--goal-distance", "100"], "no goal candidate is 100.0 m from (0.00, 0.00) m"),
+    (["--start", "9.5", "0", "0"], "start (9.5, 0.0) m is not in free space"),  # in the room's east wall
+    (["--min-success-rate", "1.5"], "--min-success-rate 1.5: must be in [0, 1]"),
+])
+def test_eval_navigation_refuses_bad_goal_arguments_before_starting_anything(tmp_path, args, message):
+    result = pppbot("eval", "navigation", "--world", "room", "--out", str(tmp_path / "out"), *args)
+    assert result.returncode == 2, result.stderr
+    assert message in result.stderr and result.stdout == ""
+    assert not (tmp_path / "out").exists()

@@ -42,3 +42,7 @@ class GoalBlocked(PathError):
 
 class NoPath(PathError):
     """Start and goal are in free space that is not connected."""
+
+
+class GoalSamplingError(EvalError):
+    """No navigation goals can be drawn as asked; the message names the value or the place."""

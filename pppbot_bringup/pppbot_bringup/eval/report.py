@@ -69,8 +69,9 @@ def _draw_truth(ax: Any, truth_map: OccupancyGrid) -> None:
 
 def plot_trajectories(path: Path, truth_map: OccupancyGrid, truth: PoseSeries, estimate: PoseSeries | None,
                       estimate_label: str, collisions_xy: Sequence[tuple[float, float]] = (),
-                      title: str = "") -> None:
-    """True and estimated (already in the world frame) paths over the ground-truth map."""
+                      title: str = "", goals: Sequence[tuple[float, float, bool]] = ()) -> None:
+    """True and estimated (already in the world frame) paths over the ground-truth map; navigation
+    ``goals`` as (x, y, reached), numbered in order."""
     fig, ax = plt.subplots(figsize=_figure_size(truth_map))
     _draw_truth(ax, truth_map)
     ax.plot(truth.xy[:, 0], truth.xy[:, 1], color="black", lw=1.2, label="ground truth")
@@ -81,6 +82,13 @@ def plot_trajectories(path: Path, truth_map: OccupancyGrid, truth: PoseSeries, e
     if len(collisions_xy):
         points = np.asarray(collisions_xy)
         ax.plot(points[:, 0], points[:, 1], marker="x", color="red", ms=9, mew=2, ls="none", label="collision")
+    for reached in (True, False):
+        chosen = [(i, x, y) for i, (x, y, ok) in enumerate(goals, 1) if ok is reached]
+        if chosen:
+            ax.plot([x for _, x, _ in chosen], [y for _, _, y in chosen], marker="*", ls="none", ms=10,
+                    color="tab:green" if reached else "red", label="goal reached" if reached else "goal missed")
+            for i, x, y in chosen:
+                ax.annotate(str(i), (x, y), textcoords="offset points", xytext=(4, 4), fontsize=6)
     ax.set_xlabel("x (m, world)")
     ax.set_ylabel("y (m, world)")
     ax.set_aspect("equal")

@@ -12,6 +12,9 @@ a scenario turns that into the report's metrics and plots.
 * ``localization``: map_server and AMCL on a saved map, started from a wrong initial
   pose (or globally); the estimate is ``map → odom → base_link``, scored once it has
   converged (``amcl_*``), with the travel it took to converge.
+* ``navigation``: map_server, AMCL and the navigation nodes on a saved map; random
+  reachable goals, one after another, through ``navigate_to_pose``; each goal's
+  outcome is judged on ground truth (:func:`navigation_metrics`).
 """
 from __future__ import annotations
 
@@ -19,14 +22,23 @@ import enum
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
 from pppbot_bringup.eval.map_quality import compare_maps
-from pppbot_bringup.eval.navigation import PPP_BOT_FOOTPRINT, clearance_along
+from pppbot_bringup.eval.errors import PathError, PoseSeriesError
+from pppbot_bringup.eval.navigation import (
+    PPP_BOT_FOOTPRINT,
+    GoalOutcome,
+    clearance_along,
+    goal_reached,
+    pose_error,
+    summarize_navigation,
+)
 from pppbot_bringup.eval.report import plot_errors, plot_map_overlay, plot_trajectories
 from pppbot_bringup.eval.routes import Route
+from pppbot_bringup.eval.shortest_path import shortest_path
 from pppbot_bringup.eval.trajectory import (
     PoseSeries,
     TrajectoryError,
@@ -57,10 +69,11 @@ CONVERGED_M = 0.1
 CONVERGED_RAD = 0.05
 CONVERGED_TRAVEL_M = 1.0
 
-#: Scenarios whose stack is not in this checkout yet: named, never faked.
-NOT_BUILT = {
-    Scenario.NAVIGATION: "the planner, controller and navigator (pppbot_nav)",
-}
+#: A navigation goal counts as reached when the navigator says so and the true pose is within the
+#: goal checker's tolerances (0.25 m, 0.25 rad: config/nav2_params.yaml) widened by what
+#: localization may be off by (the navigator judges on AMCL's estimate): CONVERGED_M, CONVERGED_RAD.
+GOAL_XY_TOLERANCE_M = 0.25 + CONVERGED_M
+GOAL_YAW_TOLERANCE_RAD = 0.25 + CONVERGED_RAD
 
 @dataclass(frozen=True)
 class Estimate:
@@ -79,10 +92,29 @@ class Estimate:
 #: transform at the joint-state rate, which is a lot to listen to at 10× real time.
 ESTIMATES = {Scenario.DRIVE: Estimate(("odom", "base_link"), topic="/odom"),
              Scenario.SLAM: Estimate(("map", "odom", "base_link")),
-             Scenario.LOCALIZATION: Estimate(("map", "odom", "base_link"))}
+             Scenario.LOCALIZATION: Estimate(("map", "odom", "base_link")),
+             Scenario.NAVIGATION: Estimate(("map", "odom", "base_link"))}
 #: How each scenario's estimate is labelled in plots.
 ESTIMATE_LABELS = {Scenario.DRIVE: "wheel odometry", Scenario.SLAM: "SLAM (map → base_link)",
-                   Scenario.LOCALIZATION: "AMCL (map → base_link)"}
+                   Scenario.LOCALIZATION: "AMCL (map → base_link)",
+                   Scenario.NAVIGATION: "AMCL (map → base_link)"}
+
+
+@dataclass(frozen=True)
+class GoalRecord:
+    """One goal as the run saw it: the goal in the world frame, sim times of sending it and of
+    its result, and what the navigator answered (``status``: succeeded, aborted, canceled,
+    rejected, or timeout when the run gave up and canceled it), and the shortest path's length
+    from where the robot was when the goal was sent (:func:`shortest_path_m`)."""
+
+    goal: tuple[float, float, float]
+    start_s: float
+    end_s: float
+    status: str
+    error_code: int = 0
+    error_msg: str = ""
+    recoveries: int = 0
+    shortest_path_m: float | None = None
 
 
 @dataclass
@@ -102,6 +134,7 @@ class Recording:
     failure: str | None = None
     final_map: OccupancyGrid | None = None  # the last /map, for scenarios that map
     final_map_stamp_s: float = -1.0
+    goals: list[GoalRecord] = field(default_factory=list)  # navigation
 
     @property
     def sim_seconds(self) -> float:
@@ -225,6 +258,85 @@ def route_metrics(scenario: Scenario, recording: Recording, route: Route, truth_
                       label, [(x, y) for _, x, y in recording.collisions], title)
     plot_errors(out / "error.png", ate, f"{title} — {label} error")
     return metrics, None
+
+
+#: The shortest path a goal is compared with is that of a disc around the footprint (its
+#: circumscribed radius, 0.25 m for ppp_bot): the robot fits wherever that disc does.
+FOOTPRINT_RADIUS_M = float(np.linalg.norm(PPP_BOT_FOOTPRINT.vertices_xy, axis=1).max())
+
+
+def shortest_path_m(truth_map: OccupancyGrid, start_xy: Sequence[float], goal_xy: Sequence[float]) -> float | None:
+    """The shortest path's length (m) for the footprint's disc (:data:`FOOTPRINT_RADIUS_M`), None when none."""
+    try:
+        return shortest_path(truth_map, start_xy, goal_xy, FOOTPRINT_RADIUS_M).length_m
+    except PathError:
+        return None
+
+
+def goal_outcome(record: GoalRecord, truth: PoseSeries, truth_map: OccupancyGrid,
+                 collisions: list[tuple[float, float, float]]) -> GoalOutcome:
+    """A goal judged on ground truth: reached when the navigator succeeded and the true pose at the
+    result is within :data:`GOAL_XY_TOLERANCE_M` and :data:`GOAL_YAW_TOLERANCE_RAD`; the time, the
+    length driven, collisions and clearance between sending the goal and its result.
+
+    Raises:
+        PoseSeriesError: no ground truth at the goal's start or end.
+    """
+    span = truth.span_s()
+    if span is None:
+        raise PoseSeriesError("no ground truth recorded")
+    start_s, end_s = max(record.start_s, span[0]), min(record.end_s, span[1])
+    ends = truth.interpolate([start_s, end_s]).poses
+    driven = truth.within(start_s, end_s)
+    position_m, yaw_rad = pose_error(ends[1], record.goal)
+    clearance = clearance_along(driven, truth_map, PPP_BOT_FOOTPRINT) if len(driven) else np.array([np.nan])
+    return GoalOutcome(
+        goal=record.goal,
+        reached=record.status == "succeeded" and goal_reached(ends[1], record.goal, GOAL_XY_TOLERANCE_M,
+                                                              GOAL_YAW_TOLERANCE_RAD),
+        final_pose=(float(ends[1, 0]), float(ends[1, 1]), float(ends[1, 2])),
+        position_error_m=position_m, yaw_error_rad=yaw_rad, time_s=record.end_s - record.start_s,
+        path_length_m=driven.path_length_m(), shortest_path_m=record.shortest_path_m,
+        collisions=sum(1 for t, _, _ in collisions if record.start_s <= t <= record.end_s),
+        min_clearance_m=float(np.min(clearance)))
+
+
+def navigation_metrics(recording: Recording, truth_map: OccupancyGrid, map_to_world: tuple[float, float, float],
+                       max_speed_mps: float, out: Path, title: str) -> dict[str, Any]:
+    """The goals' outcomes and their summary (:func:`summarize_navigation`: ``success_rate``,
+    ``collisions``, ``mean_time_ratio`` against the shortest path at ``max_speed_mps``, ...),
+    ``total_time_ratio`` (all successful goals' time over all their shortest times), AMCL's error
+    along the way (``ate_*``), one entry per goal under ``goal_results``; writes ``trajectory.png``.
+
+    Raises:
+        PoseSeriesError: no ground truth was recorded.
+    """
+    truth = PoseSeries.from_rows(recording.truth_rows)
+    outcomes = [goal_outcome(r, truth, truth_map, recording.collisions) for r in recording.goals]
+    metrics: dict[str, Any] = dict(summarize_navigation(outcomes, max_speed_mps))
+    metrics["collisions"] = len(recording.collisions)  # also those outside a goal's time (there should be none)
+    rated = [o for o in outcomes if o.reached and o.shortest_path_m]
+    metrics["total_time_ratio"] = (sum(o.time_s for o in rated) * max_speed_mps /
+                                   sum(o.shortest_path_m or 0.0 for o in rated)) if rated else None
+    metrics["max_speed_mps"] = max_speed_mps
+    metrics["distance_m"] = round(truth.path_length_m(), 3)
+    metrics["recoveries"] = sum(r.recoveries for r in recording.goals)
+    estimate = estimate_series(recording, ESTIMATES[Scenario.NAVIGATION])
+    if len(estimate) >= 2 and len(truth) >= 2:
+        ate = absolute_trajectory_error(estimate, truth, map_to_world)
+        metrics.update(ate.as_dict("ate"))
+    metrics["goal_results"] = [
+        {"goal": list(o.goal), "status": r.status, "error_code": r.error_code, "error_msg": r.error_msg,
+         "reached": o.reached, "time_s": round(o.time_s, 3),
+         "shortest_path_m": None if o.shortest_path_m is None else round(o.shortest_path_m, 3),
+         "path_length_m": round(o.path_length_m, 3), "position_error_m": round(o.position_error_m, 3),
+         "yaw_error_rad": round(o.yaw_error_rad, 3), "collisions": o.collisions,
+         "min_clearance_m": round(o.min_clearance_m, 3), "recoveries": r.recoveries}
+        for r, o in zip(recording.goals, outcomes)]
+    plot_trajectories(out / "trajectory.png", truth_map, truth, estimate.transformed(map_to_world),
+                      ESTIMATE_LABELS[Scenario.NAVIGATION], [(x, y) for _, x, y in recording.collisions], title,
+                      goals=[(o.goal[0], o.goal[1], o.reached) for o in outcomes])
+    return metrics
 
 
 def world_truth(world_file: Path, route: Route | None = None,

@@ -2,16 +2,19 @@
 
     ./pppbot eval drive --world maze [--route coverage] [--real-time-factor 10] [--seed 0]
                         [--wheel-slip 0.02] [--speed 0.3] [--out DIR] [--json]
+    ./pppbot eval navigation --world maze [--goals 50] [--seed 0] [--out DIR] [--json]
 
 The stack starts through the same supervisor and node plan as ``launch_sim``
 (no teleop, no RViz, no viewer), spawned at the route's start. A route driver
 in this process follows the route on ground truth through ``/cmd_vel_teleop``
 (twist_mux's teleop input) while this process records ``/ground_truth/odom``,
 the estimate under test (``/odom`` for ``drive``; a ``/tf`` chain such as map → odom →
-base_link for mapping and localization) and ``/ground_truth/collisions``. Then the
-stack stops and the report is written: ``report.json`` and PNG plots in
-``--out``; with ``--json`` the last line of stdout is the report as one JSON
-object. Exit code 0 when the scenario succeeded, 1 when not, 2 for bad arguments.
+base_link for mapping and localization) and ``/ground_truth/collisions``. The
+navigation scenario has no route: it starts the navigation nodes too, and sends
+random reachable goals (``--goals``, drawn with ``--seed``) to ``navigate_to_pose``
+one after another. Then the stack stops and the report is written: ``report.json``
+and PNG plots in ``--out``; with ``--json`` the last line of stdout is the report as
+one JSON object. Exit code 0 when the scenario succeeded, 1 when not, 2 for bad arguments.
 """
 from __future__ import annotations
 
@@ -31,17 +34,19 @@ import yaml
 from pppbot_bringup.eval.driver import DriverSettings, RouteDriver
 from pppbot_bringup.eval.progress import Progress
 from pppbot_bringup.eval.report import write_json
-from pppbot_bringup.eval.errors import MapQualityError, RouteError
+from pppbot_bringup.eval.errors import GoalSamplingError, MapQualityError, RouteError
+from pppbot_bringup.eval.goals import sample_goals
 from pppbot_bringup.eval.routes import Route, load_routes, routes_file, select_route
 from pppbot_bringup.eval.scenarios import (
     CONVERGED_M,
     CONVERGED_RAD,
     CONVERGED_TRAVEL_M,
     ESTIMATES,
-    NOT_BUILT,
+    GOAL_XY_TOLERANCE_M,
     Recording,
     Scenario,
     map_metrics,
+    navigation_metrics,
     route_metrics,
     save_recording,
     score_saved_map,
@@ -49,6 +54,7 @@ from pppbot_bringup.eval.scenarios import (
 )
 from pppbot_bringup.launch_sim import ARGUMENTS, plan
 from pppbot_bringup.paths import config_directory
+from pppbot_bringup.ros.eval_goals import GoalLoop
 from pppbot_bringup.ros.eval_node import EvalNode
 from pppbot_bringup.ros.graph_probe import GraphProbe
 from pppbot_bringup.run import RunError, find_executable
@@ -75,15 +81,22 @@ INITIAL_POSE_COVARIANCE = [float(v) for v in np.diag([0.25, 0.25, 0.0, 0.0, 0.0,
 
 
 class Run:
-    """One scenario run: the stack under a supervisor thread, the eval node in this thread."""
+    """One scenario run: the stack under a supervisor thread, the eval node in this thread.
 
-    def __init__(self, args: argparse.Namespace, scenario: Scenario, world_file: Path, route: Route,
-                 out: Path) -> None:
+    A route scenario drives ``route`` from its start; navigation starts at ``--start`` and
+    sends ``goals`` (world frame) instead.
+    """
+
+    def __init__(self, args: argparse.Namespace, scenario: Scenario, world_file: Path, route: Route | None,
+                 out: Path, truth_map: OccupancyGrid, goals: list[tuple[float, float, float]] | None = None) -> None:
         self.args = args
         self.scenario = scenario
         self.world_file = world_file
         self.route = route
+        self.start: tuple[float, float, float] = route.start if route is not None else tuple(args.start)
         self.out = out
+        self.truth_map = truth_map
+        self.goals = goals or []
         self.recording = Recording()
         self.interrupted = False
         self.stop = threading.Event()
@@ -95,14 +108,15 @@ class Run:
 
     def _values(self) -> dict[str, Any]:
         values = {a.name: a.default for a in ARGUMENTS}
-        x, y, yaw = self.route.start
+        x, y, yaw = self.start
+        navigates = self.scenario is Scenario.NAVIGATION
         values.update(world=str(self.world_file), x=x, y=y, yaw=yaw, use_teleop=False, use_rviz=False,
                       headless=True, record=False, real_time_factor=self.args.real_time_factor,
                       seed=self.args.seed, wheel_slip=self.args.wheel_slip, log_level=self.args.log_level,
                       use_slam=self.scenario is Scenario.SLAM,
-                      localization=self.scenario is Scenario.LOCALIZATION,
-                      # The scenarios drive their own routes: no navigation nodes to share the CPU.
-                      navigation="false",
+                      localization=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION),
+                      # The route scenarios drive themselves: no navigation nodes to share the CPU.
+                      navigation="true" if navigates else "false",
                       map=str(self.args.map or ""))
         return values
 
@@ -129,9 +143,10 @@ class Run:
 
     def _run_stack(self, supervisor: Supervisor, names: list[str], probe: GraphProbe, progress: Progress) -> None:
         thread = threading.Thread(target=supervisor.run, kwargs={"until": self.stop.is_set}, name="supervisor")
-        driver = RouteDriver(self.route.points, DriverSettings(speed_mps=self.args.speed))
+        navigates = self.scenario is Scenario.NAVIGATION
+        driver = None if self.route is None else RouteDriver(self.route.points, DriverSettings(speed_mps=self.args.speed))
         node = EvalNode(ESTIMATES[self.scenario], driver, self.recording, wants_map=self.scenario is Scenario.SLAM,
-                        localizes=self.scenario is Scenario.LOCALIZATION)
+                        localizes=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION), navigates=navigates)
         wall0 = time.monotonic()
         thread.start()
         try:
@@ -141,7 +156,10 @@ class Run:
             probe.close()
             if self.scenario is Scenario.LOCALIZATION and not self._start_localization(node, thread, progress):
                 return
-            self._drive(node, thread, progress)
+            if self.route is None or driver is None:
+                self._navigate(node, thread, progress)
+                return
+            self._drive(node, driver, self.route, thread, progress)
             if self.scenario is Scenario.SLAM and self.recording.failure is None:
                 self._wait_for_final_map(node, thread, progress)
         finally:
@@ -188,7 +206,7 @@ class Run:
                 self.recording.failure = "amcl's reinitialize_global_localization did not answer"
                 return False
         else:
-            x, y, yaw = self.route.start
+            x, y, yaw = self.start
             dx, dy, dyaw = self.args.initial_offset
             progress.message(f"initial pose off by ({dx:g} m, {dy:g} m, {dyaw:g} rad)")
         next_send = time.monotonic()
@@ -203,20 +221,46 @@ class Run:
                 return False
         return True
 
-    def _drive(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> None:
+    def _navigate(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> None:
+        """Once AMCL has its estimate at the spawn pose (the launch's initial pose), the goals."""
+        deadline = time.monotonic() + READY_TIMEOUT_S
+        while node.amcl_poses == 0:
+            node.spin_pending(0.05)
+            if self.interrupted or not thread.is_alive() or time.monotonic() > deadline:
+                self.recording.failure = "interrupted" if self.interrupted else "no /amcl_pose at the spawn pose"
+                return
+        progress.message(f"{len(self.goals)} goals, drawn with seed {self.args.seed}")
+        drive_wall0 = time.monotonic()
+
+        def problem() -> str | None:
+            self.recording.drive_wall_seconds = time.monotonic() - drive_wall0
+            if self.interrupted:
+                return "interrupted"
+            if not thread.is_alive():
+                return f"the stack stopped during the run (see {self.out / 'logs'})"
+            if time.monotonic() - node.last_truth_wall_s > STALL_TIMEOUT_S:
+                return f"no ground truth for {STALL_TIMEOUT_S:.0f} s (the simulator stalled)"
+            return None
+
+        loop = GoalLoop(node, self.recording, self.truth_map, tuple(self.args.map_pose), nav_max_speed(), progress,
+                        problem)
+        loop.run(self.goals)
+
+    def _drive(self, node: EvalNode, driver: RouteDriver, route: Route, thread: threading.Thread,
+               progress: Progress) -> None:
         rec = self.recording
         rec.start_sim_s = rec.end_sim_s = node.sim_now_s or 0.0
-        limit_s = self.args.timeout or 2.5 * self.route.length_m / self.args.speed + 60.0
+        limit_s = self.args.timeout or 2.5 * route.length_m / self.args.speed + 60.0
         node.driving = True
         drive_wall0 = time.monotonic()
-        while not node.driver.finished:
+        while not driver.finished:
             node.spin_pending(0.05)
             if node.sim_now_s is not None:
                 rec.end_sim_s = node.sim_now_s
             elapsed = rec.sim_seconds
             rtf = elapsed / max(time.monotonic() - drive_wall0, 1e-6)
-            progress.update(node.driver.progress, lambda: f"sim {elapsed:6.1f} s, {rtf:4.1f}x, "
-                            f"{node.driver.travelled_m:5.1f}/{node.driver.length_m:.1f} m")
+            progress.update(driver.progress, lambda: f"sim {elapsed:6.1f} s, {rtf:4.1f}x, "
+                            f"{driver.travelled_m:5.1f}/{driver.length_m:.1f} m")
             rec.drive_wall_seconds = time.monotonic() - drive_wall0
             if self.interrupted:
                 rec.failure = "interrupted"
@@ -247,14 +291,28 @@ class Run:
                 return
 
 
-def amcl_transform_tolerance() -> float:
-    """How far ahead AMCL stamps map → odom: ``transform_tolerance`` of the parameter file the
-    bringup gives it (``config/nav2_params.yaml``)."""
+def _nav2_parameter(node: str, name: str, default: float) -> float:
+    """A number from the parameter file the bringup gives the nodes (``config/nav2_params.yaml``)."""
     values = yaml.safe_load((config_directory() / "nav2_params.yaml").read_text()) or {}
-    return float(values.get("amcl", {}).get("ros__parameters", {}).get("transform_tolerance", 1.0))
+    parameters = values.get(node, {}).get("ros__parameters", {})
+    for part in name.split(".")[:-1]:
+        parameters = parameters.get(part, {})
+    return float(parameters.get(name.split(".")[-1], default))
+
+
+def amcl_transform_tolerance() -> float:
+    """How far ahead AMCL stamps map → odom: its ``transform_tolerance``."""
+    return _nav2_parameter("amcl", "transform_tolerance", 1.0)
+
+
+def nav_max_speed() -> float:
+    """The speed limit goals are timed against: the controller's ``FollowPath.desired_linear_vel``."""
+    return _nav2_parameter("controller_server", "FollowPath.desired_linear_vel", 0.5)
 
 
 def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
+    if run.route is None:
+        return navigation_report(run, truth_map)
     rec = run.recording
     title = f"{run.scenario.value} in {run.world_file.stem}, route {run.route.name}"
     save_recording(run.out / "recording.npz", rec)
@@ -279,9 +337,40 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     if failure is None and metrics.get("converged") is False:
         failure = (f"AMCL never converged (error within {CONVERGED_M} m and {CONVERGED_RAD} rad for "
                    f"{CONVERGED_TRAVEL_M} m of travel)")
-    failure = failure or problem
+    return _result(run, failure or problem, {"speed_mps": run.args.speed, **metrics})
+
+
+def navigation_report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
+    """The navigation scenario's report: ok when every goal was sent, the success rate is at least
+    ``--min-success-rate`` and nothing was touched."""
+    rec = run.recording
+    save_recording(run.out / "recording.npz", rec)
+    metrics: dict[str, Any] = {}
+    problem = None
+    if rec.truth_rows and rec.goals:
+        try:
+            metrics = navigation_metrics(rec, truth_map, tuple(run.args.map_pose), nav_max_speed(), run.out,
+                                         f"navigation in {run.world_file.stem}, {len(run.goals)} goals "
+                                         f"(seed {run.args.seed})")
+        except (PppbotError, ValueError, OSError) as exc:
+            problem = f"metrics: {exc}"
+    failure = rec.failure
+    if failure is None and len(rec.goals) < len(run.goals):
+        failure = f"only {len(rec.goals)} of {len(run.goals)} goals were sent"
+    if failure is None and metrics.get("collisions", 0):
+        failure = f"{metrics['collisions']} collision(s)"
+    rate = metrics.get("success_rate")
+    if failure is None and rate is not None and rate < run.args.min_success_rate:
+        failure = (f"success rate {rate:.3f} < {run.args.min_success_rate} (a goal counts when the navigator "
+                   f"succeeds and the true pose is within {GOAL_XY_TOLERANCE_M:g} m of it)")
+    return _result(run, failure or problem, {"start": list(run.start), "map_pose": list(run.args.map_pose),
+                                             **metrics})
+
+
+def _result(run: Run, failure: str | None, metrics: dict[str, Any]) -> dict[str, Any]:
+    rec = run.recording
     drive_wall = rec.drive_wall_seconds
-    result: dict[str, Any] = {
+    return {
         "scenario": run.scenario.value,
         "world": run.world_file.stem,
         "ok": failure is None,
@@ -292,12 +381,10 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
         "target_real_time_factor": run.args.real_time_factor,
         "seed": run.args.seed,
         "wheel_slip": run.args.wheel_slip,
-        "speed_mps": run.args.speed,
         **metrics,
         "out": str(run.out),
         "plots": sorted(p.name for p in run.out.glob("*.png")),
     }
-    return result
 
 
 # ------------------------------------------------------------ command line
@@ -306,14 +393,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", choices=[s.value for s in Scenario],
                         help="map: score a saved map; drive: odometry drift along a route; slam: mapping "
                              "along a route (trajectory and map); localization: AMCL on a saved map from a wrong "
-                             "initial pose; navigation: as its parts land")
+                             "initial pose; navigation: random reachable goals through navigate_to_pose")
     parser.add_argument("--world", default="maze", help="world name or path (default maze)")
     parser.add_argument("--route", default=None, help="route name in the world's routes file (default: the first)")
     parser.add_argument("--route-file", type=Path, default=None,
                         help="routes YAML (default <world>.routes.yaml next to the world)")
-    parser.add_argument("--real-time-factor", type=float, default=3.0,
-                        help="sim seconds per wall second (default 3: what the 100 Hz control loop keeps up "
-                             "with on 2 cores; 0 = as fast as possible)")
+    parser.add_argument("--real-time-factor", type=float, default=None,
+                        help="sim seconds per wall second (default 3 for the route scenarios: what the 100 Hz "
+                             "control loop keeps up with on 2 cores; 1 for navigation, whose planner, controller "
+                             "and navigator need the CPU at their rates; 0 = as fast as possible)")
     parser.add_argument("--seed", type=int, default=0, help="seed of sensor noise and wheel slip (default 0)")
     parser.add_argument("--wheel-slip", type=float, default=0.01,
                         help="wheel slip standard deviation, fraction of travel (default 0.01)")
@@ -334,11 +422,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "0.5 m and 0.3 rad)")
     parser.add_argument("--global", dest="global_localization", action="store_true",
                         help="localization: start AMCL with global localization (particles over the whole map)")
+    parser.add_argument("--goals", type=int, default=50, help="navigation: how many goals (default 50)")
+    parser.add_argument("--goal-distance", type=float, default=2.0,
+                        help="navigation: each goal at least this far (m, straight line) from the one before "
+                             "(default 2)")
+    parser.add_argument("--start", type=float, nargs=3, default=(0.0, 0.0, 0.0), metavar=("X", "Y", "YAW"),
+                        help="navigation: the spawn pose in the world, also AMCL's initial pose (default 0 0 0)")
+    parser.add_argument("--min-success-rate", type=float, default=0.98,
+                        help="navigation: the report is ok from this success rate on (default 0.98)")
     parser.add_argument("--json", action="store_true", help="print the report as one JSON object on the last line")
     parser.add_argument("--log-level", default="info", choices=("debug", "info", "warn", "error", "fatal"),
                         help="log level of the stack's nodes (default info; their output goes to the log "
                              "directory, warnings and errors also to stderr; below info, twist_mux's "
                              "readiness line is not printed)")
+
+
+#: The default real-time factor of each scenario (``--real-time-factor``).
+DEFAULT_REAL_TIME_FACTOR = {Scenario.NAVIGATION: 1.0}
 
 
 def _check(args: argparse.Namespace) -> None:
@@ -352,8 +452,17 @@ def _check(args: argparse.Namespace) -> None:
         raise ArgumentError(f"--map-pose {' '.join(map(str, args.map_pose))}: must be three finite numbers")
     if args.scenario == Scenario.MAP.value and args.map is None:
         raise ArgumentError("--map: the map scenario needs it")
-    if args.map is not None and args.scenario not in (Scenario.MAP.value, Scenario.LOCALIZATION.value):
-        raise ArgumentError(f"--map: only the map and localization scenarios take it, not {args.scenario}")
+    if args.map is not None and args.scenario not in (Scenario.MAP.value, Scenario.LOCALIZATION.value,
+                                                      Scenario.NAVIGATION.value):
+        raise ArgumentError(f"--map: only the map, localization and navigation scenarios take it, not {args.scenario}")
+    if args.goals < 1:
+        raise ArgumentError(f"--goals {args.goals}: must be at least 1")
+    if not (math.isfinite(args.goal_distance) and args.goal_distance >= 0):
+        raise ArgumentError(f"--goal-distance {args.goal_distance}: must be a non-negative number of metres")
+    if not all(math.isfinite(v) for v in args.start):
+        raise ArgumentError(f"--start {' '.join(map(str, args.start))}: must be three finite numbers")
+    if not (0.0 <= args.min_success_rate <= 1.0):
+        raise ArgumentError(f"--min-success-rate {args.min_success_rate}: must be in [0, 1]")
     if not all(math.isfinite(v) for v in args.initial_offset):
         raise ArgumentError(f"--initial-offset {' '.join(map(str, args.initial_offset))}: must be three finite numbers")
     if args.seed < 0:
@@ -400,29 +509,34 @@ def _score_map(args: argparse.Namespace, world_file: Path) -> int:
 
 def main(args: argparse.Namespace) -> int:
     scenario = Scenario(args.scenario)
-    if scenario in NOT_BUILT:
-        print(f"pppbot eval {scenario.value}: needs {NOT_BUILT[scenario]}, which is not built yet in this "
-              "checkout (README.md, 'Status')", file=sys.stderr)
-        return 2
+    if args.real_time_factor is None:
+        args.real_time_factor = DEFAULT_REAL_TIME_FACTOR.get(scenario, 3.0)
+    goals = None
     try:
         _check(args)
         world_file = find_world(args.world)
         if scenario is Scenario.MAP:
             return _score_map(args, world_file)
-        route_path = args.route_file or routes_file(world_file)
-        route = select_route(load_routes(route_path), args.route, route_path)
+        if scenario is Scenario.NAVIGATION:
+            route = None
+            truth_map = world_truth(world_file)
+            goals = sample_goals(truth_map, args.start[:2], args.goals, np.random.default_rng(args.seed),
+                                 min_distance_m=args.goal_distance)
+        else:
+            route_path = args.route_file or routes_file(world_file)
+            route = select_route(load_routes(route_path), args.route, route_path)
+            truth_map = world_truth(world_file, route)
         out = _output_dir(args, scenario, world_file)
-        truth_map = world_truth(world_file, route)
         out.mkdir(parents=True, exist_ok=True)
-    except (ArgumentError, RouteError, WorldError, DescriptionError, ValueError) as exc:
+    except (ArgumentError, RouteError, GoalSamplingError, WorldError, DescriptionError, ValueError) as exc:
         print(f"pppbot eval: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:
         print(f"pppbot eval: --out {exc.filename or args.out}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     os.environ["PYTHONUNBUFFERED"] = "1"
-    progress = Progress(sys.stderr, f"{scenario.value} {world_file.stem}/{route.name}")
-    run = Run(args, scenario, world_file, route, out)
+    progress = Progress(sys.stderr, f"{scenario.value} {world_file.stem}/{route.name if route else 'goals'}")
+    run = Run(args, scenario, world_file, route, out, truth_map, goals)
     # Ctrl-C, SIGTERM, SIGHUP: stop the stack and still write the report.
     previous = {s: signal.signal(s, run.interrupt) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
     try:

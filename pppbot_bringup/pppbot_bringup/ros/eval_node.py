@@ -1,17 +1,22 @@
-"""The evaluation's own node: records ground truth, the estimate and collisions, and drives the route.
+"""The evaluation's own node: records ground truth, the estimate and collisions, and drives the route
+or sends navigation goals.
 
-Commands go to ``/cmd_vel_teleop`` (twist_mux's teleop input) at :data:`COMMAND_PERIOD_S` of
-sim time, computed from ground truth by the route driver.
+Route commands go to ``/cmd_vel_teleop`` (twist_mux's teleop input) at :data:`COMMAND_PERIOD_S`
+of sim time, computed from ground truth by the route driver. Navigation goals go to the
+navigator's ``navigate_to_pose`` action, as RViz's Nav2 panel sends them.
 """
 from __future__ import annotations
 
 import time
 
 import rclpy
-from geometry_msgs.msg import PointStamped, PoseWithCovarianceStamped, Twist, Vector3
+from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped, Twist, Vector3
+from nav2_msgs.action import NavigateToPose
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry
+from pppbot_common.ros.action_client import ActionClient
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.task import Future
 from rclpy.signals import SignalHandlerOptions
 from std_srvs.srv import Empty
 from tf2_msgs.msg import TFMessage
@@ -30,10 +35,11 @@ MAX_CALLBACKS_PER_SPIN = 100
 
 
 class EvalNode:
-    """Records ground truth, the estimate and collisions; drives the route on ground truth."""
+    """Records ground truth, the estimate and collisions; drives the route on ground truth (with a
+    ``driver``), or leaves driving to the navigator (without one, ``navigates``)."""
 
-    def __init__(self, estimate: Estimate, driver: RouteDriver, recording: Recording, wants_map: bool = False,
-                 localizes: bool = False) -> None:
+    def __init__(self, estimate: Estimate, driver: RouteDriver | None, recording: Recording, wants_map: bool = False,
+                 localizes: bool = False, navigates: bool = False) -> None:
         self.context = rclpy.Context()
         rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node("pppbot_eval", context=self.context, start_parameter_services=False)
@@ -47,6 +53,7 @@ class EvalNode:
         self._next_command_s = 0.0
         self.last_truth_wall_s = time.monotonic()
         self.sim_now_s: float | None = None
+        self.truth_pose: tuple[float, float, float] | None = None
         self.cmd_pub = self.node.create_publisher(Twist, "/cmd_vel_teleop", DEFAULT)
         self.node.create_subscription(Odometry, "/ground_truth/odom", self._on_truth, 100)
         if estimate.topic is not None:
@@ -62,6 +69,24 @@ class EvalNode:
             self.initial_pose_pub = self.node.create_publisher(PoseWithCovarianceStamped, "/initialpose", DEFAULT)
             self.node.create_subscription(PoseWithCovarianceStamped, "/amcl_pose", self._on_amcl_pose, LATCHED)
             self.global_client = self.node.create_client(Empty, "/reinitialize_global_localization")
+        self.recoveries = 0  # of the current navigation goal, from its feedback
+        if navigates:
+            self.navigator = ActionClient(self.node, NavigateToPose, "navigate_to_pose")
+
+    def send_goal(self, x: float, y: float, yaw: float) -> Future:
+        """A NavigateToPose goal at (x, y, yaw) in ``map``; the future's result is its goal handle."""
+        goal = NavigateToPose.Goal()
+        goal.pose = PoseStamped()
+        goal.pose.header.frame_id = "map"
+        goal.pose.header.stamp = self.node.get_clock().now().to_msg()
+        goal.pose.pose.position.x, goal.pose.pose.position.y = float(x), float(y)
+        o = goal.pose.pose.orientation
+        o.x, o.y, o.z, o.w = quaternion_from_yaw(yaw)
+        self.recoveries = 0
+        return self.navigator.send_goal_async(goal, feedback_callback=self._on_feedback)
+
+    def _on_feedback(self, msg: NavigateToPose.Impl.FeedbackMessage) -> None:
+        self.recoveries = int(msg.feedback.number_of_recoveries)
 
     def _on_amcl_pose(self, msg: PoseWithCovarianceStamped) -> None:
         self.amcl_poses += 1
@@ -93,10 +118,13 @@ class EvalNode:
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
         self.sim_now_s = t
+        self.truth_pose = (p.x, p.y, yaw)
         self.last_truth_wall_s = time.monotonic()
         if not self.driving:
             return
         self.recording.truth_rows.append((t, p.x, p.y, yaw))
+        if self.driver is None:
+            return
         if t < self._next_command_s and not self.driver.finished:
             return
         self._next_command_s = t + COMMAND_PERIOD_S
@@ -135,6 +163,8 @@ class EvalNode:
 
     def stop_robot(self) -> None:
         self.driving = False
+        if self.driver is None:
+            return  # the navigator drives: its goals are canceled or over
         for _ in range(3):
             self.cmd_pub.publish(Twist())
 

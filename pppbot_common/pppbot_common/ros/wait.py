@@ -1,12 +1,17 @@
-"""Wait for graph conditions and messages with a timeout (never a fixed sleep)."""
+"""Wait for graph conditions, messages, futures and the node's clock, with timeouts (never a fixed
+sleep, never a busy loop)."""
 from __future__ import annotations
 
+import threading
 import time
 from typing import Any, Callable, TypeVar
 
 import rclpy
+from rclpy.clock import JumpThreshold, ROSClock
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from rclpy.task import Future
 
 from pppbot_common.errors import TimeoutExpired
 
@@ -82,3 +87,53 @@ def wait_for_messages(node: Node, msg_type: Any, topic: str, count: int = 1,
     finally:
         node.destroy_subscription(subscription)
     return received[:count]
+
+
+#: Any forward step of the clock wakes a sleeper (with sim time: every /clock message).
+_EVERY_STEP = JumpThreshold(min_forward=Duration(nanoseconds=1), min_backward=None, on_clock_change=True)
+
+
+def sleep_until_clock(node: Node, t_s: float, timeout_s: float) -> bool:
+    """Block this thread until the node's clock (sim time under ``use_sim_time``) reads ``t_s`` seconds,
+    for at most ``timeout_s`` wall seconds; True when the time was reached.
+
+    Woken by the clock's own updates (a jump callback on every /clock message), not by polling;
+    without sim time it sleeps the difference. Call it from a thread other than the one spinning
+    the node.
+    """
+    clock = node.get_clock()
+    target_ns = int(t_s * 1e9)
+    remaining_ns = target_ns - clock.now().nanoseconds
+    if remaining_ns <= 0:
+        return True
+    if not (isinstance(clock, ROSClock) and clock.ros_time_is_active):
+        time.sleep(min(remaining_ns * 1e-9, timeout_s))
+        return clock.now().nanoseconds >= target_ns
+    reached = threading.Event()
+
+    def on_jump(_: Any) -> None:
+        if clock.now().nanoseconds >= target_ns:
+            reached.set()
+
+    with clock.create_jump_callback(_EVERY_STEP, post_callback=on_jump):
+        if clock.now().nanoseconds < target_ns:
+            reached.wait(timeout_s)
+    return clock.now().nanoseconds >= target_ns
+
+
+def wait_for_future(future: Future, timeout_s: float, check: Callable[[], None] | None = None,
+                    check_every_s: float = 0.05) -> bool:
+    """Block this thread until ``future`` is done (another thread spins its node), at most
+    ``timeout_s`` wall seconds; ``check`` runs every ``check_every_s`` and may raise to stop
+    waiting. True when the future is done."""
+    done = threading.Event()
+    future.add_done_callback(lambda _: done.set())
+    deadline = time.monotonic() + timeout_s
+    while not done.is_set():
+        if check is not None:
+            check()
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            break
+        done.wait(min(check_every_s, remaining))
+    return future.done()

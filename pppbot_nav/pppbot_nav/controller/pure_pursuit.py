@@ -28,7 +28,10 @@ Each control period, :meth:`PurePursuit.compute` does what the plugin's
    below ``min_approach_linear_velocity``); ``ω = v·curvature``.
 6. **Collision check**: the command is followed forward in steps of half a costmap cell for
    up to ``max_allowed_time_to_collision_up_to_carrot`` but no farther than the carrot; a
-   pose on an inscribed or lethal cell raises :class:`~pppbot_nav.errors.CollisionAhead`. Turning
+   pose on an inscribed or lethal cell means a collision. Before that is raised
+   (:class:`~pppbot_nav.errors.CollisionAhead`), steps 2–5 are tried again with the carrot
+   closer (half way to ``min_lookahead_dist``, then at it), each checked as far ahead as the
+   first: a far carrot cuts corners that the path itself keeps clear of. Turning
    in place is never a collision (the footprint is a circle), and a robot that is already in
    the inscribed zone may drive on as long as it meets no lethal cell (so it can leave it).
 
@@ -41,6 +44,7 @@ Where this differs from Nav2:
 * The goal heading is taken when the robot is within ``goal_dist_tol`` of the path's last
   point and the path carries a yaw ((N, 3)); Nav2 measures to the carrot and always has one.
 * The collision check steps half a cell, not one: a one-cell wall cannot fall between poses.
+* A command that would collide is retried with closer carrots before it fails (Nav2 fails).
 * The approach constraint starts when the path remaining from the closest point, not the
   cropped local plan, is shorter than ``approach_velocity_scaling_dist``.
 * A robot farther than the costmap's half extent from every path point follows the closest
@@ -218,15 +222,17 @@ class PurePursuit:
 
     # --------------------------------------------------------------- control
     def compute(self, pose: PoseLike, speed: PoseLike, path: np.ndarray, costmap: Costmap | None,
-                dt_s: float) -> Command:
+                dt_s: float, costmap_pose: PoseLike | None = None) -> Command:
         """The command for this control period.
 
         Args:
-            pose: the robot's x, y, yaw (m, m, rad) in the frame of ``path`` and ``costmap``.
+            pose: the robot's x, y, yaw (m, m, rad) in the frame of ``path``.
             speed: its current v, ω (m/s, rad/s).
             path: (N, 2) or (N, 3) x, y[, yaw]; a path different from the last one resets progress.
             costmap: the local costmap, or None: no collision check and no cost regulation.
             dt_s: the control period (s), which bounds the change of ω when turning in place.
+            costmap_pose: the robot's pose in the costmap's frame, when that is not the path's
+                (e.g. a path in ``map``, the local costmap in ``odom``); default ``pose``.
 
         Raises:
             ControllerError: an empty or non-finite path, a non-finite pose or speed, a bad ``dt_s``.
@@ -234,6 +240,10 @@ class PurePursuit:
         """
         s = self.settings
         x, y, yaw = _finite_vector(pose, 3, "pose", "x, y, yaw")
+        in_costmap = (x, y, yaw)
+        if costmap_pose is not None:
+            mx, my, myaw = _finite_vector(costmap_pose, 3, "costmap_pose", "x, y, yaw")
+            in_costmap = (mx, my, myaw)
         v_now, w_now = _finite_vector(speed, 2, "speed", "v, ω")
         if not (math.isfinite(dt_s) and dt_s > 0.0):
             raise ControllerError(f"dt_s must be a positive number of seconds, not {dt_s}", "dt_s")
@@ -248,9 +258,35 @@ class PurePursuit:
             lookahead_m = min(max(abs(v_now) * s.lookahead_time, s.min_lookahead_dist), s.max_lookahead_dist)
         else:
             lookahead_m = s.lookahead_dist
+        # A carrot that far may cut a corner into an obstacle's inscribed zone: then closer carrots
+        # follow the (collision-free) path more tightly before the command counts as a collision.
+        tries = [lookahead_m] + [d for d in (0.5 * (lookahead_m + s.min_lookahead_dist), s.min_lookahead_dist)
+                                 if d < lookahead_m - 1e-9]
+        collisions: list[CollisionAhead] = []
+        horizon_m = 0.0  # every try is checked as far ahead as the first one's carrot
+        for distance_m in tries:
+            command, carrot_dist_m = self._command(x, y, yaw, w_now, local, rx, ry, distance_m, in_costmap,
+                                                   costmap, dt_s)
+            if not (s.use_collision_detection and costmap is not None) or command.mode is not ControlMode.TRACKING:
+                return command
+            horizon_m = horizon_m or carrot_dist_m
+            try:
+                _check_collision(costmap, in_costmap, command.linear_mps, command.angular_radps, horizon_m, s)
+            except CollisionAhead as exc:
+                collisions.append(exc)
+                continue
+            return command
+        raise collisions[0]  # the command at the usual lookahead, and why it would collide
+
+    def _command(self, x: float, y: float, yaw: float, w_now: float, local: np.ndarray, rx: np.ndarray,
+                 ry: np.ndarray, lookahead_m: float, in_costmap: tuple[float, float, float],
+                 costmap: Costmap | None, dt_s: float) -> tuple[Command, float]:
+        """Steps 2–5 with the carrot at ``lookahead_m``: the command and the carrot's distance (m)."""
+        s = self.settings
         cx, cy = _carrot(rx, ry, lookahead_m)
         carrot_dist2 = cx * cx + cy * cy
         curvature = 2.0 * cy / carrot_dist2 if carrot_dist2 > _MIN_CARROT_DIST2 else 0.0
+        c, sn = math.cos(yaw), math.sin(yaw)
         lookahead = (x + c * cx - sn * cy, y + sn * cx + c * cy)
 
         end_dist_m = math.hypot(rx[-1], ry[-1])
@@ -263,15 +299,14 @@ class PurePursuit:
         else:
             mode = ControlMode.TRACKING
             remaining_m = float(self._cum_m[-1] - self._cum_m[self._start])
-            linear = self._regulated_speed(curvature, x, y, costmap, remaining_m, end_dist_m)
+            linear = self._regulated_speed(curvature, in_costmap[0], in_costmap[1], costmap, remaining_m,
+                                           end_dist_m)
             angular = linear * curvature
             if abs(angular) > s.max_angular_vel:
                 angular = math.copysign(s.max_angular_vel, angular)
                 linear = s.max_angular_vel / abs(curvature)
-
-        if s.use_collision_detection and costmap is not None:
-            _check_collision(costmap, (x, y, yaw), linear, angular, math.sqrt(carrot_dist2), s)
-        return Command(linear, angular, lookahead, curvature, local.copy(), mode, lookahead_m)
+        return (Command(linear, angular, lookahead, curvature, local.copy(), mode, lookahead_m),
+                math.sqrt(carrot_dist2))
 
     def _prune(self, x: float, y: float, costmap: Costmap | None) -> np.ndarray:
         """The local plan (M ≥ 1, 2) from the closest point on; advances the progress."""

@@ -4,7 +4,12 @@ Each cell is a node of the 8-connected grid; stepping onto a cell costs its weig
 ``1 + cost_travel_multiplier · cost / 252`` (Smac 2D's travel cost: free space 1, the edge
 of the inscribed zone ``1 + cost_travel_multiplier``), inscribed and lethal cells cannot
 be entered, and unknown cells weigh as a cost of 128 when ``allow_unknown`` (else they are
-walls). The search itself is pyastar2d's C++ A* (a diagonal step costs as much as a straight
+walls). Cells of cost ``near_obstacle_cost`` or more (a thin band round the inscribed zone:
+180 is about 0.11 m beyond it with Nav2's cost_scaling_factor of 3) weigh
+``near_obstacle_penalty`` times more: where there is room the path keeps that band's width
+off the inscribed zone, which is what the controller's collision check and localization
+error need; where there is not (a narrow door), it still goes through. Smac 2D and NavFn have
+no such band, and their paths graze the inscribed zone round every corner. The search itself is pyastar2d's C++ A* (a diagonal step costs as much as a straight
 one, which its L∞ heuristic keeps admissible); :mod:`pppbot_nav.planner.smoother` then
 straightens the cell path into an any-angle one under the same travel cost, and rounds it.
 
@@ -53,6 +58,8 @@ class PlannerSettings:
     allow_unknown: bool = True
     cost_travel_multiplier: float = 2.0
     max_planning_time: float = 2.0  # s
+    near_obstacle_cost: int = 180
+    near_obstacle_penalty: float = 10.0
     smooth_path: bool = True
     smoother: SmootherSettings = SmootherSettings()
 
@@ -61,6 +68,8 @@ class PlannerSettings:
         check_finite_range("tolerance", self.tolerance, 0.0, 100.0)
         check_finite_range("cost_travel_multiplier", self.cost_travel_multiplier, 0.0, 1000.0)
         check_finite_range("max_planning_time", self.max_planning_time, 0.0, 3600.0, low_open=True)
+        check_finite_range("near_obstacle_cost", self.near_obstacle_cost, 1, INSCRIBED_INFLATED_OBSTACLE)
+        check_finite_range("near_obstacle_penalty", self.near_obstacle_penalty, 1.0, 1000.0)
         self.smoother.validate()
 
 
@@ -79,13 +88,16 @@ class Plan:
         return float(np.linalg.norm(np.diff(self.points_xy, axis=0), axis=1).sum())
 
 
-def travel_weights(costs: np.ndarray, cost_travel_multiplier: float, allow_unknown: bool) -> np.ndarray:
-    """float32 weight of stepping onto each cell (inf: cannot be entered)."""
+def travel_weights(costs: np.ndarray, cost_travel_multiplier: float, allow_unknown: bool,
+                   near_obstacle_cost: int = INSCRIBED_INFLATED_OBSTACLE, near_obstacle_penalty: float = 1.0) -> np.ndarray:
+    """float32 weight of stepping onto each cell (inf: cannot be entered); see the module doc."""
     c = np.asarray(costs, dtype=np.uint8)
     known = c.astype(np.float32)
     if allow_unknown:
         known = np.where(c == NO_INFORMATION, np.float32(UNKNOWN_AS_COST), known)
     weights = 1.0 + cost_travel_multiplier * known / MAX_NON_OBSTACLE
+    near = (c >= near_obstacle_cost) & (c < INSCRIBED_INFLATED_OBSTACLE)
+    weights = np.where(near, weights * np.float32(near_obstacle_penalty), weights)
     blocked = (c == INSCRIBED_INFLATED_OBSTACLE) | (c == LETHAL_OBSTACLE)
     if not allow_unknown:
         blocked |= c == NO_INFORMATION
@@ -106,7 +118,8 @@ class GridPlanner:
         """Take a new costmap: its weights and its traversable components."""
         s = self.settings
         self.costmap = costmap
-        self.weights = travel_weights(costmap.costs, s.cost_travel_multiplier, s.allow_unknown)
+        self.weights = travel_weights(costmap.costs, s.cost_travel_multiplier, s.allow_unknown,
+                                      s.near_obstacle_cost, s.near_obstacle_penalty)
         labels, _ = ndimage.label(np.isfinite(self.weights), structure=np.ones((3, 3), dtype=bool))
         self.components = np.asarray(labels, dtype=np.int32)
 

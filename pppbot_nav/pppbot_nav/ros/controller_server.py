@@ -18,7 +18,6 @@ import dataclasses
 import math
 import sys
 import threading
-import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -35,6 +34,7 @@ from rclpy.node import Node
 from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.ros.node_main import Warnings, guarded, run_node, spin_together
 from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.wait import sleep_until_clock
 from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_common.transforms import TransformError, compose
 from pppbot_nav.controller.checkers import SimpleGoalChecker, SimpleProgressChecker
@@ -138,10 +138,9 @@ class ControllerServer(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _sleep_until(self, t_s: float) -> None:
-        """Wait (wall clock, in small steps) until the node's clock (sim time) reaches ``t_s``."""
-        deadline = time.monotonic() + 5.0
-        while self._now_s() < t_s and time.monotonic() < deadline:
-            time.sleep(0.002)
+        """Wait until the node's clock (sim time) reaches ``t_s``; at most a wall second, so that a
+        stopped clock (shutdown) cannot hold the goal's thread."""
+        sleep_until_clock(self, t_s, timeout_s=1.0)
 
     def stop(self) -> None:
         self.cmd_pub.publish(Twist())
@@ -189,7 +188,10 @@ class ControllerServer(Node):
             return Result.INVALID_PATH, "the path has a point that is not finite"
         goal = (float(path[-1, 0]), float(path[-1, 1]), yaw_from_quaternion(o.x, o.y, o.z, o.w))
         path3 = np.column_stack([path, np.full(len(path), goal[2])])
-        self.controller.set_path(path3)
+        with self._lock:  # a preempted goal's thread may still be computing on the old path
+            if self._active is not goal_handle:
+                return Result.UNKNOWN, "preempted by a new path"
+            self.controller.set_path(path3)
         period = 1.0 / self.params.controller_frequency
         failing_since: float | None = None
         tf = self.costmap_node.tf
@@ -222,13 +224,14 @@ class ControllerServer(Node):
                 return Result.FAILED_TO_MAKE_PROGRESS, (
                     f"the robot moved less than {self.params.required_movement_radius} m in "
                     f"{self.params.movement_time_allowance} s")
-            c, s = math.cos(to_local[2]), math.sin(to_local[2])
-            local_path = np.column_stack([to_local[0] + c * path3[:, 0] - s * path3[:, 1],
-                                          to_local[1] + s * path3[:, 0] + c * path3[:, 1],
-                                          path3[:, 2] + to_local[2]])
-            pose = compose(to_local, in_path_frame)
+            # The path stays in its frame (its progress with it); the costmap is looked up in odom.
+            pose_in_costmap = compose(to_local, in_path_frame)
             try:
-                command = self.controller.compute(pose, self._speed, local_path, self.costmap_node.costmap, period)
+                with self._lock:
+                    if self._active is not goal_handle:
+                        return Result.UNKNOWN, "preempted by a new path"
+                    command = self.controller.compute(in_path_frame, self._speed, path3, self.costmap_node.costmap,
+                                                      period, costmap_pose=pose_in_costmap)
                 failing_since = None
             except (CollisionAhead, ControllerError) as exc:
                 if failing_since is None:
@@ -241,7 +244,7 @@ class ControllerServer(Node):
                 twist = Twist()
                 twist.linear.x, twist.angular.z = command.linear_mps, command.angular_radps
                 self.cmd_pub.publish(twist)
-                self.local_plan_pub.publish(path_message(command.local_plan, 0.0, local_frame,
+                self.local_plan_pub.publish(path_message(command.local_plan, 0.0, path_frame,
                                                          self.get_clock().now().to_msg()))
                 feedback = FollowPath.Feedback()
                 feedback.distance_to_goal = float(math.hypot(goal[0] - in_path_frame[0], goal[1] - in_path_frame[1]))

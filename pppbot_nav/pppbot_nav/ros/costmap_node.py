@@ -16,6 +16,7 @@ rolling window (``rolling_window``) is ``width`` × ``height`` m centred on the 
 """
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
@@ -38,6 +39,9 @@ from pppbot_nav.costmap.grid import Costmap
 from pppbot_nav.costmap.layers import InflationLayer, Layer, LayeredCostmap, ObstacleLayer, StaticLayer
 from pppbot_nav.errors import CostmapError
 
+#: Scans that may wait for their transform: two seconds of a 10 Hz lidar (AMCL stamps map → odom
+#: ahead by its transform_tolerance, but a busy machine can still hold it back).
+SCAN_QUEUE = 20
 LAYER_NAMES = ("static_layer", "obstacle_layer", "voxel_layer", "inflation_layer")
 
 
@@ -115,7 +119,8 @@ class CostmapNode(Node):
         self.costmap_name = name
         self.params = p = declare_parameters(self, CostmapParameters)
         self._warn = Warnings(self)
-        self.tf = TfListener(self, self._warn).buffer
+        self._pending: deque[LaserScan] = deque()  # scans waiting for their transform
+        self.tf = TfListener(self, self._warn, on_tf=self._drain).buffer
         self.layers = p.layers()
         self.static = next((la for la in self.layers if isinstance(la, StaticLayer)), None)
         self.obstacles = [la for la in self.layers if isinstance(la, ObstacleLayer)]
@@ -160,24 +165,47 @@ class CostmapNode(Node):
             return None
 
     def _on_scan(self, msg: LaserScan) -> None:
+        """As tf2's message filter: a scan is marked with the sensor's pose at its stamp, waiting
+        for that transform if it is not there yet (up to :data:`SCAN_QUEUE` scans); never with an
+        older pose, which smears walls across free space while the robot turns."""
         if self.layered is None:
             return
-        frame = msg.header.frame_id.lstrip("/")
-        stamp = stamp_seconds(msg.header.stamp)
-        try:
+        self._pending.append(msg)
+        if len(self._pending) > SCAN_QUEUE:
+            old = self._pending.popleft()
+            self._warn("scan transform", f"dropping a scan of '{old.header.frame_id}' at "
+                                         f"{stamp_seconds(old.header.stamp):.3f} s: its transform to "
+                                         f"'{self.params.global_frame}' did not arrive in time")
+        self._drain()
+
+    def _drain(self) -> None:
+        """Mark the waiting scans whose transform has arrived, oldest first."""
+        while self._pending and self.layered is not None:
+            msg = self._pending[0]
+            frame = msg.header.frame_id.lstrip("/")
+            stamp = stamp_seconds(msg.header.stamp)
             try:
                 sensor = self.tf.lookup(self.params.global_frame, frame, stamp)
-            except TransformError:
-                sensor = self.tf.lookup(self.params.global_frame, frame)
-        except TransformError as exc:
-            self._warn("scan transform", f"dropping a scan: {exc}")
-            return
+            except TransformError as exc:
+                try:
+                    newest = self.tf.latest_time(self.params.global_frame, frame)
+                except TransformError:
+                    newest = None
+                if newest is None or stamp > newest:
+                    return  # the transform may still come
+                self._pending.popleft()
+                self._warn("scan transform", f"dropping a scan: {exc}")
+                continue
+            self._pending.popleft()
+            self._mark(self.layered, msg, sensor)
+
+    def _mark(self, layered: LayeredCostmap, msg: LaserScan, sensor: tuple[float, float, float]) -> None:
         ranges = np.asarray(msg.ranges, dtype=float)
         bearings = sensor[2] + msg.angle_min + msg.angle_increment * np.arange(len(ranges))
         valid = ~(ranges < msg.range_min)  # NaN stays: no return
         ranges = np.where(np.isfinite(ranges) & (ranges < msg.range_max), ranges, np.inf)
         for layer in self.obstacles:
-            layer.observe(self.layered.master, (sensor[0], sensor[1]), bearings[valid], ranges[valid])
+            layer.observe(layered.master, (sensor[0], sensor[1]), bearings[valid], ranges[valid])
 
     # ---------------------------------------------------------------- outputs
     def update(self) -> Costmap | None:

@@ -34,7 +34,7 @@ from nav2_msgs.action import ComputePathToPose, FollowPath, NavigateToPose
 from nav2_msgs.srv import ClearEntireCostmap
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Path
-from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.duration import Duration
@@ -42,8 +42,10 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from pppbot_common.params import check_finite_range, param
+from pppbot_common.ros.action_client import ActionClient
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.node_main import Warnings, guarded, run_node, spin_together
+from pppbot_common.ros.wait import sleep_until_clock, wait_for_future
 from pppbot_common.ros.params import declare_parameters
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.tf_listener import TfListener
@@ -157,12 +159,13 @@ class Navigator(Node):
             raise Stopped("preempted by a new goal")
 
     def _wait(self, future: Future, goal_handle: ServerGoalHandle, timeout_s: float | None = None) -> Any:
-        deadline = None if timeout_s is None else time.monotonic() + timeout_s
-        while not future.done():
-            self._check(goal_handle)
-            if deadline is not None and time.monotonic() > deadline:
-                raise Failed(0, "a server did not answer in time")
-            time.sleep(0.005)
+        """The future's result; the goal is checked (canceled, preempted) while waiting.
+
+        Raises:
+            Stopped: see :meth:`_check`. Failed: no answer within ``timeout_s`` wall seconds.
+        """
+        if not wait_for_future(future, math.inf if timeout_s is None else timeout_s, lambda: self._check(goal_handle)):
+            raise Failed(0, "a server did not answer in time")
         return future.result()
 
     def _sleep(self, seconds: float, goal_handle: ServerGoalHandle, step: Callable[[], None] | None = None) -> None:
@@ -172,9 +175,7 @@ class Navigator(Node):
             self._check(goal_handle)
             if step is not None:
                 step()
-            next_step = self._now_s() + 0.05
-            while self._now_s() < min(next_step, end):
-                time.sleep(0.002)
+            sleep_until_clock(self, min(self._now_s() + 0.05, end), timeout_s=1.0)
 
     def stop(self) -> None:
         self.cmd_pub.publish(Twist())
@@ -224,6 +225,7 @@ class Navigator(Node):
         for client, name in ((self.planner, "compute_path_to_pose"), (self.controller, "follow_path")):
             if not client.wait_for_server(timeout_sec=p.server_timeout):
                 raise Failed(0, f"the {name} server is not available")
+        self._wait_for_pose(goal_handle)
         robin = RecoveryRoundRobin()
         while True:
             try:
@@ -240,6 +242,19 @@ class Navigator(Node):
                                        f"(after: {exc})")
                 self._recover(recovery, goal_handle)
 
+    def _wait_for_pose(self, goal_handle: ServerGoalHandle) -> None:
+        """As bt_navigator does before it navigates: wait (up to ``server_timeout`` wall seconds) for
+        the robot's pose in the global frame, which a just-started stack may not have yet."""
+        deadline = time.monotonic() + self.params.server_timeout
+        while True:
+            try:
+                self._pose(self.params.global_frame)
+                return
+            except TransformError as exc:
+                if time.monotonic() > deadline:
+                    raise Failed(ComputePathToPose.Result.TF_ERROR, f"no robot pose: {exc}") from exc
+            self._sleep(0.1, goal_handle)
+
     def _plan(self, goal_handle: ServerGoalHandle, request: PoseStamped) -> Path:
         goal = ComputePathToPose.Goal()
         goal.goal = request
@@ -249,7 +264,9 @@ class Navigator(Node):
             res = response.result
             if res.error_code == ComputePathToPose.Result.NONE and res.path.poses:
                 return res.path
-            if attempt == 0:
+            if attempt == 0 and res.error_code == ComputePathToPose.Result.TF_ERROR:
+                self._sleep(0.5, goal_handle)  # the planner's TF lags the navigator's: not the costmap's fault
+            elif attempt == 0:
                 self._clear(self.clear_global, goal_handle)
         raise Failed(res.error_code, f"planning: {res.error_msg}")
 

@@ -55,6 +55,10 @@ class PlannerServerParameters:
     cost_travel_multiplier: float = param(2.0, "travel cost of a cell: 1 + this · cost / 252",
                                           "GridBased.cost_travel_multiplier")
     max_planning_time: float = param(2.0, "a plan taking longer fails with TIMEOUT (s)", "GridBased.max_planning_time")
+    near_obstacle_cost: int = param(180, "cells of this cost or more (below inscribed) weigh near_obstacle_penalty "
+                                    "times more", "GridBased.near_obstacle_cost")
+    near_obstacle_penalty: float = param(10.0, "weight factor of the near-obstacle band (1: no band)",
+                                         "GridBased.near_obstacle_penalty")
     smooth_path: bool = param(True, "straighten and smooth the cell path", "GridBased.smooth_path")
     w_data: float = param(0.2, "smoother: pull toward the original path", "GridBased.smoother.w_data")
     w_smooth: float = param(0.3, "smoother: pull toward the neighbours", "GridBased.smoother.w_smooth")
@@ -66,8 +70,8 @@ class PlannerServerParameters:
 
     def settings(self) -> PlannerSettings:
         return PlannerSettings(self.tolerance, self.allow_unknown, self.cost_travel_multiplier,
-                               self.max_planning_time, self.smooth_path,
-                               SmootherSettings(w_data=self.w_data, w_smooth=self.w_smooth))
+                               self.max_planning_time, self.near_obstacle_cost, self.near_obstacle_penalty,
+                               self.smooth_path, SmootherSettings(w_data=self.w_data, w_smooth=self.w_smooth))
 
 
 def path_message(points_xy: np.ndarray, goal_yaw: float, frame: str, stamp: Any) -> Path:

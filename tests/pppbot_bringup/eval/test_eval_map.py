@@ -68,7 +68,7 @@ def test_bad_map_arguments_give_one_message(capsys, tmp_path: Path, monkeypatch)
     assert "none.yaml" in capsys.readouterr().err
     assert not list(tmp_path.glob("eval_map_*"))  # no empty report folder left behind
     assert main(["eval", "drive", "--world", str(BOX_ROOM), "--map", "x.yaml"]) == 2
-    assert "only the map and localization scenarios take it, not drive" in capsys.readouterr().err
+    assert "only the map, localization and navigation scenarios take it, not drive" in capsys.readouterr().err
     yaml_path = save_map(truth_grid(), tmp_path / "truth")
     assert main(["eval", "map", "--world", str(BOX_ROOM), "--map", str(yaml_path), "--map-pose", "2.1", "0", "0",
                  "--out", str(tmp_path / "o")]) == 2
