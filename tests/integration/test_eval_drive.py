@@ -1,4 +1,5 @@
-"""``pppbot eval drive`` and ``eval slam`` end to end in the box room: the real stack over DDS, reports read back."""
+"""``pppbot eval`` end to end in the box room (drive, slam, localization, navigation): the real stack over DDS,
+reports read back."""
 from __future__ import annotations
 
 import json
@@ -84,13 +85,18 @@ def test_slam_scenario_maps_the_room_and_tracks_the_robot(spawn, tmp_path: Path)
     assert len(np.unique(map_to_odom[:, 1:].round(4), axis=0)) > 3
 
 
-def test_localization_scenario_recovers_from_a_wrong_initial_pose_on_the_rooms_map(spawn, tmp_path: Path):
-    # The room's ground-truth map, as maps/<world>.yaml would hold it.
+def box_room_map(spawn: Callable[..., ChildProcess], folder: Path) -> Path:
+    """The room's ground-truth map, as maps/<world>.yaml would hold it."""
     saver = spawn([PPPBOT, "run", "pppbot_sim", "ground_truth_map", f"world:={BOX_ROOM}",
-                   f"output:={tmp_path / 'box_room'}"], name="ground_truth_map")
+                   f"output:={folder / 'box_room'}"], name="ground_truth_map")
     assert saver.wait(timeout_s=120) == 0, saver.output
+    return folder / "box_room.yaml"
+
+
+def test_localization_scenario_recovers_from_a_wrong_initial_pose_on_the_rooms_map(spawn, tmp_path: Path):
+    map_file = box_room_map(spawn, tmp_path)
     out = tmp_path / "localization"
-    code, report, output = run_eval(spawn, out, "--seed", "1", "--map", str(tmp_path / "box_room.yaml"),
+    code, report, output = run_eval(spawn, out, "--seed", "1", "--map", str(map_file),
                                     "--initial-offset", "0.3", "-0.4", "0.3", scenario="localization")
     assert code == 0, output
     assert report["scenario"] == "localization" and report["ok"] is True and report["collisions"] == 0
@@ -100,3 +106,35 @@ def test_localization_scenario_recovers_from_a_wrong_initial_pose_on_the_rooms_m
     assert report["converged"] is True and report["converged_after_m"] <= 2.0
     assert report["amcl_rms_m"] <= 0.05 and report["amcl_yaw_rms_rad"] <= 0.03
     assert report["plots"] == ["error.png", "trajectory.png"]
+
+
+def test_navigation_scenario_reaches_random_goals_judged_on_ground_truth(spawn, tmp_path: Path):
+    map_file = box_room_map(spawn, tmp_path)
+    out = tmp_path / "navigation"
+    code, report, output = run_eval(spawn, out, "--seed", "4", "--map", str(map_file), "--goals", "3",
+                                    "--goal-distance", "1.5", "--start", "-0.8", "-0.8", "0", scenario="navigation")
+    assert code == 0, output
+    assert report == json.loads((out / "report.json").read_text())
+    assert report["scenario"] == "navigation" and report["ok"] is True and report["failure"] is None
+    assert report["target_real_time_factor"] == 1.0  # navigation's default
+    assert report["goals"] == 3 and report["successes"] == 3 and report["success_rate"] == 1.0
+    assert report["collisions"] == 0 and report["min_clearance_m"] > 0.0
+    results = report["goal_results"]
+    previous = (-0.8, -0.8)
+    for result in results:
+        x, y, yaw = result["goal"]
+        # Drawn in the room's free space, 0.45 m from its walls (inner faces at ±2 m), 1.5 m apart.
+        assert max(abs(x), abs(y)) <= 2.0 - 0.45 and math.hypot(x - previous[0], y - previous[1]) >= 1.5
+        previous = (x, y)
+        assert result["status"] == "succeeded" and result["reached"] is True and result["error_code"] == 0
+        # Judged on ground truth: where the robot stopped, not where the navigator thought it was.
+        assert result["position_error_m"] <= 0.35 and abs(result["yaw_error_rad"]) <= 0.3
+        # An empty room: the driven path is close to the shortest; the time counts the turns too.
+        assert result["shortest_path_m"] >= 1.2 and result["path_length_m"] < 1.5 * result["shortest_path_m"]
+        assert result["time_s"] * 0.5 >= result["shortest_path_m"] * 0.9  # at most 0.5 m/s (desired_linear_vel)
+    assert report["mean_time_ratio"] >= 1.0 and report["total_time_ratio"] >= 1.0
+    assert report["ate_rms_m"] < 0.1  # AMCL along the way
+    assert report["plots"] == ["trajectory.png"]
+    for log in ("planner_server-1.log", "controller_server-1.log", "navigator-1.log", "amcl-1.log"):
+        assert (out / "logs" / log).is_file()
+    assert "process has died" not in output

@@ -11,7 +11,7 @@ import pytest
 
 from pppbot_nav.controller.checkers import SimpleGoalChecker, SimpleProgressChecker
 from pppbot_nav.controller.pure_pursuit import Command, ControlMode, PurePursuit, PurePursuitSettings
-from pppbot_nav.costmap.costs import LETHAL_OBSTACLE, NO_INFORMATION
+from pppbot_nav.costmap.costs import INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION
 from pppbot_nav.costmap.grid import Costmap
 from pppbot_nav.errors import CollisionAhead, ControllerError
 
@@ -337,3 +337,25 @@ def test_bad_checker_values_raise_controller_error(make, parameter: str):
     with pytest.raises(ControllerError) as caught:
         make()
     assert caught.value.parameter == parameter and isinstance(caught.value, ValueError)
+
+
+def test_a_carrot_that_cuts_a_corner_into_an_obstacle_is_brought_closer():
+    # The path runs along x to (0.5, 0), then turns left up x = 0.5; the corner's inside is an
+    # inscribed block (x 0.2…0.42, y 0.15…1.0) that the path itself clears.
+    path = np.vstack([straight(0.5), np.column_stack([np.full(40, 0.5), np.linspace(0.05, 2.0, 40)])])
+    costmap = free_costmap()
+    rows, cols = costmap.cell_of(np.array([0.2, 0.42]), np.array([0.15, 1.0]))
+    costmap.costs[rows[0]:rows[1] + 1, cols[0]:cols[1] + 1] = INSCRIBED_INFLATED_OBSTACLE
+    pose, speed = (0.2, 0.0, 0.6), (0.3, 0.0)
+    # At the usual 0.6 m the arc to the carrot on the upward leg cuts through the block; at the
+    # closest lookahead the carrot is the corner and the arc stays clear.
+    free = PurePursuit(DEFAULTS).compute(pose, speed, path, free_costmap(), DT)
+    assert free.lookahead_dist_m == DEFAULTS.lookahead_dist and free.angular_radps > 0
+    cmd = PurePursuit(DEFAULTS).compute(pose, speed, path, costmap, DT)
+    assert cmd.mode is ControlMode.TRACKING
+    assert cmd.lookahead_dist_m == DEFAULTS.min_lookahead_dist and cmd.angular_radps < 0
+    # Were the corner itself blocked, closer carrots would not help: still a collision.
+    rows, cols = costmap.cell_of(np.array([0.4, 0.6]), np.array([-0.1, 0.1]))
+    costmap.costs[rows[0]:rows[1] + 1, cols[0]:cols[1] + 1] = INSCRIBED_INFLATED_OBSTACLE
+    with pytest.raises(CollisionAhead):
+        PurePursuit(DEFAULTS).compute(pose, speed, path, costmap, DT)

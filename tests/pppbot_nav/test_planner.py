@@ -222,3 +222,27 @@ def test_open_space_path_is_straight() -> None:
 def test_bad_settings_name_the_parameter(settings: PlannerSettings, name: str) -> None:
     with pytest.raises(ParameterError, match=name.replace(".", r"\.")):
         GridPlanner(settings)
+
+
+def test_near_obstacle_band_weighs_more_and_keeps_paths_off_the_inscribed_zone() -> None:
+    costs = np.array([[0, 179, 180, 252, INSCRIBED_INFLATED_OBSTACLE]], np.uint8)
+    w = travel_weights(costs, 2.0, allow_unknown=True, near_obstacle_cost=180, near_obstacle_penalty=10.0)
+    assert w[0, :2] == pytest.approx([1.0, 1.0 + 2.0 * 179 / 252])
+    assert w[0, 2:4] == pytest.approx([10.0 * (1.0 + 2.0 * 180 / 252), 30.0]) and np.isinf(w[0, 4])
+    # A 1.1 m door in a wall at x = 2 m, a block just beyond it (x ≥ 2.5, y ≥ 2.1 m): the path from
+    # (1, 2) to (3.5, 0.5) turns hard round the door's lower jamb. Without the band it passes
+    # 0.35 m from the wall cells' centres; with it, beyond the band (cost 180: about 0.41 m).
+    lethal = np.zeros((80, 80), dtype=bool)
+    lethal[:, 39:41] = True
+    lethal[29:51, 39:41] = False
+    lethal[42:, 50:] = True
+    cm = costmap_of(lethal)
+    wall = np.argwhere(lethal) * RES + RES / 2  # (row, col) centres as (y, x)
+    nearest = {}
+    for penalty in (1.0, 10.0):
+        planner = GridPlanner(PlannerSettings(near_obstacle_penalty=penalty))
+        planner.set_costmap(cm)
+        points = planner.plan((1.0, 2.0), (3.5, 0.5)).points_xy
+        dense = np.vstack([np.linspace(a, b, 10) for a, b in zip(points[:-1], points[1:])])
+        nearest[penalty] = np.min(np.hypot(dense[:, None, 0] - wall[None, :, 1], dense[:, None, 1] - wall[None, :, 0]))
+    assert nearest[1.0] < 0.38 and nearest[10.0] >= 0.40, nearest

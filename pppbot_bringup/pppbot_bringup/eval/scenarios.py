@@ -286,15 +286,15 @@ def goal_outcome(record: GoalRecord, truth: PoseSeries, truth_map: OccupancyGrid
     if span is None:
         raise PoseSeriesError("no ground truth recorded")
     start_s, end_s = max(record.start_s, span[0]), min(record.end_s, span[1])
-    ends = truth.interpolate([start_s, end_s]).poses
+    final = truth.interpolate([end_s]).poses[0]
     driven = truth.within(start_s, end_s)
-    position_m, yaw_rad = pose_error(ends[1], record.goal)
+    position_m, yaw_rad = pose_error(final, record.goal)
     clearance = clearance_along(driven, truth_map, PPP_BOT_FOOTPRINT) if len(driven) else np.array([np.nan])
     return GoalOutcome(
         goal=record.goal,
-        reached=record.status == "succeeded" and goal_reached(ends[1], record.goal, GOAL_XY_TOLERANCE_M,
+        reached=record.status == "succeeded" and goal_reached(final, record.goal, GOAL_XY_TOLERANCE_M,
                                                               GOAL_YAW_TOLERANCE_RAD),
-        final_pose=(float(ends[1, 0]), float(ends[1, 1]), float(ends[1, 2])),
+        final_pose=(float(final[0]), float(final[1]), float(final[2])),
         position_error_m=position_m, yaw_error_rad=yaw_rad, time_s=record.end_s - record.start_s,
         path_length_m=driven.path_length_m(), shortest_path_m=record.shortest_path_m,
         collisions=sum(1 for t, _, _ in collisions if record.start_s <= t <= record.end_s),

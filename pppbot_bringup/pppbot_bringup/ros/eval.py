@@ -188,17 +188,23 @@ class Run:
             node.spin_once(0.05)
         return True
 
+    def _wait_for_first_amcl_pose(self, node: EvalNode, thread: threading.Thread, deadline: float) -> bool:
+        """AMCL's estimate at the spawn pose; False (with the recording's failure) when it does not come."""
+        while node.amcl_poses == 0:
+            node.spin_pending(0.05)
+            if self.interrupted or not thread.is_alive() or time.monotonic() > deadline:
+                self.recording.failure = "interrupted" if self.interrupted else "no /amcl_pose at the spawn pose"
+                return False
+        return True
+
     def _start_localization(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> bool:
         """Put AMCL off: the spawn pose moved by ``--initial-offset`` (sent as RViz does), or
         global localization; then wait for its first estimate from there."""
         deadline = time.monotonic() + READY_TIMEOUT_S
         # First its estimate at the spawn pose (the launch's initial pose): after that, a standing
         # robot gets no new estimate until the one asked for here.
-        while node.amcl_poses == 0:
-            node.spin_pending(0.05)
-            if self.interrupted or not thread.is_alive() or time.monotonic() > deadline:
-                self.recording.failure = "interrupted" if self.interrupted else "no /amcl_pose at the spawn pose"
-                return False
+        if not self._wait_for_first_amcl_pose(node, thread, deadline):
+            return False
         before = node.amcl_poses  # AMCL publishes a pose only when its filter updates
         if self.args.global_localization:
             progress.message("global localization: particles over the whole map")
@@ -223,12 +229,8 @@ class Run:
 
     def _navigate(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> None:
         """Once AMCL has its estimate at the spawn pose (the launch's initial pose), the goals."""
-        deadline = time.monotonic() + READY_TIMEOUT_S
-        while node.amcl_poses == 0:
-            node.spin_pending(0.05)
-            if self.interrupted or not thread.is_alive() or time.monotonic() > deadline:
-                self.recording.failure = "interrupted" if self.interrupted else "no /amcl_pose at the spawn pose"
-                return
+        if not self._wait_for_first_amcl_pose(node, thread, time.monotonic() + READY_TIMEOUT_S):
+            return
         progress.message(f"{len(self.goals)} goals, drawn with seed {self.args.seed}")
         drive_wall0 = time.monotonic()
 

@@ -256,19 +256,31 @@ class Navigator(Node):
             self._sleep(0.1, goal_handle)
 
     def _plan(self, goal_handle: ServerGoalHandle, request: PoseStamped) -> Path:
+        """A path from the planner. A planner that is not ready yet (no robot pose, no map: TF_ERROR
+        or UNKNOWN, as a just-started stack's may be) is asked again every half second for up to
+        ``server_timeout`` s; any other failure once more after clearing the global costmap.
+
+        Raises:
+            Failed: with the planner's error code. Stopped: see :meth:`_check`.
+        """
         goal = ComputePathToPose.Goal()
         goal.goal = request
-        for attempt in range(2):
+        not_ready = (ComputePathToPose.Result.TF_ERROR, ComputePathToPose.Result.UNKNOWN)
+        deadline = time.monotonic() + self.params.server_timeout
+        cleared = False
+        while True:
             handle = self._wait(self.planner.send_goal_async(goal), goal_handle, self.params.server_timeout)
             response = self._wait(handle.get_result_async(), goal_handle)
             res = response.result
             if res.error_code == ComputePathToPose.Result.NONE and res.path.poses:
                 return res.path
-            if attempt == 0 and res.error_code == ComputePathToPose.Result.TF_ERROR:
-                self._sleep(0.5, goal_handle)  # the planner's TF lags the navigator's: not the costmap's fault
-            elif attempt == 0:
+            if res.error_code in not_ready and time.monotonic() < deadline:
+                self._sleep(0.5, goal_handle)
+            elif not cleared:
                 self._clear(self.clear_global, goal_handle)
-        raise Failed(res.error_code, f"planning: {res.error_msg}")
+                cleared = True
+            else:
+                raise Failed(res.error_code, f"planning: {res.error_msg}")
 
     def _plan_and_follow(self, goal_handle: ServerGoalHandle, request: PoseStamped, state: _Progress) -> None:
         follow_failures = 0
