@@ -133,6 +133,12 @@ def test_navigation_scenario_reaches_random_goals_judged_on_ground_truth(spawn, 
         assert result["shortest_path_m"] >= 1.2 and result["path_length_m"] < 1.5 * result["shortest_path_m"]
         assert result["time_s"] * 0.5 >= result["shortest_path_m"] * 0.9  # at most 0.5 m/s (desired_linear_vel)
     assert report["mean_time_ratio"] >= 1.0 and report["total_time_ratio"] >= 1.0
+    assert 0.0 < report["turning_in_place_s"] < report["sim_seconds"]
+    assert 0.5 < report["total_time_ratio_without_turning"] < report["total_time_ratio"]
+    with np.load(out / "recording.npz") as recording:  # to re-score: each goal's times and pose
+        goals = recording["goals"]
+    assert goals.shape == (3, 5) and np.allclose(goals[:, 2:], [r["goal"] for r in results])
+    assert np.allclose(goals[:, 0], [r["start_s"] for r in results], atol=1e-3)
     assert report["ate_rms_m"] < 0.1  # AMCL along the way
     assert report["plots"] == ["trajectory.png"]
     for log in ("planner_server-1.log", "controller_server-1.log", "navigator-1.log", "amcl-1.log"):

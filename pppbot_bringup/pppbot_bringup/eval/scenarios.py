@@ -158,10 +158,12 @@ def map_metrics(estimate: OccupancyGrid, truth: OccupancyGrid, map_to_world: tup
 
 def save_recording(path: Path, recording: Recording) -> None:
     """The raw streams as numpy arrays (t, x, y, yaw rows): ``truth``, ``estimate``, ``collisions``
-    (t, x, y) and one ``tf_<parent>__<child>`` per recorded TF edge, to re-plot or re-score later."""
+    (t, x, y), navigation ``goals`` (sent and ended at, x, y, yaw) and one ``tf_<parent>__<child>``
+    per recorded TF edge, to re-plot or re-score later."""
     arrays = {"truth": np.array(recording.truth_rows).reshape(-1, 4),
               "estimate": np.array(recording.estimate_rows).reshape(-1, 4),
-              "collisions": np.array(recording.collisions).reshape(-1, 3)}
+              "collisions": np.array(recording.collisions).reshape(-1, 3),
+              "goals": np.array([(r.start_s, r.end_s, *r.goal) for r in recording.goals]).reshape(-1, 5)}
     for (parent, child), rows in recording.edge_rows.items():
         arrays[f"tf_{parent}__{child}"] = np.array(rows).reshape(-1, 4)
     np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
@@ -273,6 +275,24 @@ def shortest_path_m(truth_map: OccupancyGrid, start_xy: Sequence[float], goal_xy
         return None
 
 
+#: Turning in place, as the truth shows it: slower than this (m/s) while turning faster than TURNING_RADPS.
+STANDING_MPS = 0.02
+TURNING_RADPS = 0.05
+
+
+def turning_in_place_s(driven: PoseSeries) -> float:
+    """Sim seconds of ``driven`` spent turning on the spot (speed below :data:`STANDING_MPS`, turn
+    rate above :data:`TURNING_RADPS`): what a goal costs beyond its path at the base's angular
+    acceleration, which the shortest path's time does not count."""
+    if len(driven) < 2:
+        return 0.0
+    dt = np.diff(driven.t_s)
+    moving = dt > 0
+    dt, step_m = dt[moving], np.linalg.norm(np.diff(driven.xy, axis=0), axis=1)[moving]
+    turn = np.abs(np.diff(np.unwrap(driven.yaw_rad)))[moving]
+    return float(dt[(step_m / dt < STANDING_MPS) & (turn / dt > TURNING_RADPS)].sum())
+
+
 def goal_outcome(record: GoalRecord, truth: PoseSeries, truth_map: OccupancyGrid,
                  collisions: list[tuple[float, float, float]]) -> GoalOutcome:
     """A goal judged on ground truth: reached when the navigator succeeded and the true pose at the
@@ -305,7 +325,8 @@ def navigation_metrics(recording: Recording, truth_map: OccupancyGrid, map_to_wo
                        max_speed_mps: float, out: Path, title: str) -> dict[str, Any]:
     """The goals' outcomes and their summary (:func:`summarize_navigation`: ``success_rate``,
     ``collisions``, ``mean_time_ratio`` against the shortest path at ``max_speed_mps``, ...),
-    ``total_time_ratio`` (all successful goals' time over all their shortest times), AMCL's error
+    ``total_time_ratio`` (all successful goals' time over all their shortest times), the time spent
+    turning on the spot (``turning_in_place_s``) and that ratio without it, AMCL's error
     along the way (``ate_*``), one entry per goal under ``goal_results``; writes ``trajectory.png``.
 
     Raises:
@@ -318,6 +339,12 @@ def navigation_metrics(recording: Recording, truth_map: OccupancyGrid, map_to_wo
     rated = [o for o in outcomes if o.reached and o.shortest_path_m]
     metrics["total_time_ratio"] = (sum(o.time_s for o in rated) * max_speed_mps /
                                    sum(o.shortest_path_m or 0.0 for o in rated)) if rated else None
+    turning = [turning_in_place_s(truth.within(r.start_s, r.end_s)) for r in recording.goals]
+    metrics["turning_in_place_s"] = round(sum(turning), 3)
+    rated_turning = [t for t, o in zip(turning, outcomes) if o.reached and o.shortest_path_m]
+    metrics["total_time_ratio_without_turning"] = (
+        (sum(o.time_s for o in rated) - sum(rated_turning)) * max_speed_mps /
+        sum(o.shortest_path_m or 0.0 for o in rated)) if rated else None
     metrics["max_speed_mps"] = max_speed_mps
     metrics["distance_m"] = round(truth.path_length_m(), 3)
     metrics["recoveries"] = sum(r.recoveries for r in recording.goals)
@@ -331,8 +358,9 @@ def navigation_metrics(recording: Recording, truth_map: OccupancyGrid, map_to_wo
          "shortest_path_m": None if o.shortest_path_m is None else round(o.shortest_path_m, 3),
          "path_length_m": round(o.path_length_m, 3), "position_error_m": round(o.position_error_m, 3),
          "yaw_error_rad": round(o.yaw_error_rad, 3), "collisions": o.collisions,
-         "min_clearance_m": round(o.min_clearance_m, 3), "recoveries": r.recoveries}
-        for r, o in zip(recording.goals, outcomes)]
+         "min_clearance_m": round(o.min_clearance_m, 3), "recoveries": r.recoveries, "start_s": round(r.start_s, 3),
+         "turning_in_place_s": round(t, 3)}
+        for r, o, t in zip(recording.goals, outcomes, turning)]
     plot_trajectories(out / "trajectory.png", truth_map, truth, estimate.transformed(map_to_world),
                       ESTIMATE_LABELS[Scenario.NAVIGATION], [(x, y) for _, x, y in recording.collisions], title,
                       goals=[(o.goal[0], o.goal[1], o.reached) for o in outcomes])

@@ -18,6 +18,7 @@ from pppbot_bringup.eval.scenarios import (
     goal_outcome,
     navigation_metrics,
     shortest_path_m,
+    turning_in_place_s,
 )
 from pppbot_bringup.eval.trajectory import PoseSeries
 from pppbot_common.maps import FREE, OCCUPIED, OccupancyGrid
@@ -123,8 +124,18 @@ def test_navigation_metrics_summarize_the_goals_and_plot_them(tmp_path: Path):
     assert metrics["mean_time_ratio"] == pytest.approx((10 / 4 + 20 / 4) / 2)
     assert metrics["total_time_ratio"] == pytest.approx(30 / 8)
     assert metrics["recoveries"] == 6 and metrics["collisions"] == 0
+    # The second goal turned while it drove (not on the spot): no time taken off.
+    assert metrics["turning_in_place_s"] == 0.0 and metrics["total_time_ratio_without_turning"] == pytest.approx(30 / 8)
     assert metrics["ate_rms_m"] == pytest.approx(0.02, abs=1e-6)
     results = metrics["goal_results"]
     assert [r["status"] for r in results] == ["succeeded", "succeeded", "aborted"]
     assert results[2] == {**results[2], "reached": False, "error_code": 208, "shortest_path_m": None}
     assert (tmp_path / "trajectory.png").stat().st_size > 10_000
+
+
+def test_turning_in_place_is_timed_apart_from_standing_and_driving():
+    rows = [(t, 0.0, 0.0, 0.0) for t in np.arange(0.0, 1.0, 0.1)]                    # standing
+    rows += [(1.0 + t, 0.0, 0.0, t) for t in np.arange(0.0, 2.0, 0.1)]              # 1 rad/s on the spot
+    rows += [(3.0 + t, 0.5 * t, 0.0, 2.0) for t in np.arange(0.0, 2.01, 0.1)]       # 0.5 m/s
+    assert turning_in_place_s(PoseSeries.from_rows(rows)) == pytest.approx(2.0, abs=0.11)
+    assert turning_in_place_s(PoseSeries.from_rows(rows[:1])) == 0.0
