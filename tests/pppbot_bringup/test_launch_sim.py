@@ -57,7 +57,7 @@ def test_show_args_lists_every_argument_with_its_default():
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["world:=mars"], "unknown world 'mars'; known worlds: cones, empty, maze, office, room"),
+    (["world:=mars"], "unknown world 'mars'; known worlds: cones, empty, maze, maze_boxes, office, room, room_boxes"),
     (["wrld:=maze"], "unknown argument 'wrld'"),
     (["localization:=true", "map:=/nowhere/map.yaml"], "localization:=true needs a map; /nowhere/map.yaml does not exist"),
 ])
