@@ -97,6 +97,8 @@ class Run:
         self.out = out
         self.truth_map = truth_map
         self.goals = goals or []
+        #: The speed limit goals are timed against, read once: the goal loop and the report agree.
+        self.max_speed_mps = nav_max_speed()
         self.recording = Recording()
         self.interrupted = False
         self.stop = threading.Event()
@@ -244,7 +246,7 @@ class Run:
                 return f"no ground truth for {STALL_TIMEOUT_S:.0f} s (the simulator stalled)"
             return None
 
-        loop = GoalLoop(node, self.recording, self.truth_map, tuple(self.args.map_pose), nav_max_speed(), progress,
+        loop = GoalLoop(node, self.recording, self.truth_map, tuple(self.args.map_pose), self.max_speed_mps, progress,
                         problem)
         loop.run(self.goals)
 
@@ -351,7 +353,7 @@ def navigation_report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     problem = None
     if rec.truth_rows and rec.goals:
         try:
-            metrics = navigation_metrics(rec, truth_map, tuple(run.args.map_pose), nav_max_speed(), run.out,
+            metrics = navigation_metrics(rec, truth_map, tuple(run.args.map_pose), run.max_speed_mps, run.out,
                                          f"navigation in {run.world_file.stem}, {len(run.goals)} goals "
                                          f"(seed {run.args.seed})")
         except (PppbotError, ValueError, OSError) as exc:
