@@ -9,7 +9,11 @@ Nav2's rules (map_server / map_saver):
 * loading: ``p = (255 - v) / 255`` (or ``v / 255`` when ``negate``);
   ``trinary``: p > occupied_thresh → 100, p < free_thresh → 0, else -1;
   ``scale``: the same ends, and between them ``round(100·(p - free)/(occ - free))``;
-  ``raw``: the pixel value itself (255 → -1).
+  ``raw``: the pixel value itself when it is 0-100, else -1 (``negate`` does not apply).
+  ``v`` is the pixel's grey level on a 0-255 scale: 16-bit images (a PGM whose maxval
+  is above 255, a 16-bit PNG) are scaled down, as Nav2's GraphicsMagick reads them.
+  Nav2 requires ``negate``, ``occupied_thresh`` and ``free_thresh``; so does this
+  reader (``mode`` may be left out: trinary).
 * saving: cells outside 0-100 are unknown. ``trinary`` writes 0 for occupied
   (``cell >= rint(100·occupied_thresh)``), 254 for free (``cell <= rint(100·free_thresh)``,
   checked first) and 205 for the rest, and, as Nav2's map_saver does since it fixed
@@ -107,11 +111,11 @@ class MapMetadata:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
-_REQUIRED = ("image", "resolution", "origin")
+_REQUIRED = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
 
 
-def _number(meta: dict[str, Any], key: str, path: Path, default: float | None = None) -> float:
-    value = meta.get(key, default)
+def _number(meta: dict[str, Any], key: str, path: Path) -> float:
+    value = meta[key]
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise MapFileError(f"{path}: '{key}' must be a finite number, not {value!r}")
     return float(value)
@@ -146,14 +150,14 @@ def read_map_metadata(path: str | Path) -> MapMetadata:
         raise MapFileError(f"{path}: 'origin' must be [x, y, yaw], not {origin!r}")
     mode_text = meta.get("mode", "trinary")
     try:
-        mode = MapMode(mode_text)
+        mode = MapMode(mode_text.lower() if isinstance(mode_text, str) else mode_text)  # Nav2 ignores case
     except ValueError:
         raise MapFileError(f"{path}: 'mode' is {mode_text!r}; allowed: trinary, scale, raw") from None
-    negate = meta.get("negate", 0)
+    negate = meta["negate"]
     if negate not in (0, 1, True, False):
         raise MapFileError(f"{path}: 'negate' must be 0 or 1, not {negate!r}")
-    occupied = _number(meta, "occupied_thresh", path, 0.65)
-    free = _number(meta, "free_thresh", path, 0.25)
+    occupied = _number(meta, "occupied_thresh", path)
+    free = _number(meta, "free_thresh", path)
     if not 0.0 <= free <= occupied <= 1.0:
         raise MapFileError(f"{path}: thresholds need 0 <= free_thresh ({free}) <= occupied_thresh ({occupied}) <= 1")
     extra = {k: v for k, v in meta.items()
@@ -163,16 +167,15 @@ def read_map_metadata(path: str | Path) -> MapMetadata:
 
 
 def pixels_to_occupancy(pixels: np.ndarray, meta: MapMetadata, alpha: np.ndarray | None = None) -> np.ndarray:
-    """Nav2's loading rule: greyscale pixels (image orientation) → int8 cells (same orientation).
+    """Nav2's loading rule: grey levels (0-255, image orientation) → int8 cells (same orientation).
 
     ``alpha`` (0-255, same shape), when the image has it: in ``scale`` mode a pixel
     that is not fully opaque is unknown.
     """
     values = pixels.astype(np.float64)
     if meta.mode is MapMode.RAW:
-        out = values.copy()
-        out[values == 255] = UNKNOWN
-        return np.clip(out, -1, 100).astype(np.int8)
+        level = np.rint(values)
+        return np.where((level >= FREE) & (level <= OCCUPIED), level, UNKNOWN).astype(np.int8)
     p = values / 255.0 if meta.negate else (255.0 - values) / 255.0
     out = np.full(values.shape, UNKNOWN, dtype=np.int8)
     out[p > meta.occupied_thresh] = OCCUPIED
@@ -204,6 +207,14 @@ def occupancy_to_pixels(data: np.ndarray, mode: MapMode = MapMode.TRINARY,
     return out
 
 
+def _grey_levels(image: Image.Image) -> np.ndarray:
+    """The image's grey levels on a 0-255 scale: colour as luma (GraphicsMagick's intensity,
+    as Nav2 reads it), 16-bit grey scaled down instead of clipped."""
+    if image.mode == "I" or image.mode.startswith("I;16"):
+        return np.asarray(image, dtype=np.float64) * (255.0 / 65535.0)
+    return np.asarray(image.convert("L"), dtype=np.float64)
+
+
 def load_map(path: str | Path) -> tuple[OccupancyGrid, MapMetadata]:
     """Load a Nav2 map (YAML and its image).
 
@@ -227,7 +238,7 @@ def load_map_image(path: str | Path, meta: MapMetadata) -> OccupancyGrid:
         with Image.open(image_path) as image:
             if image.mode == "P" and "transparency" in image.info:
                 image = image.convert("RGBA")
-            pixels = np.asarray(image.convert("L"))
+            pixels = _grey_levels(image)
             alpha = np.asarray(image.getchannel("A")) if "A" in image.getbands() else None
     except FileNotFoundError:
         raise MapFileError(f"{path}: image '{meta.image}' not found at {image_path}") from None

@@ -65,26 +65,53 @@ def test_reads_a_map_made_by_hand_as_nav2_would(tmp_path):
     assert grid.data.tolist() == [[OCCUPIED] * 3, [FREE, FREE, UNKNOWN], [FREE, FREE, OCCUPIED]]
 
 
+#: The keys Nav2 requires besides image, resolution and origin.
+NAV2_KEYS = "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.25\n"
+
+
 def test_scale_and_raw_modes(tmp_path):
-    pixels = np.array([[0, 128, 255]], dtype=np.uint8)
+    pixels = np.array([[0, 100, 101, 128, 255]], dtype=np.uint8)
     Image.fromarray(pixels).save(tmp_path / "s.png")
-    for mode in ("scale", "raw"):
+    for mode in ("scale", "Raw"):  # Nav2 reads the mode in any case
         (tmp_path / f"{mode}.yaml").write_text(
-            f"image: s.png\nmode: {mode}\nresolution: 1.0\norigin: [0, 0, 0]\n")
+            f"image: s.png\nmode: {mode}\nresolution: 1.0\norigin: [0, 0, 0]\n" + NAV2_KEYS)
         grid, _ = load_map(tmp_path / f"{mode}.yaml")
         if mode == "scale":
-            # p(128) = 0.498: 100 * (0.498 - 0.25) / (0.65 - 0.25) = 62
-            assert grid.data[0].tolist() == [OCCUPIED, 62, FREE]
+            # p = (255 - v) / 255; p(100) = 0.608: 100 * (0.608 - 0.25) / 0.4 = 89.46 → 89;
+            # p(101) = 0.604 → 88; p(128) = 0.498 → 62
+            assert grid.data[0].tolist() == [OCCUPIED, 89, 88, 62, FREE]
         else:
-            assert grid.data[0].tolist() == [0, 100, UNKNOWN]
+            # raw: a value 0-100 is the cell itself, anything above is unknown (Nav2's map_io)
+            assert grid.data[0].tolist() == [0, 100, UNKNOWN, UNKNOWN, UNKNOWN]
+
+
+@pytest.mark.parametrize("suffix, header", [("png", None), ("pgm", b"P5\n4 1\n65535\n")])
+def test_16_bit_images_are_scaled_not_clipped(tmp_path, suffix, header):
+    """A 16-bit grey level is read on its own scale (GraphicsMagick's, as Nav2 reads it):
+    half grey is unknown in trinary mode, not free as 8-bit clipping would make it."""
+    levels = np.array([[0, 12850, 32768, 65535]], dtype=np.uint16)  # p = 1.0, 0.8, 0.5, 0.0
+    if header is None:
+        Image.fromarray(levels).save(tmp_path / f"m.{suffix}")
+    else:
+        (tmp_path / f"m.{suffix}").write_bytes(header + levels.astype(">u2").tobytes())
+    (tmp_path / "m.yaml").write_text(f"image: m.{suffix}\nresolution: 1.0\norigin: [0, 0, 0]\n" + NAV2_KEYS)
+    grid, _ = load_map(tmp_path / "m.yaml")
+    assert grid.data[0].tolist() == [OCCUPIED, OCCUPIED, UNKNOWN, FREE]
+
+
+BASE = "image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n"
 
 
 @pytest.mark.parametrize("text, message", [
-    ("image: m.pgm\nresolution: 0.05\n", "missing key(s) origin"),
-    ("image: m.pgm\nresolution: -1\norigin: [0, 0, 0]\n", "'resolution' must be positive"),
-    ("image: m.pgm\nresolution: 0.05\norigin: [0, 0]\n", "'origin' must be [x, y, yaw]"),
-    ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nmode: fancy\n", "'mode' is 'fancy'; allowed: trinary, scale, raw"),
-    ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nfree_thresh: 0.9\n", "thresholds need"),
+    ("image: m.pgm\nresolution: 0.05\n" + NAV2_KEYS, "missing key(s) origin"),
+    (BASE, "missing key(s) negate, occupied_thresh, free_thresh"),
+    (BASE + "negate: 0\noccupied_thresh: 0.65\n", "missing key(s) free_thresh"),
+    ("image: m.pgm\nresolution: -1\norigin: [0, 0, 0]\n" + NAV2_KEYS, "'resolution' must be positive"),
+    ("image: m.pgm\nresolution: 0.05\norigin: [0, 0]\n" + NAV2_KEYS, "'origin' must be [x, y, yaw]"),
+    (BASE + NAV2_KEYS + "mode: fancy\n", "'mode' is 'fancy'; allowed: trinary, scale, raw"),
+    (BASE + "negate: 2\noccupied_thresh: 0.65\nfree_thresh: 0.25\n", "'negate' must be 0 or 1, not 2"),
+    (BASE + "negate: 0\noccupied_thresh: high\nfree_thresh: 0.25\n", "'occupied_thresh' must be a finite number"),
+    (BASE + "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.9\n", "thresholds need"),
     ("- just\n- a list\n", "a map file is a YAML mapping"),
     ("image: [unclosed\n", "not valid YAML"),
 ])
@@ -96,7 +123,7 @@ def test_bad_map_yaml_is_named(tmp_path, text, message):
 
 
 def test_missing_and_unreadable_images(tmp_path):
-    (tmp_path / "m.yaml").write_text("image: gone.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
+    (tmp_path / "m.yaml").write_text("image: gone.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n" + NAV2_KEYS)
     with pytest.raises(MapFileError, match="image 'gone.pgm' not found"):
         load_map(tmp_path / "m.yaml")
     (tmp_path / "gone.pgm").write_text("not an image")

@@ -18,8 +18,11 @@ def test_kld_bound_grows_with_occupied_bins_and_stays_in_the_particle_limits():
     assert n[0] == 5000  # one bin: nothing learnt yet, keep them all
     assert np.all(np.diff(n[1:]) >= 0)
     assert n[1] == 100 and n[-1] == 5000
-    # Fox (2003), k = 50, ε = 0.05, z(0.99) = 2.326: ⌈(49/0.1)·(1 − 2/441 + √(2/441)·2.326)³⌉ = 750.
-    assert kld_limit(50, s) == 750
+    # Fox (2003) as Nav2's pf.c computes it, pf_z being the quantile itself:
+    # k = 50, ε = 0.05: ⌈(49/0.1)·(1 − 2/441 + √(2/441)·0.99)³⌉ = 588.
+    assert kld_limit(50, s) == 588
+    # the textbook's z for a 99 % bound, 2.326: 750
+    assert kld_limit(50, FilterSettings(min_particles=100, max_particles=5000, pf_err=0.05, pf_z=2.326)) == 750
 
 
 def test_resampling_a_concentrated_set_keeps_min_particles_and_a_spread_one_keeps_max():
@@ -107,7 +110,8 @@ def test_bad_initial_poses_are_refused_by_value(mean, cov, what):
 @pytest.mark.parametrize("settings, name", [
     (FilterSettings(min_particles=600, max_particles=500), "min_particles"),
     (FilterSettings(pf_err=0.0), "pf_err"),
-    (FilterSettings(pf_z=1.0), "pf_z"),
+    (FilterSettings(pf_z=0.0), "pf_z"),
+    (FilterSettings(pf_z=math.nan), "pf_z"),
     (FilterSettings(recovery_alpha_fast=-0.1), "recovery_alpha_fast"),
 ])
 def test_bad_filter_settings_are_refused_by_name(settings, name):

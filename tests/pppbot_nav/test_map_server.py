@@ -59,7 +59,7 @@ def test_names_resolve_in_the_working_directory_then_maps(tmp_path: Path, monkey
 
 
 def test_bad_files_get_nav2s_result_codes(tmp_path: Path):
-    (tmp_path / "bad_yaml.yaml").write_text("image: x.pgm\nresolution: -1\norigin: [0, 0, 0]\n")
+    (tmp_path / "bad_yaml.yaml").write_text(NAV2_YAML.replace("resolution: 0.050", "resolution: -1"))
     with pytest.raises(MapLoadError, match="'resolution' must be positive") as metadata:
         load_map_file(str(tmp_path / "bad_yaml.yaml"))
     assert metadata.value.result == LoadMap.Response.RESULT_INVALID_MAP_METADATA

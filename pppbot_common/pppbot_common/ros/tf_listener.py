@@ -6,7 +6,7 @@ from typing import Callable
 from rclpy.node import Node
 from tf2_msgs.msg import TFMessage
 
-from pppbot_common.ros.node_main import Warnings
+from pppbot_common.ros.node_main import Warnings, guarded
 from pppbot_common.ros.planar import planar_transforms
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.transforms import TransformBuffer
@@ -14,15 +14,17 @@ from pppbot_common.transforms import TransformBuffer
 
 class TfListener:
     """Keeps ``buffer`` (``cache_s`` seconds of history) filled; ``on_tf`` is called after each
-    dynamic TF message. A malformed transform is dropped with a throttled warning."""
+    dynamic TF message. A malformed transform is dropped with a throttled warning, and so is
+    any error ``on_tf`` raises (it hands on scans that waited for odometry: one bad scan
+    must not end the node)."""
 
     def __init__(self, node: Node, warn: Warnings, cache_s: float = 10.0,
                  on_tf: Callable[[], None] | None = None) -> None:
         self.buffer = TransformBuffer(cache_s=cache_s)
         self._warn = warn
         self._on_tf = on_tf
-        node.create_subscription(TFMessage, "/tf", self._dynamic, 200)
-        node.create_subscription(TFMessage, "/tf_static", self._static, LATCHED)
+        node.create_subscription(TFMessage, "/tf", guarded(node, self._dynamic, "TFMessage"), 200)
+        node.create_subscription(TFMessage, "/tf_static", guarded(node, self._static, "TFMessage"), LATCHED)
 
     def _store(self, msg: TFMessage, static: bool) -> None:
         for t in planar_transforms(msg):

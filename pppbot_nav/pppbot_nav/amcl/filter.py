@@ -8,9 +8,10 @@
   (Augmented MCL, Thrun et al. table 8.3). Both alphas 0 turn this off.
 * **Resampling** draws particles by weight until there are enough for the KLD bound
   (Fox 2003): with ``k`` occupied histogram bins (0.5 m × 0.5 m × 10°), at most ``pf_err``
-  divergence from the true posterior with probability ``pf_z`` needs
-  ``n = (k − 1)/(2·pf_err) · (1 − 2/(9(k − 1)) + √(2/(9(k − 1)))·z)³`` particles, kept in
-  ``[min_particles, max_particles]``.
+  divergence from the true posterior needs
+  ``n = (k − 1)/(2·pf_err) · (1 − 2/(9(k − 1)) + √(2/(9(k − 1)))·pf_z)³`` particles, kept in
+  ``[min_particles, max_particles]``. As in Nav2, ``pf_z`` is the upper standard normal
+  quantile itself (Nav2's 0.99 is the quantile of p ≈ 0.16, not a probability of 0.99).
 * **Clusters**: particles in neighbouring histogram bins (26-neighbourhood, yaw wrapping
   around) form a cluster; each has a weight, a mean and a covariance. The pose estimate is
   the heaviest cluster's mean, as Nav2's AMCL publishes it.
@@ -24,7 +25,6 @@ from typing import Callable
 import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
-from scipy.stats import norm
 
 from pppbot_common.se2 import wrap_angles
 from pppbot_nav.errors import AmclError
@@ -50,8 +50,9 @@ class FilterSettings:
                             "satisfy 1 ≤ min_particles ≤ max_particles", "min_particles")
         if not 0.0 < self.pf_err < 1.0:
             raise AmclError(f"pf_err must be in (0, 1), not {self.pf_err}", "pf_err")
-        if not 0.5 <= self.pf_z < 1.0:
-            raise AmclError(f"pf_z must be in [0.5, 1), not {self.pf_z}", "pf_z")
+        if not (math.isfinite(self.pf_z) and self.pf_z > 0.0):
+            raise AmclError(f"pf_z (a standard normal quantile) must be a positive number, not {self.pf_z}",
+                            "pf_z")
         for name in ("recovery_alpha_slow", "recovery_alpha_fast"):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
@@ -70,8 +71,7 @@ def kld_limit(bins: np.ndarray | int, settings: FilterSettings) -> np.ndarray:
     k = np.asarray(bins, dtype=float)
     km1 = np.maximum(k - 1.0, 1.0)
     b = 2.0 / (9.0 * km1)
-    z = norm.ppf(settings.pf_z)
-    n = np.ceil(km1 / (2.0 * settings.pf_err) * (1.0 - b + np.sqrt(b) * z) ** 3)
+    n = np.ceil(km1 / (2.0 * settings.pf_err) * (1.0 - b + np.sqrt(b) * settings.pf_z) ** 3)
     n = np.where(k <= 1, settings.max_particles, n)
     return np.clip(n, settings.min_particles, settings.max_particles).astype(int)
 
