@@ -179,7 +179,10 @@ class Localizer:
         self.filter.update_sensor(self.laser.likelihoods(self.filter.particles, scan))
         self._updates += 1
         resampled = self._updates % max(1, self.settings.resample_interval) == 0
-        estimate = self.filter.estimate()  # before resampling, on the weighted set, as Nav2 does
+        # Before resampling, on the weighted set. Nav2 takes its clusters after resampling, when
+        # every weight is equal; the weighted set has the same mean in expectation, without
+        # the resampling's draw noise.
+        estimate = self.filter.estimate()
         if resampled:
             self.filter.resample(self.rng, self.random_poses)
         refined = None
