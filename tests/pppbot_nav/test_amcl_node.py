@@ -174,6 +174,28 @@ def test_services_and_bad_input_keep_the_node_running(ros_node, spawn):
     assert amcl.running()
 
 
+def test_request_nomotion_update_updates_on_the_next_scan_without_motion(ros_node, spawn):
+    amcl = start_amcl(spawn, "set_initial_pose:=true", "initial_pose.x:=0.5", "initial_pose.y:=-1.0")
+    robot = Robot(ros_node)
+    amcl.wait_for_output(r"initial pose \(0\.500, -1\.000, 0\.000\)", 30)
+    _, truth, odom = drive()[0]
+    # The first scan after an initial pose is always used; later ones, standing still, are not.
+    wait_until(lambda: (robot.step(truth, odom), robot.poses)[1] or None, 20, "the first pose", node=ros_node)
+    for _ in range(10):
+        robot.step(truth, odom)
+    before = len(robot.poses)
+    assert before >= 1
+    client = ros_node.create_client(Empty, "/request_nomotion_update")
+    wait_until(lambda: client.service_is_ready() or None, 20, "the service", node=ros_node)
+    future = client.call_async(Empty.Request())
+    wait_until(lambda: future.done() or None, 20, "a reply", node=ros_node)
+    wait_until(lambda: (robot.step(truth, odom), len(robot.poses) > before)[1] or None, 20,
+               "a pose after the no-motion update", node=ros_node)
+    for _ in range(10):
+        robot.step(truth, odom)
+    assert len(robot.poses) == before + 1  # one update per request
+
+
 @pytest.mark.parametrize("param, message", [
     ("laser_model_type:=sonar", "parameter 'laser_model_type' = 'sonar': must be one of likelihood_field, beam"),
     ("min_particles:=3000", "parameter 'min_particles' = 3000: min_particles (3000) and max_particles (2000)"),
