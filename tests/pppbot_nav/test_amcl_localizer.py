@@ -177,3 +177,36 @@ def test_reconfiguring_keeps_the_particles_and_updates_on_the_next_scan():
     with pytest.raises(AmclError, match="min_particles"):
         loc.reconfigure(LocalizerSettings(filter=FilterSettings(min_particles=10, max_particles=5)))
     assert loc.settings.update_min_d == 1.0  # the refused settings changed nothing
+
+
+def test_global_localization_searches_again_when_the_hypothesis_it_settles_on_does_not_fit():
+    """A cluster that holds all the weight where the scan does not fit the map (an alias of
+    the place, as a maze has many) is not taken: the particles are searched for again."""
+    _, truth, odom = drive()[0]
+    loc = localizer(1)
+    loc.global_localization()
+    assert loc.update(odom, scan(truth), scan(truth, max_beams=360)) is not None
+    wrong = truth + np.array([-4.5, 2.6, 0.0])  # free space across the room, the same heading
+    assert loc.fitter.fit_fraction(wrong, scan(truth, max_beams=360)) < 0.5
+    assert loc.fitter.fit_fraction(truth, scan(truth, max_beams=360)) > 0.95
+    loc.filter.particles = np.tile(wrong, (len(loc.filter), 1))  # collapsed on the wrong place
+    loc.request_nomotion_update()
+    update = loc.update(odom, scan(truth), scan(truth, max_beams=360))
+    assert update is not None
+    particles = loc.filter.particles
+    near_wrong = np.hypot(*(particles[:, :2] - wrong[:2]).T) < 0.5
+    near_truth = (np.hypot(*(particles[:, :2] - truth[:2]).T) < 0.15) & (
+        np.abs(np.remainder(particles[:, 2] - truth[2] + np.pi, 2 * np.pi) - np.pi) < 0.1)
+    assert near_wrong.mean() < 0.05  # the alias let go
+    assert near_truth.any()  # and the robot's true place is among the hypotheses again
+
+
+def test_a_set_initial_pose_is_trusted_without_the_fit_test():
+    """Outside global localization the filter is never restarted by the fit test: a pose the
+    user gave stays the estimate's neighbourhood even where the scan fits poorly."""
+    _, truth, odom = drive()[0]
+    loc = localizer(1)
+    wrong = truth + np.array([-4.5, 2.6, 0.0])
+    loc.set_initial_pose(wrong, NAV2_INITIAL_COVARIANCE / 100)
+    update = loc.update(odom, scan(truth), scan(truth, max_beams=360))
+    assert update is not None and np.hypot(*(update.estimate.mean[:2] - wrong[:2])) < 0.5

@@ -30,6 +30,12 @@ GLOBAL_HEADINGS = 60
 GLOBAL_CHUNK_POSES = 60000
 #: The heaviest cluster's share of the weight from which the filter counts as settled on it.
 SETTLED_WEIGHT = 0.9
+#: Global localization settles on its heaviest cluster only if the whole scan fits the map there
+#: this well (:meth:`ScanFitter.fit_fraction`); a cluster that holds the weight but fits worse is an
+#: alias of the place, and the particles are searched for again with the scan of that moment, at
+#: most :data:`GLOBAL_RESEARCHES` times (then the filter goes on as Nav2's would).
+GLOBAL_SETTLE_FIT = 0.9
+GLOBAL_RESEARCHES = 10
 #: Standard deviations (m, m, rad) of the particles redrawn around a refined estimate.
 REFINED_SPREAD = np.array([0.02, 0.02, 0.01])
 
@@ -73,6 +79,8 @@ class Localizer:
         self._odom: np.ndarray | None = None  # odometry pose at the last filter update
         self._force = False
         self._global_search = False  # place the particles by a search on the next scan
+        self._searching = False  # global localization has not settled yet
+        self._researches_left = 0
         self._updates = 0
         self.last: Update | None = None
 
@@ -121,14 +129,19 @@ class Localizer:
         (:data:`GLOBAL_STEP_M`, :data:`GLOBAL_HEADINGS` headings) is scored with the laser model,
         and the ``max_particles`` best, jittered within their grid cell, become the particles.
         Uniform particles alone rarely put one near enough to the robot for the laser model to
-        tell it from the many half-fitting places of a maze.
+        tell it from the many half-fitting places of a maze. Once one cluster holds the weight,
+        it is taken only if the whole scan fits the map there (:data:`GLOBAL_SETTLE_FIT`);
+        otherwise the search is made again with the scan of that moment.
         """
         self.filter.init_uniform(self._free_xy, self.field.grid.resolution, self.rng)
         self._initialized()
         self._global_search = True
+        self._searching = True
+        self._researches_left = GLOBAL_RESEARCHES
 
     def _initialized(self) -> None:
         self._global_search = False
+        self._searching = False
         self.initialized = True
         self._force = True
         self._odom = None
@@ -169,9 +182,7 @@ class Localizer:
         if not (self._force or self.moved_enough(odom_pose)):
             return None
         if self._global_search:
-            self._global_search = False
-            self.filter.particles = self._best_poses(scan)
-            self.filter.weights = np.full(len(self.filter.particles), 1.0 / len(self.filter.particles))
+            self._search(scan)
         elif self._odom is not None:
             self.motion.sample(self.filter.particles, self._odom, odom_pose, self.rng)
         self._odom = odom_pose.copy()
@@ -186,11 +197,24 @@ class Localizer:
         if resampled:
             self.filter.resample(self.rng, self.random_poses)
         refined = None
+        whole = scan if full_scan is None else full_scan
+        if self._searching and estimate.weight >= SETTLED_WEIGHT:
+            # Global localization is down to one hypothesis: settled if the scan fits there,
+            # otherwise that place only looks alike (a maze), and the particles start over.
+            polished = self.fitter.refine(estimate.mean, whole)
+            at = estimate.mean if polished is None else polished
+            if self.fitter.fit_fraction(at, whole) >= GLOBAL_SETTLE_FIT or not self._researches_left:
+                self._searching = False
+            else:
+                self._researches_left -= 1
+                self._search(scan)
+                self.filter.update_sensor(self.laser.likelihoods(self.filter.particles, scan))
+                estimate = self.filter.estimate()
         if self.settings.refine_estimate:
-            refined = self.fitter.refine(estimate.mean, scan if full_scan is None else full_scan)
+            refined = self.fitter.refine(estimate.mean, whole)
             if refined is not None:
                 estimate = Cluster(estimate.weight, refined, estimate.covariance)
-                if estimate.weight >= SETTLED_WEIGHT:
+                if estimate.weight >= SETTLED_WEIGHT and not self._searching:
                     # Only once one hypothesis holds the weight: while several compete (global
                     # localization, a symmetric place), redrawing would crown the leader early.
                     self._reset_around(refined)
@@ -213,6 +237,12 @@ class Localizer:
         self.last = Update(Cluster(self.last.estimate.weight, refined, self.last.estimate.covariance),
                            map_to_odom, resampled=False, refined=True)
         return map_to_odom
+
+    def _search(self, scan: Scan) -> None:
+        """Global localization's particles: the best poses for ``scan`` (see :meth:`global_localization`)."""
+        self._global_search = False
+        self.filter.particles = self._best_poses(scan)
+        self.filter.weights = np.full(len(self.filter.particles), 1.0 / len(self.filter.particles))
 
     def _best_poses(self, scan: Scan) -> np.ndarray:
         """The ``max_particles`` best-scoring poses of a grid over the free space, jittered within their cell."""
