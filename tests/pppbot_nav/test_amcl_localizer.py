@@ -192,7 +192,8 @@ def test_global_localization_searches_again_when_the_hypothesis_it_settles_on_do
     loc.filter.particles = np.tile(wrong, (len(loc.filter), 1))  # collapsed on the wrong place
     loc.request_nomotion_update()
     update = loc.update(odom, scan(truth), scan(truth, max_beams=360))
-    assert update is not None
+    assert update is not None and update.alias is not None
+    assert np.hypot(*(update.alias[0][:2] - wrong[:2])) < 0.35 and update.alias[1] < 0.5
     particles = loc.filter.particles
     near_wrong = np.hypot(*(particles[:, :2] - wrong[:2]).T) < 0.5
     near_truth = (np.hypot(*(particles[:, :2] - truth[:2]).T) < 0.15) & (

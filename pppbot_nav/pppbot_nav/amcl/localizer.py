@@ -65,6 +65,9 @@ class Update:
     map_to_odom: np.ndarray
     resampled: bool
     refined: bool = False  # the estimate's mean is the scan fit's, not the particles'
+    #: Global localization let go of a cluster whose place the scan did not fit: (its mean,
+    #: the share of end points that fitted); the particles were searched for again.
+    alias: tuple[np.ndarray, float] | None = None
 
 
 class Localizer:
@@ -197,15 +200,18 @@ class Localizer:
         if resampled:
             self.filter.resample(self.rng, self.random_poses)
         refined = None
+        alias: tuple[np.ndarray, float] | None = None
         whole = scan if full_scan is None else full_scan
         if self._searching and estimate.weight >= SETTLED_WEIGHT:
             # Global localization is down to one hypothesis: settled if the scan fits there,
             # otherwise that place only looks alike (a maze), and the particles start over.
             polished = self.fitter.refine(estimate.mean, whole)
             at = estimate.mean if polished is None else polished
-            if self.fitter.fit_fraction(at, whole) >= GLOBAL_SETTLE_FIT or not self._researches_left:
+            fit = self.fitter.fit_fraction(at, whole)
+            if fit >= GLOBAL_SETTLE_FIT or not self._researches_left:
                 self._searching = False
             else:
+                alias = (at.copy(), fit)
                 self._researches_left -= 1
                 self._search(scan)
                 self.filter.update_sensor(self.laser.likelihoods(self.filter.particles, scan))
@@ -218,7 +224,8 @@ class Localizer:
                     # Only once one hypothesis holds the weight: while several compete (global
                     # localization, a symmetric place), redrawing would crown the leader early.
                     self._reset_around(refined)
-        self.last = Update(estimate, self.map_to_odom(estimate.mean, odom_pose), resampled, refined is not None)
+        self.last = Update(estimate, self.map_to_odom(estimate.mean, odom_pose), resampled, refined is not None,
+                           alias)
         return self.last
 
     def track(self, odom_pose: np.ndarray, full_scan: Scan) -> np.ndarray | None:

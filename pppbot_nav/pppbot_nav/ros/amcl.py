@@ -284,6 +284,10 @@ class Amcl(Node):
             self._warn("scan", f"dropping a scan: {exc}")
             return
         if update is not None:
+            if update.alias is not None:
+                (x, y, yaw), fit = update.alias
+                self.get_logger().info(f"global localization: ({x:.2f}, {y:.2f}, {yaw:.2f}) holds the weight but only "
+                                       f"{100 * fit:.0f} % of the scan fits the map there: searching again")
             self._map_to_odom = update.map_to_odom
             self._publish_pose(msg.header.stamp, update)
             self._publish_cloud(msg.header.stamp)
