@@ -9,7 +9,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
+
+from pppbot_common.dds_isolation import domain_id_problem
 
 # verb → (module, one-line help)
 VERBS: dict[str, tuple[str, str]] = {
@@ -57,6 +60,10 @@ def main(argv: list[str] | None = None) -> int:
               "(README.md, 'Status', says what is)", file=sys.stderr)
         return 2
     top = _top_parser().parse_args(argv)
+    problem = domain_id_problem(os.environ.get("ROS_DOMAIN_ID"))
+    if problem is not None:  # DDS would fail later with a port error on stdout
+        print(f"pppbot {top.verb}: {problem}", file=sys.stderr)
+        return 2
     module_name, help_text = VERBS[top.verb]
     module = importlib.import_module(module_name)
     if hasattr(module, "main_argv"):  # verbs with ros2-launch-style name:=value arguments

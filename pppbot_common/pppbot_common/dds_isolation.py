@@ -15,6 +15,22 @@ from typing import IO
 # every ROS user runs in, so runs avoid it.
 DOMAIN_IDS = [*range(1, 102), *range(215, 233)]
 _held: list[IO[str]] = []
+#: The largest domain ID whose DDS ports exist (Fast DDS: 7400 + 250 × domain + offsets < 65536).
+MAX_DOMAIN_ID = 232
+
+
+def domain_id_problem(value: str | None) -> str | None:
+    """What is wrong with a ``ROS_DOMAIN_ID`` value (None: unset or fine)."""
+    if value is None or value.strip() == "":
+        return None
+    try:
+        domain = int(value)
+    except ValueError:
+        domain = -1
+    if not 0 <= domain <= MAX_DOMAIN_ID:
+        return (f"ROS_DOMAIN_ID={value!r} must be a whole number from 0 to {MAX_DOMAIN_ID} (DDS has no ports "
+                "beyond that); 0-101 and 215-232 also keep clear of Linux's ephemeral ports")
+    return None
 
 
 def claim_domain_id() -> int:

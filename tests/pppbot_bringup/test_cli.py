@@ -1,6 +1,7 @@
 """`./pppbot` dispatch, `run` and `topic list/info/echo/hz` against live publishers."""
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 from pathlib import Path
@@ -142,3 +143,12 @@ def test_eval_navigation_refuses_bad_goal_arguments_before_starting_anything(tmp
     assert result.returncode == 2, result.stderr
     assert message in result.stderr and result.stdout == ""
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("value", ["233", "-1", "seven"])
+def test_a_domain_id_dds_cannot_use_is_refused_by_name(value):
+    result = subprocess.run([PPPBOT, "topic", "list"], capture_output=True, text=True, timeout=60,
+                            env={**os.environ, "ROS_DOMAIN_ID": value})
+    assert result.returncode == 2
+    assert f"ROS_DOMAIN_ID='{value}' must be a whole number from 0 to 232" in result.stderr
+    assert result.stdout == ""
