@@ -13,10 +13,10 @@ from typing import IO
 
 # Linux domain IDs that map to valid DDS ports: 0-101 and 215-232. 0 is the default
 # every ROS user runs in, so runs avoid it.
-DOMAIN_IDS = [*range(1, 102), *range(215, 233)]
-_held: list[IO[str]] = []
 #: The largest domain ID whose DDS ports exist (Fast DDS: 7400 + 250 × domain + offsets < 65536).
 MAX_DOMAIN_ID = 232
+DOMAIN_IDS = [*range(1, 102), *range(215, MAX_DOMAIN_ID + 1)]
+_held: list[IO[str]] = []
 
 
 def domain_id_problem(value: str | None) -> str | None:

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 from geometry_msgs.msg import TransformStamped
+from rclpy.time import Time
 from sensor_msgs.msg import LaserScan
 from tf2_msgs.msg import TFMessage
 
@@ -21,7 +22,7 @@ from pppbot_common.ros.scan_odometry import ScanOdometry
 def transform(parent: str, child: str, t_s: float, x: float) -> TransformStamped:
     msg = TransformStamped()
     msg.header.frame_id, msg.child_frame_id = parent, child
-    msg.header.stamp.sec, msg.header.stamp.nanosec = int(t_s), int(round((t_s % 1) * 1e9))
+    msg.header.stamp = Time(seconds=t_s).to_msg()
     msg.transform.translation.x = x
     msg.transform.rotation.w = 1.0
     return msg
@@ -30,7 +31,7 @@ def transform(parent: str, child: str, t_s: float, x: float) -> TransformStamped
 def scan(t_s: float) -> LaserScan:
     msg = LaserScan()
     msg.header.frame_id = "lidar_frame"
-    msg.header.stamp.sec, msg.header.stamp.nanosec = int(t_s), int(round((t_s % 1) * 1e9))
+    msg.header.stamp = Time(seconds=t_s).to_msg()
     msg.angle_min, msg.angle_max, msg.angle_increment = -math.pi, math.pi, 2 * math.pi / 8
     msg.ranges = [1.0] * 8
     return msg
@@ -42,16 +43,16 @@ def callback(node: Any, topic: str) -> Any:
 
 @pytest.fixture
 def tf_of(ros_node: Any) -> Any:
-    def make(ready: Any) -> tuple[ScanOdometry, Any, Any]:
+    def make(ready: Any) -> tuple[ScanOdometry, Any]:
         scans = ScanOdometry(ros_node, "odom", "base_link", ready, Warnings(ros_node))
         callback(ros_node, "/tf_static")(TFMessage(transforms=[transform("base_link", "lidar_frame", 0.0, 0.05)]))
-        return scans, callback(ros_node, "/tf"), ros_node
+        return scans, callback(ros_node, "/tf")
     return make
 
 
 def test_a_scan_waits_for_odometry_and_gets_the_pose_at_its_stamp(tf_of: Any) -> None:
     got: list[tuple[float, np.ndarray, np.ndarray]] = []
-    scans, on_tf, _ = tf_of(lambda msg, t, frame, odom, sensor: got.append((t, odom, sensor)))
+    scans, on_tf = tf_of(lambda msg, t, frame, odom, sensor: got.append((t, odom, sensor)))
     on_tf(TFMessage(transforms=[transform("odom", "base_link", 1.0, 0.0)]))
     scans.add(scan(1.5))
     assert got == []  # odometry has not reached 1.5 s yet
@@ -73,7 +74,7 @@ def test_a_scan_the_owner_fails_on_after_waiting_is_dropped_and_the_next_goes_on
             raise RuntimeError("a scan the owner cannot take")
         got.append(t)
 
-    scans, on_tf, _ = tf_of(ready)
+    scans, on_tf = tf_of(ready)
     on_tf(TFMessage(transforms=[transform("odom", "base_link", 1.0, 0.0)]))
     scans.add(scan(1.5))
     on_tf(TFMessage(transforms=[transform("odom", "base_link", 2.0, 1.0)]))  # must not raise
