@@ -173,7 +173,7 @@ def generate(world: str, route_name: str | None, seed: int, wheel_slip: float, o
     from pppbot_description.urdf_model import parse_urdf
     from pppbot_description.xacro_model import process_xacro
     from pppbot_sim.mj_build import SpawnPose
-    from pppbot_sim.simulation import Simulation, load_world
+    from pppbot_sim.simulation import Event, EventKind, Simulation, load_world
     from pppbot_sim.wheel_slip import SlipModel
     from pppbot_sim.worlds import find_world, model_paths
 
@@ -186,8 +186,8 @@ def generate(world: str, route_name: str | None, seed: int, wheel_slip: float, o
     if len(sim.lidars) != 1:
         raise RuntimeError(f"the robot has {len(sim.lidars)} lidars; the dataset takes exactly one")
     lidar = sim.lidars[0].spec
-    sim.schedule.add("joint_states", JOINT_STATES_RATE_HZ)
-    sim.schedule.add("ground_truth", GROUND_TRUTH_RATE_HZ)
+    sim.schedule.add(Event(EventKind.JOINT_STATES), JOINT_STATES_RATE_HZ)
+    sim.schedule.add(Event(EventKind.GROUND_TRUTH), GROUND_TRUTH_RATE_HZ)
 
     # Frames as robot_state_publisher gives them: base_footprint and the lidar in the root link.
     links = KinematicTree(robot).link_poses()
@@ -223,16 +223,18 @@ def generate(world: str, route_name: str | None, seed: int, wheel_slip: float, o
         now = sim.time_s
         collisions += sim.take_collisions()
         wheels = None
-        for event in events:  # in the simulator node's order: the sensor noise stream is the same
-            if event.startswith("lidar"):
-                pending_scan = (now, sim.lidar_scan(int(event[5:])).ranges.astype(np.float32))
-            elif event.startswith("imu"):
-                sim.imu_sample(int(event[3:]))
-            elif event == "joint_states":
+        kinds = {event.kind for event in events}
+        for event in sorted(events, key=lambda e: (e.kind is EventKind.LIDAR, e.index)):
+            # In the simulator node's order (IMU before lidar): the sensor noise stream is the same.
+            if event.kind is EventKind.LIDAR:
+                pending_scan = (now, sim.lidar_scan(event.index).ranges.astype(np.float32))
+            elif event.kind is EventKind.IMU:
+                sim.imu_sample(event.index)
+            elif event.kind is EventKind.JOINT_STATES:
                 wheels = sim.wheel_state()
         truth = sim.ground_truth()
         truth_pose = se2_compose(np.array([truth.position[0], truth.position[1], truth.yaw]), footprint_in_root)
-        if "ground_truth" in events and now >= SETTLE_S and finished_s is None:
+        if EventKind.GROUND_TRUTH in kinds and now >= SETTLE_S and finished_s is None:
             # The eval node: a command on a ground-truth tick once COMMAND_PERIOD_S has passed.
             if now >= next_command_s or driver.finished:
                 next_command_s = now + COMMAND_PERIOD_S

@@ -13,7 +13,8 @@ with a hash of its inputs, so a second run with nothing changed does no work:
 2. ``install/``: the interface packages in ``interfaces/`` (``tf2_msgs``,
    ``nav2_msgs``) built with colcon, each only when the environment cannot import it
    (every kind it defines: ``.msg``, ``.srv``, ``.action``).
-3. ``install/``: pppbot's own ament_python packages, built with
+3. ``install/``: pppbot's own packages (``pppbot_interfaces``, an ament_cmake package
+   of pppbot's messages, and the ament_python packages), built with
    ``colcon build --symlink-install`` so that source edits apply without a rebuild.
 
 Nothing is written outside the checkout.
@@ -311,7 +312,8 @@ def ensure_packages(force: bool, quiet: bool) -> bool:
     if setup_bash.is_file():
         # Later builds see the interface packages built earlier into install/.
         env = source_environment(setup_bash, env)
-    _colcon(["--symlink-install", "--paths", *(str(p) for p in packages)], env, quiet)
+    _colcon(["--symlink-install", "--paths", *(str(p) for p in packages),
+             "--cmake-args", "-DBUILD_TESTING=OFF", f"-DPython3_EXECUTABLE={venv_python()}"], env, quiet)
     _write_stamp("packages", digest)
     return True
 

@@ -3,16 +3,18 @@
 The ROS side (readiness probes, running the plan) is ``pppbot_bringup.ros.launch_sim``.
 
 Start order, each step waiting for real readiness (a first message, not a sleep):
-simulator (first /clock) → robot_state_publisher (/robot_description) and
-diff_drive_base_controller (first /odom) → twist_mux → mapping or localization
-→ navigation (planner, controller, navigator) → RViz (when on PATH) → keyboard teleop.
+simulator (first /clock; the robot's controllers run in its process, as gz_ros2_control
+runs them in Gazebo) → robot_state_publisher (/robot_description) → twist_mux → mapping or
+localization → navigation (planner, controller, navigator) → RViz (when on PATH) →
+keyboard teleop. With ``lockstep:=true`` the nodes on the data path are lockstep
+participants: each is ready once it has joined (time starts when all have).
 """
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Protocol, Sequence
 
 from pppbot_bringup.paths import config_directory, maps_directory
 from pppbot_bringup.supervisor import NodeSpec, ReadyCheck
@@ -32,6 +34,8 @@ ARGUMENTS = [
     Argument("use_rviz", True, "start rviz2 with config/ppp_bot.rviz when rviz2 is on PATH"),
     Argument("headless", True, "no MuJoCo viewer window (false opens one; needs a display)"),
     Argument("real_time_factor", 1.0, "simulated seconds per wall second; 0 = as fast as possible"),
+    Argument("lockstep", False, "time advances only when the nodes on the data path have done their work "
+                                "(the same run on any machine; with real_time_factor:=0 as fast as they allow)"),
     Argument("x", 0.0, "spawn x (m)"),
     Argument("y", 0.0, "spawn y (m)"),
     Argument("z", 0.05, "spawn z of base_link (m); ppp_bot rests at 0.05"),
@@ -43,9 +47,17 @@ ARGUMENTS = [
     Argument("bag_path", "", "the bag directory for record:=true; default rosbag2_YYYY_MM_DD-HH_MM_SS here"),
 ]
 
-#: (topic, type, latched) → a probe that a first message came
-ProbeFactory = Callable[[str, str, bool], Callable[[], bool]]
 Resolver = Callable[[str, str], str]
+
+
+class Probes(Protocol):
+    """Readiness from the ROS graph (:class:`pppbot_bringup.ros.graph_probe.GraphProbe`)."""
+
+    def first_message(self, topic: str, type_name: str, latched: bool) -> Callable[[], bool]:
+        """True once a message came on ``topic``."""
+
+    def joined(self, participant: str) -> Callable[[], bool]:
+        """True once the simulator lists ``participant`` on /lockstep/status."""
 
 
 @dataclass(frozen=True)
@@ -69,36 +81,46 @@ def ros_args(log_level: str, params: dict[str, Any] | None = None, params_file: 
     return args
 
 
-def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Resolver, probe: ProbeFactory,
-         terminal: bool, rviz: str | None) -> Plan:
-    """The nodes to start, in ppp_bot's order, and notes for the user.
+def controllers_file() -> Path:
+    """ppp_bot's controller parameters: the robot's gz_ros2_control plugin points at them, and the
+    simulator runs those controllers in its process."""
+    return config_directory() / "my_controllers.yaml"
+
+
+def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Resolver, probes: Probes,
+         terminal: bool, rviz: str | None, extra_participants: Sequence[str] = ()) -> Plan:
+    """The nodes to start, in ppp_bot's order, and notes for the user. ``extra_participants``:
+    lockstep participants outside the launch that time must wait for from its start (the
+    evaluation's own node).
 
     Raises:
         ArgumentError: ``localization:=true`` without a map file, or a bag path that exists.
     """
     level = values["log_level"]
+    lockstep = bool(values["lockstep"])
     config = config_directory()
     notes: list[str] = []
+    participants: list[str] = []
+
+    def participant(name: str, description: str, check: ReadyCheck) -> tuple[dict[str, Any], ReadyCheck]:
+        """A lockstep participant's parameters and readiness: joined, in lockstep; else ``check``."""
+        if not lockstep:
+            return {}, check
+        participants.append(name)
+        return ({"lockstep": True, "lockstep_name": name},
+                ReadyCheck(f"{description} (joined lockstep)", probes.joined(name), timeout_s=check.timeout_s))
+
+    mux_params, mux_ready = participant("twist_mux", "its inputs", ReadyCheck("its inputs", output_pattern=r"inputs: "))
     nodes = [
-        NodeSpec("simulator", [resolve("pppbot_sim", "simulator"), *ros_args(level, {
-            "world": world_file, "robot_description": urdf_file, "real_time_factor": values["real_time_factor"],
-            "x": values["x"], "y": values["y"], "z": values["z"], "yaw": values["yaw"],
-            "seed": values["seed"], "wheel_slip": values["wheel_slip"],
-            "viewer": not values["headless"]}, sim_time=False)],
-            ready=ReadyCheck("a first /clock", probe("/clock", "rosgraph_msgs/msg/Clock", False)), required=True),
         NodeSpec("robot_state_publisher", [resolve("pppbot_description", "robot_state_publisher"),
                                            *ros_args(level, {"robot_description": urdf_file})],
                  after=("simulator",), required=True,
-                 ready=ReadyCheck("/robot_description", probe("/robot_description", "std_msgs/msg/String", True))),
-        NodeSpec("diff_drive_base_controller", [resolve("pppbot_control", "diff_drive_controller"),
-                                                *ros_args(level, params_file=config / "my_controllers.yaml")],
-                 after=("simulator",), required=True,
-                 ready=ReadyCheck("a first /odom", probe("/odom", "nav_msgs/msg/Odometry", False))),
+                 ready=ReadyCheck("/robot_description",
+                                  probes.first_message("/robot_description", "std_msgs/msg/String", True))),
         NodeSpec("twist_mux", [resolve("pppbot_control", "twist_mux"), *ros_args(
-            level, params_file=config / "twist_mux.yaml",
+            level, mux_params, params_file=config / "twist_mux.yaml",
             remaps={"cmd_vel_out": "/diff_drive_base_controller/cmd_vel_unstamped"})],
-            after=("diff_drive_base_controller",), required=True,
-            ready=ReadyCheck("its inputs", output_pattern=r"inputs: ")),
+            after=("simulator",), required=True, ready=mux_ready),
     ]
     if values["record"]:
         bag = Path(values["bag_path"] or time.strftime("rosbag2_%Y_%m_%d-%H_%M_%S"))
@@ -106,7 +128,7 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
             raise ArgumentError(f"bag_path: '{bag}' exists already; a bag is never overwritten")
         # Right after the simulator, so the rest of the bringup (latched /robot_description,
         # /tf_static) is in the bag; stopping the launch finishes the bag.
-        nodes.insert(1, NodeSpec("bag_record", [resolve("pppbot_bringup", "pppbot"), "bag", "record", "-a",
+        nodes.insert(0, NodeSpec("bag_record", [resolve("pppbot_bringup", "pppbot"), "bag", "record", "-a",
                                                 "--use-sim-time", "-o", str(bag)],
                                  after=("simulator",), ready=ReadyCheck("recording", output_pattern=r"recording to ")))
         notes.append(f"recording every topic to {bag} (ends when the launch ends)")
@@ -119,25 +141,30 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
         nodes.append(NodeSpec("map_server", [resolve("pppbot_nav", "map_server"), *ros_args(
             level, {"yaml_filename": map_file.resolve()}, params_file=nav2_params)],
             after=("simulator",), required=True,
-            ready=ReadyCheck("/map", probe("/map", "nav_msgs/msg/OccupancyGrid", True))))
+            ready=ReadyCheck("/map", probes.first_message("/map", "nav_msgs/msg/OccupancyGrid", True))))
         # AMCL starts where the robot was spawned (the shipped maps' frame is the world's, the
         # spawn pose of a map made with the default spawn); RViz's 2D Pose Estimate moves it.
+        amcl_params, amcl_ready = participant("amcl", "an initial pose",
+                                              ReadyCheck("an initial pose", output_pattern=r"initial pose \("))
+        # The launch's seed seeds AMCL's particles too: one seed makes the whole run repeatable.
         nodes.append(NodeSpec("amcl", [resolve("pppbot_nav", "amcl"), *ros_args(level, {
             "set_initial_pose": True, "initial_pose.x": values["x"], "initial_pose.y": values["y"],
-            "initial_pose.yaw": values["yaw"]}, params_file=nav2_params)],
-            after=("map_server", "diff_drive_base_controller"), required=True,
-            ready=ReadyCheck("an initial pose", output_pattern=r"initial pose \(")))
+            "initial_pose.yaw": values["yaw"], "seed": values["seed"], **amcl_params}, params_file=nav2_params)],
+            after=("map_server", "robot_state_publisher"), required=True, ready=amcl_ready))
         notes.append(f"localizing on {map_file}")
     elif values["use_slam"]:
         slam_params = Path(values["slam_params_file"] or config / "mapper_params_online_async.yaml")
         if not slam_params.is_file():
             raise ArgumentError(f"slam_params_file: {slam_params} does not exist")
+        # Ready once it has mapped its first scan: the map frame is where the robot was then, so
+        # nothing should drive it before (eval relies on map = spawn pose). In lockstep the first
+        # scan is mapped before time moves past it.
+        slam_params_lockstep, slam_ready = participant(
+            "slam_toolbox", "a first /map",
+            ReadyCheck("a first /map", probes.first_message("/map", "nav_msgs/msg/OccupancyGrid", True)))
         nodes.append(NodeSpec("slam_toolbox", [resolve("pppbot_slam", "slam"), *ros_args(
-            level, params_file=slam_params)],
-            after=("diff_drive_base_controller",), required=True,
-            # Ready once it has mapped its first scan: the map frame is where the robot was
-            # then, so nothing should drive it before (eval relies on map = spawn pose).
-            ready=ReadyCheck("a first /map", probe("/map", "nav_msgs/msg/OccupancyGrid", True))))
+            level, slam_params_lockstep, params_file=slam_params)],
+            after=("robot_state_publisher",), required=True, ready=slam_ready))
     localizer = "amcl" if values["localization"] else "slam_toolbox" if values["use_slam"] else None
     if values["navigation"] == "true" or (values["navigation"] == "auto" and values["localization"]):
         if localizer is None:
@@ -146,10 +173,22 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
         for name, ready in (("planner_server", r"planner 'GridBased' ready"),
                             ("controller_server", r"controller 'FollowPath'"),
                             ("navigator", r"navigator ready")):
-            nodes.append(NodeSpec(name, [resolve("pppbot_nav", name), *ros_args(level, params_file=nav2_params)],
-                                  after=(localizer,), required=True, ready=ReadyCheck(name, output_pattern=ready)))
+            extra, check = participant(name, name, ReadyCheck(name, output_pattern=ready))
+            nodes.append(NodeSpec(name, [resolve("pppbot_nav", name), *ros_args(level, extra, params_file=nav2_params)],
+                                  after=(localizer,), required=True, ready=check))
         notes.append("navigating: send goals with RViz's 2D Goal Pose, ./pppbot nav goto X Y YAW, "
                      "or the navigate_to_pose action")
+    simulator_params: dict[str, Any] = {
+        "world": world_file, "robot_description": urdf_file, "real_time_factor": values["real_time_factor"],
+        "x": values["x"], "y": values["y"], "z": values["z"], "yaw": values["yaw"],
+        "seed": values["seed"], "wheel_slip": values["wheel_slip"], "viewer": not values["headless"]}
+    if lockstep:
+        simulator_params.update(lockstep=True, lockstep_participants=[*participants, *extra_participants])
+    nodes.insert(0, NodeSpec("simulator", [resolve("pppbot_sim", "simulator"),
+                                           *ros_args(level, simulator_params, sim_time=False)],
+                             ready=ReadyCheck("a first /clock",
+                                              probes.first_message("/clock", "rosgraph_msgs/msg/Clock", False)),
+                             required=True))
     if values["use_rviz"]:
         if rviz is None:
             notes.append("rviz2 is not on PATH: no RViz (use_rviz:=false silences this); "

@@ -156,6 +156,17 @@ class ControlJoint:
 
 
 @dataclass(frozen=True)
+class GazeboPlugin:
+    """A robot-wide ``<gazebo><plugin filename="..." name="...">`` tag and its settings
+    (each child element's text, by tag: gz_ros2_control's ``<parameters>``, DiffDrive's
+    ``<wheel_separation>``, ...)."""
+
+    filename: str
+    name: str
+    settings: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
 class RobotModel:
     name: str
     links: dict[str, Link]
@@ -164,6 +175,8 @@ class RobotModel:
     control_joints: dict[str, ControlJoint] = field(default_factory=dict)
     #: ``<gazebo reference="link">`` scalar settings such as mu1, mu2, material
     gazebo_settings: dict[str, dict[str, str]] = field(default_factory=dict)
+    #: ``<gazebo><plugin>`` tags without a reference (system plugins of the model)
+    plugins: tuple[GazeboPlugin, ...] = ()
 
     @property
     def root(self) -> str:
@@ -376,9 +389,14 @@ def parse_urdf(text: str, source: str = "<robot_description>") -> RobotModel:
             raise DescriptionError(f"{source}: joint '{joint.name}' mimics unknown joint '{joint.mimic.joint}'")
     sensors = []
     settings: dict[str, dict[str, str]] = {}
+    plugins = []
     for gazebo in root.findall("gazebo"):
         reference = gazebo.get("reference")
         if reference is None:
+            for plugin in gazebo.findall("plugin"):
+                plugins.append(GazeboPlugin(plugin.get("filename", ""), plugin.get("name", ""),
+                                            {child.tag: (child.text or "").strip() for child in plugin
+                                             if isinstance(child.tag, str)}))
             continue
         if reference not in links:
             raise _fail(gazebo, f"<gazebo reference='{reference}'> names no link", source)
@@ -388,7 +406,8 @@ def parse_urdf(text: str, source: str = "<robot_description>") -> RobotModel:
             elif isinstance(child.tag, str):
                 value = child.get("value") if child.get("value") is not None else (child.text or "").strip()
                 settings.setdefault(reference, {})[child.tag] = value
-    return RobotModel(root.get("name", ""), links, joints, tuple(sensors), _control_joints(root, source), settings)
+    return RobotModel(root.get("name", ""), links, joints, tuple(sensors), _control_joints(root, source), settings,
+                      tuple(plugins))
 
 
 def _check_tree(links: dict[str, Link], joints: dict[str, Joint], source: str) -> None:

@@ -1,52 +1,100 @@
-"""Run a :class:`Simulation` against the wall clock and hand out what to publish.
+"""Run a :class:`Simulation` from event to event and hand out what to publish.
 
-The runner advances from event to event, turns each event into a
-:class:`Reading` (a snapshot, safe to use after the state moves on), hands the
-batch to the caller, paces to ``real_time_factor`` and gives the caller idle
-time for its own work (a ROS node serves its callbacks then). Everything runs in
-the caller's thread: on a two-core machine the second core is busy with DDS and
-the subscribers, and a separate physics thread only added GIL hand-offs
-(measured slower).
+The runner advances from event to event and turns each event into a reading (a
+snapshot, safe to use after the state moves on): a typed record per kind, so the node
+dispatches on the type. Pacing against the wall clock (``real_time_factor``) and lockstep
+are the node's: :meth:`PhysicsRunner.advance` only steps. Everything runs in the
+caller's thread: on a two-core machine the second core is busy with DDS and the
+subscribers, and a separate physics thread only added GIL hand-offs (measured slower).
 """
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Callable, Mapping, Union
 
 from pppbot_sim.errors import SimulationDiverged
-from pppbot_sim.simulation import Simulation
+from pppbot_sim.simulation import (
+    Collision,
+    Event,
+    EventKind,
+    GroundTruth,
+    ImuSample,
+    LidarScan,
+    Simulation,
+    WheelState,
+)
 
 #: Physics never runs more than this many steps without returning to the caller.
 MAX_STEPS_PER_ADVANCE = 1000
 
 
 @dataclass(frozen=True)
-class Reading:
-    """One thing to publish: ``kind`` is clock, joint_states, ground_truth, lidar, imu or collision."""
-
-    kind: str
+class ClockTick:
     stamp_s: float
-    value: Any = None
-    index: int = 0
+
+
+@dataclass(frozen=True)
+class ControlTick:
+    """A hosted controller's update is due (controller_manager's ``update_rate``)."""
+
+    stamp_s: float
+
+
+@dataclass(frozen=True)
+class JointStatesReading:
+    stamp_s: float
+    state: WheelState
+
+
+@dataclass(frozen=True)
+class GroundTruthReading:
+    stamp_s: float
+    truth: GroundTruth
+
+
+@dataclass(frozen=True)
+class LidarReading:
+    stamp_s: float
+    index: int
+    scan: LidarScan
+
+
+@dataclass(frozen=True)
+class ImuReadingAt:
+    stamp_s: float
+    index: int
+    sample: ImuSample
+
+
+@dataclass(frozen=True)
+class CollisionReading:
+    stamp_s: float
+    collision: Collision
+
+
+Reading = Union[ClockTick, ControlTick, JointStatesReading, GroundTruthReading, LidarReading, ImuReadingAt,
+                CollisionReading]
+
+#: Readings at one instant go out in this order: controllers first (their odometry at a scan's
+#: time is then out before the scan), then the rest.
+_ORDER = {EventKind.CONTROL: 0, EventKind.CLOCK: 1, EventKind.JOINT_STATES: 2, EventKind.GROUND_TRUTH: 3,
+          EventKind.IMU: 4, EventKind.LIDAR: 5}
 
 
 class PhysicsRunner:
-    def __init__(self, sim: Simulation, real_time_factor: float = 1.0, command_timeout_s: float = 0.5,
-                 paused: bool = False, log: Callable[[str], None] = print) -> None:
+    def __init__(self, sim: Simulation, command_timeout_s: float = 0.5, paused: bool = False,
+                 log: Callable[[str], None] = print) -> None:
         self.sim = sim
-        self.real_time_factor = real_time_factor
         self.command_timeout_s = command_timeout_s
         self.log = log
         self.paused = paused
-        self._pace_reset = True
         self._last_command_s: float | None = None
 
     def pause(self) -> None:
         self.paused = True
 
     def unpause(self) -> None:
-        self._pace_reset = True
         self.paused = False
 
     def command(self, velocities: Mapping[str, float]) -> None:
@@ -72,7 +120,8 @@ class PhysicsRunner:
         return readings
 
     def advance(self, max_steps: int = MAX_STEPS_PER_ADVANCE) -> list[Reading]:
-        """Step to the next event(s); their readings. A diverged state is reset and logged."""
+        """Step to the next event(s) (or the schedule's stop); their readings. A diverged state is
+        reset and logged."""
         sim = self.sim
         try:
             events = sim.advance(max_steps)
@@ -85,54 +134,52 @@ class PhysicsRunner:
                 and sim.time_s - self._last_command_s > self.command_timeout_s):
             sim.stop_wheels()
             self._last_command_s = None
-        now = sim.time_s
-        readings = []
-        for event in events:
-            if event.startswith("lidar"):
-                i = int(event[5:])
-                readings.append(Reading("lidar", now, sim.lidar_scan(i), i))
-            elif event.startswith("imu"):
-                i = int(event[3:])
-                readings.append(Reading("imu", now, sim.imu_sample(i), i))
-            elif event == "joint_states":
-                readings.append(Reading("joint_states", now, sim.wheel_state()))
-            elif event == "ground_truth":
-                readings.append(Reading("ground_truth", now, sim.ground_truth()))
-            else:
-                readings.append(Reading(event, now))
-        readings += [Reading("collision", c.stamp_s, c) for c in sim.take_collisions()]
+        readings = [self.reading(event) for event in sorted(events, key=lambda e: (_ORDER[e.kind], e.index))]
+        readings += [CollisionReading(c.stamp_s, c) for c in sim.take_collisions()]
         return readings
 
-    def run_until(self, stop_when: Callable[[], bool], handle: Callable[[list[Reading]], None],
-                  idle: Callable[[float], None], service_period_s: float = 0.005) -> None:
-        """Advance, ``handle`` each batch of readings and pace, until ``stop_when()``.
+    def reading(self, event: Event) -> Reading:
+        """The reading of ``event`` now."""
+        sim, now = self.sim, self.sim.time_s
+        kind = event.kind
+        if kind is EventKind.LIDAR:
+            return LidarReading(now, event.index, sim.lidar_scan(event.index))
+        if kind is EventKind.IMU:
+            return ImuReadingAt(now, event.index, sim.imu_sample(event.index))
+        if kind is EventKind.JOINT_STATES:
+            return JointStatesReading(now, sim.wheel_state())
+        if kind is EventKind.GROUND_TRUTH:
+            return GroundTruthReading(now, sim.ground_truth())
+        if kind is EventKind.CONTROL:
+            return ControlTick(now)
+        return ClockTick(now)
 
-        ``idle(timeout_s)`` gets the time to wait when ahead of the wall clock or
-        paused, and is called with 0 at least every ``service_period_s`` otherwise.
-        """
-        wall0 = sim0 = 0.0
-        last_idle = time.monotonic()
-        while not stop_when():
-            if self.paused:
-                idle(0.05)
-                continue
-            if self._pace_reset:
-                wall0, sim0 = time.monotonic(), self.sim.time_s
-                self._pace_reset = False
-            rtf = self.real_time_factor
-            if rtf > 0:
-                # Checked before every advance: idle() may return early (a callback ran).
-                ahead_s = wall0 + (self.sim.time_s - sim0) / rtf - time.monotonic()
-                if ahead_s > 0:
-                    idle(ahead_s)
-                    last_idle = time.monotonic()
-                    continue
-                if ahead_s < -1.0:
-                    # Far behind (a slow machine, a debugger): do not sprint to catch up.
-                    wall0, sim0 = time.monotonic(), self.sim.time_s
-            readings = self.advance()
-            if readings:
-                handle(readings)
-            if time.monotonic() - last_idle >= service_period_s:
-                idle(0.0)
-                last_idle = time.monotonic()
+
+class Pacer:
+    """Keeps sim time at ``real_time_factor`` times wall time (0: as fast as possible); restarts
+    after a pause or when far behind, rather than sprinting to catch up."""
+
+    #: Further behind than this (wall s), the pace restarts from now.
+    MAX_LAG_S = 1.0
+
+    def __init__(self, real_time_factor: float) -> None:
+        self.real_time_factor = real_time_factor
+        self._origin: tuple[float, float] | None = None
+
+    def restart(self) -> None:
+        self._origin = None
+
+    def ahead_s(self, sim_s: float) -> float:
+        """Wall seconds to wait before simulating past ``sim_s`` (≤ 0: go on)."""
+        rtf = self.real_time_factor
+        if rtf <= 0:
+            return 0.0
+        now = time.monotonic()
+        if self._origin is None:
+            self._origin = (now, sim_s)
+        wall0, sim0 = self._origin
+        ahead = wall0 + (sim_s - sim0) / rtf - now
+        if ahead < -self.MAX_LAG_S:  # a slow machine, a debugger: do not sprint to catch up
+            self._origin = (now, sim_s)
+            return 0.0
+        return ahead

@@ -6,6 +6,7 @@ became due; between events MuJoCo steps in C (``mj_step`` with ``nstep``).
 """
 from __future__ import annotations
 
+import enum
 import logging
 import math
 from dataclasses import dataclass, field
@@ -49,11 +50,33 @@ DIVERGED_VELOCITY = 1e4
 COLLISION_GAP_S = 0.5
 
 
+class EventKind(enum.Enum):
+    """What a scheduled event is for."""
+
+    CLOCK = "clock"
+    JOINT_STATES = "joint_states"
+    GROUND_TRUTH = "ground_truth"
+    CONTROL = "control"  # a controller hosted in the simulator's process (gz_ros2_control's update)
+    LIDAR = "lidar"
+    IMU = "imu"
+
+
+@dataclass(frozen=True)
+class Event:
+    """A scheduled event: its kind and, for sensors, the sensor's index."""
+
+    kind: EventKind
+    index: int = 0
+
+    def __str__(self) -> str:
+        return f"{self.kind.value}{self.index if self.kind in (EventKind.LIDAR, EventKind.IMU) else ''}"
+
+
 @dataclass
 class Periodic:
     """An event every ``period_s`` of simulated time."""
 
-    name: str
+    event: Event
     period_s: float
     next_due_s: float = 0.0
 
@@ -68,21 +91,30 @@ class Periodic:
 @dataclass
 class Schedule:
     events: list[Periodic] = field(default_factory=list)
+    #: A one-off stop (a lockstep sync time, sim s): stepping never runs past it.
+    stop_at_s: float | None = None
 
-    def add(self, name: str, rate_hz: float, start_s: float = 0.0) -> None:
+    def add(self, event: Event, rate_hz: float, start_s: float = 0.0) -> None:
         if not (math.isfinite(rate_hz) and rate_hz > 0):
-            raise ValueError(f"rate of '{name}' must be a positive number, not {rate_hz}")
-        self.events.append(Periodic(name, 1.0 / rate_hz, start_s))
+            raise ValueError(f"rate of '{event}' must be a positive number, not {rate_hz}")
+        self.events.append(Periodic(event, 1.0 / rate_hz, start_s))
+
+    def next_due_s(self, event: Event) -> float | None:
+        """When ``event`` is next due (None: not scheduled)."""
+        due = [e.next_due_s for e in self.events if e.event == event]
+        return min(due) if due else None
 
     def steps_to_next(self, time_s: float, dt: float, max_steps: int) -> int:
-        """Whole steps until the earliest event (at least 1, at most ``max_steps``)."""
-        if not self.events:
+        """Whole steps until the earliest event or the stop (at least 1, at most ``max_steps``)."""
+        deadlines = [e.next_due_s for e in self.events]
+        if self.stop_at_s is not None:
+            deadlines.append(self.stop_at_s)
+        if not deadlines:
             return max_steps
-        earliest = min(e.next_due_s for e in self.events)
-        return int(min(max_steps, max(1, math.ceil((earliest - time_s) / dt - 1e-9))))
+        return int(min(max_steps, max(1, math.ceil((min(deadlines) - time_s) / dt - 1e-9))))
 
-    def due(self, time_s: float, dt: float) -> list[str]:
-        return [e.name for e in self.events if e.take_if_due(time_s, dt)]
+    def due(self, time_s: float, dt: float) -> list[Event]:
+        return [e.event for e in self.events if e.take_if_due(time_s, dt)]
 
 
 @dataclass(frozen=True)
@@ -173,9 +205,9 @@ class Simulation:
         self.imus = [Imu(s, self.model, f"{name}/{s.name}/") for s in imu_specs]
         self.schedule = Schedule()
         for i, lidar in enumerate(self.lidars):
-            self.schedule.add(f"lidar{i}", lidar.spec.rate_hz)
+            self.schedule.add(Event(EventKind.LIDAR, i), lidar.spec.rate_hz)
         for i, imu in enumerate(self.imus):
-            self.schedule.add(f"imu{i}", imu.spec.rate_hz)
+            self.schedule.add(Event(EventKind.IMU, i), imu.spec.rate_hz)
         prefix = f"{name}/"
         self._root_body = self.model.body(self.handles.root_body).id
         free = self.model.joint(self.handles.free_joint)
@@ -201,6 +233,7 @@ class Simulation:
         mujoco.mj_forward(self.model, self.data)
         self._spawn_qpos = self._qpos.copy()
         self._resume_at_s = 0.0
+        self._wheel_state: tuple[float, WheelState] | None = None  # the last reading and its time
 
     @staticmethod
     def _add_sensor_site(spec: mujoco.MjSpec, robot: str, sensor: str, link: str,
@@ -221,10 +254,15 @@ class Simulation:
         return float(self.data.time)
 
     @property
+    def time_ns(self) -> int:
+        """Sim time in integer nanoseconds (what /clock and lockstep carry)."""
+        return int(round(float(self.data.time) * 1e9))
+
+    @property
     def step_s(self) -> float:
         return float(self.model.opt.timestep)
 
-    def advance(self, max_steps: int) -> list[str]:
+    def advance(self, max_steps: int) -> list[Event]:
         """Step up to the next due event (or ``max_steps``); return the events now due.
 
         Raises:
@@ -312,11 +350,17 @@ class Simulation:
             self._ctrl[actuator] = 0.0
 
     def wheel_state(self) -> WheelState:
+        """The wheels as their encoders report them now (one reading per instant: asked twice at one
+        time, the same reading)."""
+        if self._wheel_state is not None and self._wheel_state[0] == self.data.time:
+            return self._wheel_state[1]
         efforts = np.where(self._effort_index >= 0, self.data.actuator_force[self._effort_index], 0.0)
         # Fancy indexing copies: the state is a snapshot. Slip changes what the encoders report.
         positions, velocities = self.slip.apply(self.time_s, self._qpos[self._joint_qpos],
                                                 self._qvel[self._joint_qvel])
-        return WheelState(list(self.joint_names), positions, velocities, efforts)
+        state = WheelState(list(self.joint_names), positions, velocities, efforts)
+        self._wheel_state = (float(self.data.time), state)
+        return state
 
     # --------------------------------------------------------------- readings
     def ground_truth(self) -> GroundTruth:
@@ -346,6 +390,7 @@ class Simulation:
         self.data.qacc_warmstart[:] = 0.0
         self.stop_wheels()
         self.slip.reset()
+        self._wheel_state = None
         self._last_contact_s = -math.inf
         mujoco.mj_forward(self.model, self.data)
 
@@ -356,6 +401,7 @@ class Simulation:
         self.data.qpos[:] = self._spawn_qpos
         self.data.time = time_s
         self.slip.reset()
+        self._wheel_state = None
         self._last_contact_s = -math.inf
         mujoco.mj_forward(self.model, self.data)
 

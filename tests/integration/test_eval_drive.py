@@ -116,7 +116,7 @@ def test_navigation_scenario_reaches_random_goals_judged_on_ground_truth(spawn, 
     assert code == 0, output
     assert report == json.loads((out / "report.json").read_text())
     assert report["scenario"] == "navigation" and report["ok"] is True and report["failure"] is None
-    assert report["target_real_time_factor"] == 1.0  # navigation's default
+    assert report["lockstep"] is True and report["target_real_time_factor"] == 0.0  # as fast as possible
     assert report["goals"] == 3 and report["successes"] == 3 and report["success_rate"] == 1.0
     assert report["collisions"] == 0 and report["min_clearance_m"] > 0.0
     results = report["goal_results"]

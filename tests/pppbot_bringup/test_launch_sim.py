@@ -69,35 +69,51 @@ def test_launch_refuses_bad_input_before_starting_anything(argv, message):
     assert "process started" not in result.stdout
 
 
-def fake_plan(*argv: str, terminal: bool = False, rviz: str | None = None):
-    probes = []
+class FakeProbes:
+    """What the plan asks the graph: (topic, type, latched) of first messages, and lockstep joins."""
 
-    def probe(topic, type_name, latched):
-        probes.append((topic, type_name, latched))
+    def __init__(self) -> None:
+        self.asked: list[tuple[str, str, bool]] = []
+        self.joins: list[str] = []
+
+    def first_message(self, topic, type_name, latched):
+        self.asked.append((topic, type_name, latched))
         return lambda: True
 
+    def joined(self, participant):
+        self.joins.append(participant)
+        return lambda: True
+
+    def __contains__(self, item) -> bool:
+        return item in self.asked
+
+
+def fake_plan(*argv: str, terminal: bool = False, rviz: str | None = None, extra_participants=()):
+    probes = FakeProbes()
     p = plan(values(*argv), ROOT / "worlds" / "maze.sdf", Path("/tmp/robot.urdf"),
-             lambda pkg, exe: f"/bin/{pkg}/{exe}", probe, terminal, rviz)
+             lambda pkg, exe: f"/bin/{pkg}/{exe}", probes, terminal, rviz, extra_participants)
     return p, probes
 
 
 def test_plan_follows_ppp_bots_order_and_wiring():
     p, probes = fake_plan("world:=maze", "real_time_factor:=3", terminal=True, rviz="/usr/bin/rviz2")
     names = [n.name for n in p.nodes]
-    assert names == ["simulator", "robot_state_publisher", "diff_drive_base_controller", "twist_mux",
-                     "slam_toolbox", "rviz2", "teleop_keyboard"]
+    # The controllers run in the simulator's process (the robot's gz_ros2_control plugin names them).
+    assert names == ["simulator", "robot_state_publisher", "twist_mux", "slam_toolbox", "rviz2", "teleop_keyboard"]
     by_name = {n.name: n for n in p.nodes}
     assert by_name["robot_state_publisher"].after == ("simulator",)
-    assert by_name["twist_mux"].after == ("diff_drive_base_controller",)
-    assert set(by_name["teleop_keyboard"].after) == {"simulator", "robot_state_publisher",
-                                                     "diff_drive_base_controller", "twist_mux", "slam_toolbox"}
+    assert by_name["twist_mux"].after == ("simulator",)
+    assert set(by_name["teleop_keyboard"].after) == {"simulator", "robot_state_publisher", "twist_mux",
+                                                     "slam_toolbox"}
     slam = " ".join(by_name["slam_toolbox"].cmd)
     assert slam.startswith("/bin/pppbot_slam/slam ") and "mapper_params_online_async.yaml" in slam
-    assert "use_sim_time:=true" in slam and by_name["slam_toolbox"].after == ("diff_drive_base_controller",)
+    assert "use_sim_time:=true" in slam and by_name["slam_toolbox"].after == ("robot_state_publisher",)
     assert ("/map", "nav_msgs/msg/OccupancyGrid", True) in probes
     assert by_name["teleop_keyboard"].terminal and not by_name["simulator"].terminal
     sim = " ".join(by_name["simulator"].cmd)
     assert "world:=" in sim and "maze.sdf" in sim and "real_time_factor:=3.0" in sim and "use_sim_time" not in sim
+    assert "lockstep" not in " ".join(" ".join(n.cmd) for n in p.nodes)  # wall-clock time by default
+    assert all(n.env is None for n in p.nodes)
     mux = " ".join(by_name["twist_mux"].cmd)
     assert "-r cmd_vel_out:=/diff_drive_base_controller/cmd_vel_unstamped" in mux and "use_sim_time:=true" in mux
     assert ("/robot_description", "std_msgs/msg/String", True) in probes
@@ -124,11 +140,29 @@ def test_localization_serves_the_worlds_map_and_starts_amcl_at_the_spawn_pose_in
     amcl = " ".join(by_name["amcl"].cmd)
     assert amcl.startswith("/bin/pppbot_nav/amcl ") and "nav2_params.yaml" in amcl
     assert "set_initial_pose:=true" in amcl and "initial_pose.x:=1.5" in amcl and "initial_pose.yaw:=0.5" in amcl
-    assert by_name["amcl"].after == ("map_server", "diff_drive_base_controller")
+    assert by_name["amcl"].after == ("map_server", "robot_state_publisher")
+    assert "seed:=0" in amcl  # the launch's seed: AMCL's particles are the same on every run
     assert by_name["amcl"].required and by_name["map_server"].required
     assert ("/map", "nav_msgs/msg/OccupancyGrid", True) in probes
     other = {n.name: n for n in fake_plan("localization:=true", f"map:={ROOT / 'maps' / 'room.yaml'}")[0].nodes}
     assert f"yaml_filename:={ROOT / 'maps' / 'room.yaml'}" in " ".join(other["map_server"].cmd)
+
+
+def test_lockstep_makes_the_data_path_participants_and_tells_the_simulator_whom_to_wait_for():
+    p, probes = fake_plan("lockstep:=true", "real_time_factor:=0", "localization:=true", "navigation:=true",
+                          extra_participants=("pppbot_eval",))
+    by_name = {n.name: " ".join(n.cmd) for n in p.nodes}
+    participants = ["twist_mux", "amcl", "planner_server", "controller_server", "navigator"]
+    for name in participants:
+        assert "lockstep:=true" in by_name[name] and f"lockstep_name:={name}" in by_name[name]
+    for name in ("robot_state_publisher", "map_server"):
+        assert "lockstep" not in by_name[name]  # not on the data path: never waited for
+    sim = by_name["simulator"]
+    assert "lockstep:=true" in sim and "real_time_factor:=0.0" in sim
+    assert f"lockstep_participants:={[*participants, 'pppbot_eval']}" in sim
+    # A participant is ready once the simulator lists it as joined (not at a first message).
+    assert probes.joins == participants
+    assert ("/clock", "rosgraph_msgs/msg/Clock", False) in probes
 
 
 def test_record_adds_a_recorder_right_after_the_simulator(tmp_path):
@@ -149,7 +183,7 @@ def test_end_to_end_headless_drive_record_and_clean_sigint(ros_node, spawn, tmp_
                     "real_time_factor:=2.0", "record:=true", f"bag_path:={bag}"], name="launch_sim")
     launch.wait_for_output(r"ppp_bot is up in 'empty'", 60)
     pids = [int(p) for p in re.findall(r"process started with pid \[(\d+)\]", launch.output)]
-    assert len(pids) == 6  # simulator, bag_record, robot_state_publisher, controller, twist_mux, slam_toolbox
+    assert len(pids) == 5  # simulator (with the controller), bag_record, robot_state_publisher, twist_mux, slam
     truths: list[Odometry] = []
     ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
     pub = ros_node.create_publisher(Twist, "/cmd_vel_teleop", 10)
@@ -166,7 +200,7 @@ def test_end_to_end_headless_drive_record_and_clean_sigint(ros_node, spawn, tmp_
     os.kill(launch.pid, signal.SIGINT)
     assert launch.wait(15) == 0
     assert time.monotonic() - t0 < 15
-    assert launch.output.count("process has finished cleanly") == 6, \
+    assert launch.output.count("process has finished cleanly") == 5, \
         "\n".join(line for line in launch.output.splitlines() if "[launch]" in line or "process has" in line)
     for pid in pids:
         assert not os.path.exists(f"/proc/{pid}") or open(f"/proc/{pid}/stat").read().rsplit(")", 1)[-1].split()[0] == "Z"
@@ -237,7 +271,7 @@ def test_in_a_terminal_the_teleop_drives_and_ctrl_c_ends_everything(ros_node):
                 break
             screen.extend(chunk)
         text = screen.decode(errors="replace")
-        assert text.count("process has finished cleanly") == 6  # with slam_toolbox
+        assert text.count("process has finished cleanly") == 5  # with slam_toolbox
         assert (log_dir / "simulator-1.log").read_text().count("lidar 'laser'") == 1
     finally:
         stop_process_group(proc)

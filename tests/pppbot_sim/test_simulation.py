@@ -15,7 +15,7 @@ from pppbot_sim.errors import SimulationDiverged, SpawnError
 from pppbot_sim.mj_build import ROBOT_GROUP, SpawnPose
 from pppbot_sim.runner import PhysicsRunner
 from pppbot_sim.sensors import LidarSpec, finalize_ranges
-from pppbot_sim.simulation import Schedule, Simulation, load_world
+from pppbot_sim.simulation import Event, EventKind, Schedule, Simulation, load_world
 from pppbot_sim.wheel_slip import SlipModel, WheelSlip
 from pppbot_sim.worlds import find_world, model_paths
 
@@ -203,18 +203,28 @@ def test_bad_spawn_pose_and_unsupported_joint():
 
 def test_schedule_runs_events_at_their_rates():
     schedule = Schedule()
-    schedule.add("fast", 100.0)
-    schedule.add("slow", 10.0)
-    counts = {"fast": 0, "slow": 0}
+    fast, slow = Event(EventKind.JOINT_STATES), Event(EventKind.LIDAR, 0)
+    schedule.add(fast, 100.0)
+    schedule.add(slow, 10.0)
+    counts = {fast: 0, slow: 0}
     t, dt = 0.0, 0.002
     while t < 1.0 - 1e-9:
         t += schedule.steps_to_next(t, dt, 1000) * dt
-        for name in schedule.due(t, dt):
-            counts[name] += 1
+        for event in schedule.due(t, dt):
+            counts[event] += 1
     # Each event is also due at t = 0 (a first reading at the start): 1 + 1 s × rate.
-    assert counts == {"fast": 101, "slow": 11}
-    with pytest.raises(ValueError, match="rate of 'bad' must be a positive number"):
-        schedule.add("bad", 0.0)
+    assert counts == {fast: 101, slow: 11}
+    with pytest.raises(ValueError, match="rate of 'imu1' must be a positive number"):
+        schedule.add(Event(EventKind.IMU, 1), 0.0)
+
+
+def test_schedule_stops_at_a_sync_time():
+    schedule = Schedule()
+    schedule.add(Event(EventKind.LIDAR, 0), 10.0, start_s=0.1)
+    schedule.stop_at_s = 0.05
+    assert schedule.steps_to_next(0.0, 0.001, 1000) == 50
+    schedule.stop_at_s = None
+    assert schedule.steps_to_next(0.0, 0.001, 1000) == 100
 
 
 def test_sensor_pose_in_the_tag_moves_the_sensor():

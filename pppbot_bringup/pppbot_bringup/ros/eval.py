@@ -1,6 +1,6 @@
 """``pppbot eval <scenario>``: a headless scenario run against ground truth, with a report.
 
-    ./pppbot eval drive --world maze [--route coverage] [--real-time-factor 10] [--seed 0]
+    ./pppbot eval drive --world maze [--route coverage] [--seed 0] [--no-lockstep --real-time-factor 3]
                         [--wheel-slip 0.02] [--speed 0.3] [--out DIR] [--json]
     ./pppbot eval navigation --world maze [--goals 50] [--seed 0] [--out DIR] [--json]
 
@@ -52,17 +52,16 @@ from pppbot_bringup.eval.scenarios import (
     score_saved_map,
     world_truth,
 )
-from pppbot_bringup.launch_sim import ARGUMENTS, plan
+from pppbot_bringup.launch_sim import ARGUMENTS, controllers_file, plan
 from pppbot_bringup.paths import config_directory
-from pppbot_bringup.ros.eval_goals import GoalLoop
-from pppbot_bringup.ros.eval_node import EvalNode
+from pppbot_bringup.ros.eval_behaviors import Behavior, Chain, DriveRoute, NavigateGoals, StartLocalization
+from pppbot_bringup.ros.eval_node import PARTICIPANT, EvalNode
 from pppbot_bringup.ros.graph_probe import GraphProbe
 from pppbot_bringup.run import RunError, find_executable
 from pppbot_bringup.supervisor import Output, Supervisor
 from pppbot_common.errors import PppbotError
 from pppbot_common.launch_args import ArgumentError
 from pppbot_common.maps import MapFileError, OccupancyGrid
-from pppbot_common.ros.qos import DEFAULT, LATCHED
 from pppbot_description.errors import DescriptionError
 from pppbot_description.xacro_model import process_xacro
 from pppbot_sim.errors import WorldError
@@ -74,8 +73,6 @@ READY_TIMEOUT_S = 120.0
 STALL_TIMEOUT_S = 30.0
 #: Wall seconds to wait for SLAM's map after the route (it updates every map_update_interval sim s).
 FINAL_MAP_TIMEOUT_S = 60.0
-#: Wall seconds between initial poses sent while AMCL has not answered.
-INITIAL_POSE_RESEND_S = 5.0
 #: The covariance RViz's 2D Pose Estimate sends: 0.5 m and π/12 rad standard deviations.
 INITIAL_POSE_COVARIANCE = [float(v) for v in np.diag([0.25, 0.25, 0.0, 0.0, 0.0, (math.pi / 12) ** 2]).ravel()]
 
@@ -84,7 +81,9 @@ class Run:
     """One scenario run: the stack under a supervisor thread, the eval node in this thread.
 
     A route scenario drives ``route`` from its start; navigation starts at ``--start`` and
-    sends ``goals`` (world frame) instead.
+    sends ``goals`` (world frame) instead. What the eval node does is a chain of behaviours
+    acting on its ticks (:mod:`pppbot_bringup.ros.eval_behaviors`); this thread spins it and
+    watches the wall clock (interrupts, a stack that stopped or stalled).
     """
 
     def __init__(self, args: argparse.Namespace, scenario: Scenario, world_file: Path, route: Route | None,
@@ -114,6 +113,7 @@ class Run:
         navigates = self.scenario is Scenario.NAVIGATION
         values.update(world=str(self.world_file), x=x, y=y, yaw=yaw, use_teleop=False, use_rviz=False,
                       headless=True, record=False, real_time_factor=self.args.real_time_factor,
+                      lockstep=self.args.lockstep,
                       seed=self.args.seed, wheel_slip=self.args.wheel_slip, log_level=self.args.log_level,
                       use_slam=self.scenario is Scenario.SLAM,
                       localization=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION),
@@ -125,15 +125,13 @@ class Run:
     def execute(self, progress: Progress) -> None:
         urdf_file = self.out / "logs" / "robot.urdf"
         urdf_file.parent.mkdir(parents=True, exist_ok=True)
-        urdf_file.write_text(process_xacro())
+        urdf_file.write_text(process_xacro(mappings={"controllers_file": str(controllers_file())}))
         probe = GraphProbe()
         try:
             try:
                 the_plan = plan(self._values(), self.world_file, urdf_file,
-                                lambda p, e: str(find_executable(p, e)),
-                                lambda topic, type_name, latched: probe.first_message(
-                                    topic, type_name, LATCHED if latched else DEFAULT),
-                                terminal=False, rviz=None)
+                                lambda p, e: str(find_executable(p, e)), probe, terminal=False, rviz=None,
+                                extra_participants=(PARTICIPANT,))
             except (ArgumentError, RunError) as exc:
                 self.recording.failure = f"cannot start the stack: {exc}"
                 return
@@ -143,12 +141,27 @@ class Run:
         finally:
             probe.close()
 
+    def _behavior(self) -> Behavior:
+        if self.route is None:
+            return NavigateGoals(self.goals, self.truth_map, tuple(self.args.map_pose), self.max_speed_mps)
+        driver = RouteDriver(self.route.points, DriverSettings(speed_mps=self.args.speed))
+        limit_s = self.args.timeout or 2.5 * self.route.length_m / self.args.speed + 60.0
+        drive = DriveRoute(driver, limit_s)
+        if self.scenario is not Scenario.LOCALIZATION:
+            return drive
+        offset = None if self.args.global_localization else tuple(self.args.initial_offset)
+        return Chain([StartLocalization(self.start, offset, INITIAL_POSE_COVARIANCE), drive])
+
     def _run_stack(self, supervisor: Supervisor, names: list[str], probe: GraphProbe, progress: Progress) -> None:
         thread = threading.Thread(target=supervisor.run, kwargs={"until": self.stop.is_set}, name="supervisor")
-        navigates = self.scenario is Scenario.NAVIGATION
-        driver = None if self.route is None else RouteDriver(self.route.points, DriverSettings(speed_mps=self.args.speed))
-        node = EvalNode(ESTIMATES[self.scenario], driver, self.recording, wants_map=self.scenario is Scenario.SLAM,
-                        localizes=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION), navigates=navigates)
+        node = EvalNode(ESTIMATES[self.scenario], self.recording, wants_map=self.scenario is Scenario.SLAM,
+                        localizes=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION),
+                        navigates=self.scenario is Scenario.NAVIGATION, lockstep=self.args.lockstep)
+        behavior = node.behavior = self._behavior()
+        if self.args.lockstep:
+            # Time starts only once every participant (this node among them) has joined: the
+            # behaviour runs from the first tick, at the same sim time on every run.
+            node.start()
         wall0 = time.monotonic()
         thread.start()
         try:
@@ -156,21 +169,24 @@ class Run:
             if not self._wait_ready(supervisor, names, thread, node):
                 return
             probe.close()
-            if self.scenario is Scenario.LOCALIZATION and not self._start_localization(node, thread, progress):
-                return
-            if self.route is None or driver is None:
-                self._navigate(node, thread, progress)
-                return
-            self._drive(node, driver, self.route, thread, progress)
+            if self.scenario is Scenario.LOCALIZATION:
+                progress.message("global localization: particles over the whole map" if self.args.global_localization
+                                 else "initial pose off by ({:g} m, {:g} m, {:g} rad)".format(*self.args.initial_offset))
+            if self.scenario is Scenario.NAVIGATION:
+                progress.message(f"{len(self.goals)} goals, drawn with seed {self.args.seed}")
+            node.start()
+            self._run(node, behavior, thread, progress)
             if self.scenario is Scenario.SLAM and self.recording.failure is None:
                 self._wait_for_final_map(node, thread, progress)
         finally:
+            if isinstance(behavior, NavigateGoals):
+                behavior.cancel()
             node.stop_robot()
-            node.spin_once(0.0)
+            node.spin_pending(0.0)
             self.recording.wall_seconds = time.monotonic() - wall0
+            node.close()  # leaves lockstep first: the stack is not held waiting for it while it stops
             self.stop.set()
             thread.join()
-            node.close()
             progress.finish()
 
     def _wait_ready(self, supervisor: Supervisor, names: list[str], thread: threading.Thread,
@@ -187,97 +203,31 @@ class Run:
                 waiting = [n for n in names if not supervisor.is_ready(n)] or ["/ground_truth/odom"]
                 self.recording.failure = f"not ready after {READY_TIMEOUT_S:.0f} s: {', '.join(waiting)}"
                 return False
-            node.spin_once(0.05)
-        return True
-
-    def _wait_for_first_amcl_pose(self, node: EvalNode, thread: threading.Thread, deadline: float) -> bool:
-        """AMCL's estimate at the spawn pose; False (with the recording's failure) when it does not come."""
-        while node.amcl_poses == 0:
             node.spin_pending(0.05)
-            if self.interrupted or not thread.is_alive() or time.monotonic() > deadline:
-                self.recording.failure = "interrupted" if self.interrupted else "no /amcl_pose at the spawn pose"
-                return False
         return True
 
-    def _start_localization(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> bool:
-        """Put AMCL off: the spawn pose moved by ``--initial-offset`` (sent as RViz does), or
-        global localization; then wait for its first estimate from there."""
-        deadline = time.monotonic() + READY_TIMEOUT_S
-        # First its estimate at the spawn pose (the launch's initial pose): after that, a standing
-        # robot gets no new estimate until the one asked for here.
-        if not self._wait_for_first_amcl_pose(node, thread, deadline):
-            return False
-        before = node.amcl_poses  # AMCL publishes a pose only when its filter updates
-        if self.args.global_localization:
-            progress.message("global localization: particles over the whole map")
-            if not node.start_global_localization():
-                self.recording.failure = "amcl's reinitialize_global_localization did not answer"
-                return False
-        else:
-            x, y, yaw = self.start
-            dx, dy, dyaw = self.args.initial_offset
-            progress.message(f"initial pose off by ({dx:g} m, {dy:g} m, {dyaw:g} rad)")
-        next_send = time.monotonic()
-        while node.amcl_poses == before:
-            if not self.args.global_localization and time.monotonic() >= next_send and node.amcl_listens():
-                # Sent again until AMCL answers: a message sent as discovery completes can be lost.
-                node.send_initial_pose(x + dx, y + dy, yaw + dyaw, INITIAL_POSE_COVARIANCE)
-                next_send = time.monotonic() + INITIAL_POSE_RESEND_S
-            node.spin_pending(0.05)
-            if self.interrupted or not thread.is_alive() or time.monotonic() > deadline:
-                self.recording.failure = "interrupted" if self.interrupted else "no /amcl_pose after the initial pose"
-                return False
-        return True
-
-    def _navigate(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> None:
-        """Once AMCL has its estimate at the spawn pose (the launch's initial pose), the goals."""
-        if not self._wait_for_first_amcl_pose(node, thread, time.monotonic() + READY_TIMEOUT_S):
-            return
-        progress.message(f"{len(self.goals)} goals, drawn with seed {self.args.seed}")
-        drive_wall0 = time.monotonic()
-
-        def problem() -> str | None:
-            self.recording.drive_wall_seconds = time.monotonic() - drive_wall0
-            if self.interrupted:
-                return "interrupted"
-            if not thread.is_alive():
-                return f"the stack stopped during the run (see {self.out / 'logs'})"
-            if time.monotonic() - node.last_truth_wall_s > STALL_TIMEOUT_S:
-                return f"no ground truth for {STALL_TIMEOUT_S:.0f} s (the simulator stalled)"
-            return None
-
-        loop = GoalLoop(node, self.recording, self.truth_map, tuple(self.args.map_pose), self.max_speed_mps, progress,
-                        problem)
-        loop.run(self.goals)
-
-    def _drive(self, node: EvalNode, driver: RouteDriver, route: Route, thread: threading.Thread,
-               progress: Progress) -> None:
+    def _run(self, node: EvalNode, behavior: Behavior, thread: threading.Thread, progress: Progress) -> None:
+        """Spin the eval node until its behaviour ends; the wall clock's watch on the way."""
         rec = self.recording
-        rec.start_sim_s = rec.end_sim_s = node.sim_now_s or 0.0
-        limit_s = self.args.timeout or 2.5 * route.length_m / self.args.speed + 60.0
-        node.driving = True
-        drive_wall0 = time.monotonic()
-        while not driver.finished:
+        while behavior.outcome is None:
             node.spin_pending(0.05)
-            if node.sim_now_s is not None:
-                rec.end_sim_s = node.sim_now_s
+            rec.drive_wall_seconds = node.drive_wall_seconds()
+            fraction, detail = behavior.progress()
             elapsed = rec.sim_seconds
-            rtf = elapsed / max(time.monotonic() - drive_wall0, 1e-6)
-            progress.update(driver.progress, lambda: f"sim {elapsed:6.1f} s, {rtf:4.1f}x, "
-                            f"{driver.travelled_m:5.1f}/{driver.length_m:.1f} m")
-            rec.drive_wall_seconds = time.monotonic() - drive_wall0
+            progress.update(fraction, lambda: f"sim {elapsed:6.1f} s, {elapsed / max(rec.drive_wall_seconds, 1e-6):4.1f}x, "
+                                              f"{detail}")
             if self.interrupted:
                 rec.failure = "interrupted"
                 return
             if not thread.is_alive():
                 rec.failure = f"the stack stopped during the run (see {self.out / 'logs'})"
                 return
-            if elapsed > limit_s:
-                rec.failure = f"route not finished within {limit_s:.0f} sim seconds"
-                return
             if time.monotonic() - node.last_truth_wall_s > STALL_TIMEOUT_S:
                 rec.failure = f"no ground truth for {STALL_TIMEOUT_S:.0f} s (the simulator stalled)"
                 return
+        rec.drive_wall_seconds = node.drive_wall_seconds()
+        if behavior.outcome:
+            rec.failure = behavior.outcome
         progress.update(1.0, f"sim {rec.sim_seconds:6.1f} s")
 
     def _wait_for_final_map(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> None:
@@ -383,6 +333,7 @@ def _result(run: Run, failure: str | None, metrics: dict[str, Any]) -> dict[str,
         "wall_seconds": round(rec.wall_seconds, 3),
         "real_time_factor": round(rec.sim_seconds / drive_wall, 3) if drive_wall > 0 else None,
         "target_real_time_factor": run.args.real_time_factor,
+        "lockstep": run.args.lockstep,
         "seed": run.args.seed,
         "wheel_slip": run.args.wheel_slip,
         **metrics,
@@ -402,10 +353,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--route", default=None, help="route name in the world's routes file (default: the first)")
     parser.add_argument("--route-file", type=Path, default=None,
                         help="routes YAML (default <world>.routes.yaml next to the world)")
+    parser.add_argument("--lockstep", action=argparse.BooleanOptionalAction, default=True,
+                        help="time advances only when the nodes have done their work for it: the same run on "
+                             "any machine, as fast as the machine allows (default; --no-lockstep runs the stack "
+                             "against the wall clock at --real-time-factor)")
     parser.add_argument("--real-time-factor", type=float, default=None,
-                        help="sim seconds per wall second (default 3 for the route scenarios: what the 100 Hz "
-                             "control loop keeps up with on 2 cores; 1 for navigation, whose planner, controller "
-                             "and navigator need the CPU at their rates; 0 = as fast as possible)")
+                        help="at most this many sim seconds per wall second (default: 0, as fast as possible, in "
+                             "lockstep; without lockstep 3 for the route scenarios and 1 for navigation, what the "
+                             "nodes keep up with on 2 cores)")
     parser.add_argument("--seed", type=int, default=0, help="seed of sensor noise and wheel slip (default 0)")
     parser.add_argument("--wheel-slip", type=float, default=0.01,
                         help="wheel slip standard deviation, fraction of travel (default 0.01)")
@@ -441,7 +396,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "readiness line is not printed)")
 
 
-#: The default real-time factor of each scenario (``--real-time-factor``).
+#: The default real-time factor of each scenario without lockstep (``--real-time-factor``).
 DEFAULT_REAL_TIME_FACTOR = {Scenario.NAVIGATION: 1.0}
 
 
@@ -514,7 +469,7 @@ def _score_map(args: argparse.Namespace, world_file: Path) -> int:
 def main(args: argparse.Namespace) -> int:
     scenario = Scenario(args.scenario)
     if args.real_time_factor is None:
-        args.real_time_factor = DEFAULT_REAL_TIME_FACTOR.get(scenario, 3.0)
+        args.real_time_factor = 0.0 if args.lockstep else DEFAULT_REAL_TIME_FACTOR.get(scenario, 3.0)
     goals = None
     try:
         _check(args)

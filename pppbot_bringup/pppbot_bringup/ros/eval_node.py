@@ -1,12 +1,15 @@
-"""The evaluation's own node: records ground truth, the estimate and collisions, and drives the route
-or sends navigation goals.
+"""The evaluation's own node: records ground truth, the estimate and collisions, and acts on its ticks.
 
-Route commands go to ``/cmd_vel_teleop`` (twist_mux's teleop input) at :data:`COMMAND_PERIOD_S`
-of sim time, computed from ground truth by the route driver. Navigation goals go to the
-navigator's ``navigate_to_pose`` action, as RViz's Nav2 panel sends them.
+What it does is its behaviour's (:mod:`pppbot_bringup.ros.eval_behaviors`): drive a route on
+ground truth through ``/cmd_vel_teleop`` (twist_mux's teleop input), put AMCL off, send
+navigation goals to ``navigate_to_pose`` as RViz's Nav2 panel does. It acts only on its
+ticks (every :data:`~pppbot_bringup.ros.eval_behaviors.TICK_S` of sim time). In lockstep it
+is a participant (``pppbot_eval``): time waits for it, so every tick happens at the same
+sim time on every run, and it joins only once the nodes it talks to listen.
 """
 from __future__ import annotations
 
+import signal
 import time
 
 import rclpy
@@ -14,64 +17,117 @@ from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamp
 from nav2_msgs.action import NavigateToPose
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry
-from pppbot_common.ros.action_client import ActionClient
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.task import Future
+from rclpy.experimental import EventsExecutor
+from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
+from rclpy.task import Future
 from std_srvs.srv import Empty
 from tf2_msgs.msg import TFMessage
 
-from pppbot_bringup.eval.driver import RouteDriver
 from pppbot_bringup.eval.scenarios import Estimate, Recording
+from pppbot_bringup.ros.eval_behaviors import TICK_S, Behavior
+from pppbot_common.ros.action_client import ActionClient
+from pppbot_common.ros.lockstep import Participant, create_timer, require_match
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.planar import planar_transforms, stamp_seconds
 from pppbot_common.ros.qos import DEFAULT, LATCHED
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
 
-#: The route driver commands at 20 Hz of sim time, a teleop's or a controller's rate
-#: (every ground-truth message would be 500 commands a wall second at 10× real time).
-COMMAND_PERIOD_S = 0.05
-MAX_CALLBACKS_PER_SPIN = 100
+#: The lockstep participant's name, for the launch's list of whom time waits for.
+PARTICIPANT = "pppbot_eval"
 
 
 class EvalNode:
-    """Records ground truth, the estimate and collisions; drives the route on ground truth (with a
-    ``driver``), or leaves driving to the navigator (without one, ``navigates``)."""
+    """Records ground truth, the estimate and collisions; runs ``behavior`` on its ticks once
+    :meth:`start` is called."""
 
-    def __init__(self, estimate: Estimate, driver: RouteDriver | None, recording: Recording, wants_map: bool = False,
-                 localizes: bool = False, navigates: bool = False) -> None:
+    def __init__(self, estimate: Estimate, recording: Recording, wants_map: bool = False,
+                 localizes: bool = False, navigates: bool = False, lockstep: bool = False) -> None:
         self.context = rclpy.Context()
         rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node("pppbot_eval", context=self.context, start_parameter_services=False)
-        self.executor = SingleThreadedExecutor(context=self.context)
+        self.node = rclpy.create_node("pppbot_eval", context=self.context, start_parameter_services=False,
+                                      parameter_overrides=[Parameter("use_sim_time", value=True)])
+        handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+        self.executor = EventsExecutor(context=self.context)
+        for sig, handler in handlers.items():  # the executor installs its own: the run's own handlers win
+            if callable(handler):
+                signal.signal(sig, handler)
         self.executor.add_node(self.node)
+        self.participant = Participant.for_node(PARTICIPANT, self.node) if lockstep else None
+        if self.participant is not None:
+            self.participant.start(self.executor, [self.node])
         self.estimate = estimate
-        self.driver = driver
         self.recording = recording
         self.wanted_edges = set(estimate.edges())
-        self.driving = False
-        self._next_command_s = 0.0
+        self.behavior: Behavior | None = None
+        self.started = False
+        self._driving = False
+        #: Wall time (monotonic) when the behaviour began driving: the run's speed is measured from it.
+        self.driving_since_wall: float | None = None
+        self.finished_wall: float | None = None
         self.last_truth_wall_s = time.monotonic()
         self.sim_now_s: float | None = None
         self.truth_pose: tuple[float, float, float] | None = None
-        self.cmd_pub = self.node.create_publisher(Twist, "/cmd_vel_teleop", DEFAULT)
-        self.node.create_subscription(Odometry, "/ground_truth/odom", self._on_truth, 100)
+        node = self.node
+        self.cmd_pub = node.create_publisher(Twist, "/cmd_vel_teleop", DEFAULT)
+        if not navigates:
+            require_match(node, self.cmd_pub)  # the route driver's commands
+        require_match(node, node.create_subscription(Odometry, "/ground_truth/odom", self._on_truth, 100))
         if estimate.topic is not None:
-            self.node.create_subscription(Odometry, estimate.topic, self._on_estimate, 100)
+            require_match(node, node.create_subscription(Odometry, estimate.topic, self._on_estimate, 100))
         else:
-            self.node.create_subscription(TFMessage, "/tf", self._on_tf, 200)
-            self.node.create_subscription(TFMessage, "/tf_static", self._keep_edges, LATCHED)
-        self.node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100)
+            require_match(node, node.create_subscription(TFMessage, "/tf", self._on_tf, 200))
+            node.create_subscription(TFMessage, "/tf_static", self._keep_edges, LATCHED)
+        require_match(node, node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100))
         if wants_map:
-            self.node.create_subscription(OccupancyGridMsg, "/map", self._on_map, LATCHED)
+            node.create_subscription(OccupancyGridMsg, "/map", self._on_map, LATCHED)
         self.amcl_poses = 0
         if localizes:
-            self.initial_pose_pub = self.node.create_publisher(PoseWithCovarianceStamped, "/initialpose", DEFAULT)
-            self.node.create_subscription(PoseWithCovarianceStamped, "/amcl_pose", self._on_amcl_pose, LATCHED)
-            self.global_client = self.node.create_client(Empty, "/reinitialize_global_localization")
-        self.recoveries = 0  # of the current navigation goal, from its feedback
+            self.initial_pose_pub = node.create_publisher(PoseWithCovarianceStamped, "/initialpose", DEFAULT)
+            require_match(node, self.initial_pose_pub)
+            require_match(node, node.create_subscription(PoseWithCovarianceStamped, "/amcl_pose", self._on_amcl_pose,
+                                                         LATCHED))
+            self.global_client = node.create_client(Empty, "/reinitialize_global_localization")
+            if self.participant is not None:
+                self.participant.require_when("the reinitialize_global_localization service",
+                                              self.global_client.service_is_ready)
+        self._recoveries = 0  # of the current navigation goal, from its feedback
         if navigates:
-            self.navigator = ActionClient(self.node, NavigateToPose, "navigate_to_pose")
+            self.navigator = ActionClient(node, NavigateToPose, "navigate_to_pose")
+            if self.participant is not None:
+                self.participant.require_when("the navigate_to_pose server", self.navigator.server_is_ready)
+        create_timer(node, TICK_S, self._tick)
+
+    @property
+    def driving(self) -> bool:
+        """Whether the run is under way (recording ground truth and the estimate)."""
+        return self._driving
+
+    @driving.setter
+    def driving(self, value: bool) -> None:
+        if value and self.driving_since_wall is None:
+            self.driving_since_wall = time.monotonic()
+        self._driving = value
+
+    def start(self) -> None:
+        """From the next tick on, the behaviour acts."""
+        self.started = True
+
+    def _tick(self) -> None:
+        if self.started and self.behavior is not None and self.behavior.outcome is None:
+            self.behavior.tick(self)
+            if self.behavior.outcome is not None:
+                self.finished_wall = time.monotonic()
+
+    def drive_wall_seconds(self) -> float:
+        """Wall seconds from the start of driving to the behaviour's end (or to now)."""
+        if self.driving_since_wall is None:
+            return 0.0
+        return (self.finished_wall or time.monotonic()) - self.driving_since_wall
+
+    # ----------------------------------------------------------------- actions
+    def command(self, linear_mps: float, angular_radps: float) -> None:
+        self.cmd_pub.publish(Twist(linear=_vector(linear_mps), angular=_vector(0.0, 0.0, angular_radps)))
 
     def send_goal(self, x: float, y: float, yaw: float) -> Future:
         """A NavigateToPose goal at (x, y, yaw) in ``map``; the future's result is its goal handle."""
@@ -82,17 +138,17 @@ class EvalNode:
         goal.pose.pose.position.x, goal.pose.pose.position.y = float(x), float(y)
         o = goal.pose.pose.orientation
         o.x, o.y, o.z, o.w = quaternion_from_yaw(yaw)
-        self.recoveries = 0
+        self._recoveries = 0
         return self.navigator.send_goal_async(goal, feedback_callback=self._on_feedback)
 
+    def recoveries(self) -> int:
+        return self._recoveries
+
     def _on_feedback(self, msg: NavigateToPose.Impl.FeedbackMessage) -> None:
-        self.recoveries = int(msg.feedback.number_of_recoveries)
+        self._recoveries = int(msg.feedback.number_of_recoveries)
 
     def _on_amcl_pose(self, msg: PoseWithCovarianceStamped) -> None:
         self.amcl_poses += 1
-
-    def amcl_listens(self) -> bool:
-        return self.initial_pose_pub.get_subscription_count() > 0
 
     def send_initial_pose(self, x: float, y: float, yaw: float, covariance: list[float]) -> None:
         """What RViz's 2D Pose Estimate sends: a pose in ``map`` with its covariance."""
@@ -105,14 +161,11 @@ class EvalNode:
         msg.pose.covariance = [float(v) for v in covariance]
         self.initial_pose_pub.publish(msg)
 
-    def start_global_localization(self) -> bool:
-        """Ask AMCL to spread its particles over the map; False when the service did not answer."""
-        if not self.global_client.wait_for_service(timeout_sec=10.0):
-            return False
-        future = self.global_client.call_async(Empty.Request())
-        self.executor.spin_until_future_complete(future, timeout_sec=10.0)
-        return future.done()
+    def request_global_localization(self) -> Future:
+        """Ask AMCL to spread its particles over the map."""
+        return self.global_client.call_async(Empty.Request())
 
+    # --------------------------------------------------------------- records
     def _on_truth(self, msg: Odometry) -> None:
         t = stamp_seconds(msg.header.stamp)
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
@@ -120,18 +173,8 @@ class EvalNode:
         self.sim_now_s = t
         self.truth_pose = (p.x, p.y, yaw)
         self.last_truth_wall_s = time.monotonic()
-        if not self.driving:
-            return
-        self.recording.truth_rows.append((t, p.x, p.y, yaw))
-        if self.driver is None:
-            return
-        if t < self._next_command_s and not self.driver.finished:
-            return
-        self._next_command_s = t + COMMAND_PERIOD_S
-        v, w = self.driver.command(p.x, p.y, yaw)
-        self.cmd_pub.publish(Twist(linear=_vector(v), angular=_vector(0.0, 0.0, w)))
-        self.recording.route_progress = self.driver.progress
-        self.recording.route_finished = self.driver.finished
+        if self.driving:
+            self.recording.truth_rows.append((t, p.x, p.y, yaw))
 
     def _on_estimate(self, msg: Odometry) -> None:
         if self.driving:
@@ -161,26 +204,22 @@ class EvalNode:
             return  # a malformed map is nobody's result; the next one replaces it
         self.recording.final_map_stamp_s = stamp_seconds(msg.header.stamp)
 
+    # ------------------------------------------------------------------ loop
     def stop_robot(self) -> None:
         self.driving = False
-        if self.driver is None:
-            return  # the navigator drives: its goals are canceled or over
         for _ in range(3):
             self.cmd_pub.publish(Twist())
 
-    def spin_once(self, timeout_s: float) -> None:
+    def spin_pending(self, timeout_s: float) -> None:
+        """Run what is ready, waiting up to ``timeout_s`` for it (and join lockstep once ready)."""
         self.executor.spin_once(timeout_sec=timeout_s)
-
-    def spin_pending(self, timeout_s: float, limit: int = MAX_CALLBACKS_PER_SPIN) -> None:
-        """Wait up to ``timeout_s`` for work, then run what is ready (one callback per spin_once)."""
-        self.executor.spin_once(timeout_sec=timeout_s)
-        for _ in range(limit):
-            before = self.sim_now_s, len(self.recording.estimate_rows), len(self.recording.collisions)
-            self.executor.spin_once(timeout_sec=0.0)
-            if (self.sim_now_s, len(self.recording.estimate_rows), len(self.recording.collisions)) == before:
-                break
+        if self.participant is not None:
+            self.participant.maintain()
 
     def close(self) -> None:
+        if self.participant is not None and self.context.ok():
+            self.participant.leave()
+        Participant.clear_current()
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
@@ -188,4 +227,3 @@ class EvalNode:
 
 def _vector(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Vector3:
     return Vector3(x=float(x), y=float(y), z=float(z))
-

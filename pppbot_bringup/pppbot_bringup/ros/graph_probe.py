@@ -1,4 +1,5 @@
-"""Readiness from the ROS graph, for the supervisor: "a first message arrived on <topic>".
+"""Readiness from the ROS graph, for the supervisor: "a first message arrived on <topic>", "a
+lockstep participant has joined".
 
 A hidden node spins in a background thread; each probe is a subscription that
 remembers whether a message came. Subscriptions are made before the nodes start,
@@ -14,8 +15,11 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 
+from pppbot_interfaces.msg import LockstepStatus
+
+from pppbot_common.ros.lockstep import STATUS_QOS, STATUS_TOPIC
 from pppbot_common.ros.messages import get_interface
-from pppbot_common.ros.qos import DEFAULT
+from pppbot_common.ros.qos import DEFAULT, LATCHED
 
 
 class GraphProbe:
@@ -28,6 +32,8 @@ class GraphProbe:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._closed = False
+        self._joined: set[str] = set()
+        self._status_subscribed = False
         self._thread = threading.Thread(target=self._spin, name="graph-probe", daemon=True)
         self._thread.start()
 
@@ -37,11 +43,22 @@ class GraphProbe:
         except (ExternalShutdownException, rclpy.executors.ShutdownException):
             pass
 
-    def first_message(self, topic: str, type_name: str, qos: QoSProfile = DEFAULT) -> Callable[[], bool]:
-        """A probe that turns true once a message arrives on ``topic``."""
+    def first_message(self, topic: str, type_name: str, latched: bool | QoSProfile = False) -> Callable[[], bool]:
+        """A probe that turns true once a message arrives on ``topic`` (``latched``: transient local)."""
         seen = threading.Event()
+        qos = latched if isinstance(latched, QoSProfile) else LATCHED if latched else DEFAULT
         self.node.create_subscription(get_interface(type_name), topic, lambda _msg: seen.set(), qos, raw=True)
         return seen.is_set
+
+    def joined(self, participant: str) -> Callable[[], bool]:
+        """A probe that turns true once the simulator lists ``participant`` as joined on /lockstep/status."""
+        if not self._status_subscribed:
+            self._status_subscribed = True
+            self.node.create_subscription(LockstepStatus, STATUS_TOPIC, self._on_status, STATUS_QOS)
+        return lambda: participant in self._joined
+
+    def _on_status(self, msg: LockstepStatus) -> None:
+        self._joined |= set(msg.participants)
 
     def close(self) -> None:
         """Stop listening (idempotent); probes keep answering what they saw."""

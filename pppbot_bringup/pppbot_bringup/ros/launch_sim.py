@@ -16,13 +16,12 @@ import sys
 import time
 from typing import Any, Sequence
 
-from pppbot_bringup.launch_sim import ARGUMENTS, plan
+from pppbot_bringup.launch_sim import ARGUMENTS, controllers_file, plan
 from pppbot_bringup.paths import log_root
 from pppbot_bringup.ros.graph_probe import GraphProbe
 from pppbot_bringup.run import RunError, find_executable
 from pppbot_bringup.supervisor import Output, Supervisor
 from pppbot_common.launch_args import ArgumentError, describe, parse_assignments
-from pppbot_common.ros.qos import DEFAULT, LATCHED
 from pppbot_description.errors import DescriptionError
 from pppbot_description.xacro_model import process_xacro
 from pppbot_sim.errors import WorldError
@@ -37,7 +36,7 @@ def run(argv: Sequence[str]) -> int:
     try:
         values = parse_assignments(argv, ARGUMENTS)
         world_file = find_world(values["world"])
-        urdf = process_xacro()
+        urdf = process_xacro(mappings={"controllers_file": str(controllers_file())})
         run_dir = log_root() / time.strftime("%Y-%m-%d-%H-%M-%S")
         urdf_file = run_dir / "robot.urdf"
         probe = GraphProbe()
@@ -49,7 +48,7 @@ def run(argv: Sequence[str]) -> int:
         try:
             the_plan = plan(values, world_file, urdf_file,
                             lambda pkg, exe: str(find_executable(pkg, exe)),
-                            lambda topic, type_name, latched: probe.first_message(topic, type_name, _qos(latched)),
+                            probe,
                             terminal and values["use_teleop"], shutil.which("rviz2"))
         except (ArgumentError, RunError) as exc:
             print(f"launch_sim: {exc}", file=sys.stderr)
@@ -71,7 +70,7 @@ def run(argv: Sequence[str]) -> int:
             nonlocal announced
             if not announced and all(supervisor.is_ready(n.name) for n in the_plan.nodes):
                 announced = True
-                probe.close()  # its subscriptions (/clock at 100 Hz) are not needed any more
+                probe.close()  # its subscriptions are not needed any more
                 drive = "the teleop keys" if teleop_owns_terminal else "./pppbot teleop (in another terminal)"
                 output.event("INFO", "launch", f"ppp_bot is up in '{world_file.stem}': drive with {drive}; "
                                                "Ctrl-C stops everything")
@@ -80,10 +79,6 @@ def run(argv: Sequence[str]) -> int:
         return supervisor.run(until=announce)
     finally:
         probe.close()
-
-
-def _qos(latched: bool) -> Any:
-    return LATCHED if latched else DEFAULT
 
 
 # ------------------------------------------------------------ command line

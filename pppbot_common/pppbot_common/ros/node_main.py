@@ -1,32 +1,152 @@
-"""The ``main()`` of a pppbot node: start, spin, and end cleanly however it ends.
+"""The ``main()`` of a pppbot process: start its nodes, spin them, and end cleanly however it ends.
 
-A bad parameter (or any of ``fatal`` errors) at start prints one line naming it
-and exits 1. Ctrl-C and shutdown end with 0, including the race where a callback
-publishes while SIGINT is already tearing the context down.
+:func:`run_nodes` runs one or more nodes (composition: several nodes, one process, one
+executor) on rclpy's EventsExecutor, which handles a message in about 15 µs where the
+Python executors take 150-550 µs (``benchmarks/stack_speed.py`` measures it). Callbacks
+run one at a time in the main thread: a node never blocks in a callback, it keeps state
+and acts on its timers (:func:`pppbot_common.ros.lockstep.create_timer`).
+
+The process owns SIGINT and SIGTERM (rclpy's own signal handling is off): a signal asks
+the loop to stop, and then, in this thread and in this order, the lockstep participant
+leaves, the executor stops, the nodes are destroyed and the context shuts down. Nothing
+shuts the context down under a running callback, so no node dies on its way down.
+
+A bad parameter (or any of ``fatal`` errors) at start prints one line naming it and
+exits 1; a stop by signal or shutdown exits 0.
 """
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 import time
-from typing import Any, Callable, TypeVar
+from types import FrameType
+from typing import Any, Callable, Sequence, TypeVar
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from pppbot_common.errors import PppbotError
+from pppbot_common.ros.lockstep import Participant
 from pppbot_common.throttle import Throttle
 
 N = TypeVar("N", bound=Node)
 
+#: Longest wait of the spin loop (wall s): how soon a signal is acted on.
+SPIN_TIMEOUT_S = 0.2
+
+
+class Process:
+    """The running process as a custom loop sees it: its executor, its participant, its stop request."""
+
+    def __init__(self, executor: Any, participant: Participant | None) -> None:
+        self.executor = executor
+        self.participant = participant
+        self.stop_requested = threading.Event()
+
+    def running(self) -> bool:
+        return not self.stop_requested.is_set() and rclpy.ok()
+
+    def spin_once(self, timeout_s: float = SPIN_TIMEOUT_S) -> None:
+        """Run one ready callback, waiting at most ``timeout_s`` for one."""
+        self.executor.spin_once(timeout_sec=timeout_s)
+        if self.participant is not None:
+            self.participant.maintain()
+
+    def request_stop(self, signum: int = 0, frame: FrameType | None = None) -> None:
+        self.stop_requested.set()
+
+    def install_signal_handlers(self) -> None:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self.request_stop)
+
+
+def spin_until_stopped(nodes: Sequence[Node], process: Process) -> int | None:
+    """The default loop: callbacks as they come, until a signal or shutdown."""
+    while process.running():
+        process.spin_once()
+    return None
+
+
+def run_nodes(factories: Sequence[Callable[[], Node]], name: str, args: list[str] | None = None, *,
+              fatal: tuple[type[BaseException], ...] = (PppbotError,),
+              loop: Callable[[Sequence[Node], Process], int | None] = spin_until_stopped,
+              lockstep: bool = True) -> int:
+    """Create the nodes (in order) in one process and run ``loop`` until stopped; the exit code
+    (the loop's, or 0). ``lockstep=False``: the process never takes part in lockstep (the
+    simulator, which runs it)."""
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    nodes: list[Node] = []
+    participant: Participant | None = None
+    try:
+        participant = Participant.from_parameters(name) if lockstep else None
+        for factory in factories:
+            nodes.append(factory())
+    except fatal as exc:
+        print(f"[{name}] error: {exc}", file=sys.stderr)
+        _teardown(None, nodes, participant)
+        return 1
+    except KeyboardInterrupt:
+        _teardown(None, nodes, participant)
+        return 0
+    executor = EventsExecutor()
+    for node in _with_composed(nodes):
+        executor.add_node(node)
+    if participant is not None:
+        executor.add_node(participant.node)
+    process = Process(executor, participant)
+    process.install_signal_handlers()  # after the executor: it installs handlers of its own
+    if participant is not None:
+        participant.start(executor, _with_composed(nodes))
+    code: int | None = 0
+    try:
+        code = loop(nodes, process)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:
+        if process.running():
+            raise
+        # The context went down under a running callback: that is the end we asked for.
+    finally:
+        if participant is not None and rclpy.ok():
+            participant.leave()
+        _teardown(executor, nodes, participant, process)
+    return code or 0
+
+
+def _with_composed(nodes: Sequence[Node]) -> list[Node]:
+    """The nodes and the nodes each runs in its process (``composed_nodes``: a server's costmap, the
+    simulator's controllers); a node destroys its own composed nodes."""
+    return [n for node in nodes for n in (node, *getattr(node, "composed_nodes", ()))]
+
+
+def _teardown(executor: Any, nodes: list[Node], participant: Participant | None,
+              process: Process | None = None) -> None:
+    if executor is not None:
+        executor.shutdown(timeout_sec=1.0)
+    if process is not None:
+        process.install_signal_handlers()  # the executor's shutdown put the default handlers back
+    for node in reversed(nodes):
+        node.destroy_node()
+    if participant is not None:
+        participant.node.destroy_node()
+    Participant.clear_current()
+    rclpy.try_shutdown()
+
 
 def run_node(factory: Callable[[], N], name: str, args: list[str] | None = None,
-             spin: Callable[[N], None] = rclpy.spin,
+             spin: Callable[[N], None] | None = None,
              fatal: tuple[type[BaseException], ...] = (PppbotError,),
              signal_handlers: bool = True) -> int:
-    """Create the node and ``spin`` it. ``signal_handlers=False`` leaves Ctrl-C to the
-    node (rclpy then does not shut the context down under it)."""
+    """One node. Without ``spin``, :func:`run_nodes`. With ``spin`` (a terminal program, a node that
+    blocks in a service callback), rclpy's way: ``spin(node)`` on rclpy's own executors;
+    ``signal_handlers=False`` leaves Ctrl-C to the node (rclpy then does not shut the context
+    down under it)."""
+    if spin is None:
+        return run_nodes([factory], name, args, fatal=fatal)
     rclpy.init(args=args, signal_handler_options=None if signal_handlers else SignalHandlerOptions.NO)
     try:
         node = factory()
@@ -49,18 +169,6 @@ def run_node(factory: Callable[[], N], name: str, args: list[str] | None = None,
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
-
-
-def spin_together(*nodes: Node, threads: int = 1) -> None:
-    """Spin several nodes of one process in one executor (``threads`` > 1: a multi-threaded one,
-    for servers whose goals wait while other callbacks run)."""
-    executor = SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(num_threads=threads)
-    for node in nodes:
-        executor.add_node(node)
-    try:
-        executor.spin()
-    finally:
-        executor.shutdown()
 
 
 def _shutting_down(grace_s: float = 2.0) -> bool:

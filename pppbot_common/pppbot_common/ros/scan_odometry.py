@@ -38,7 +38,7 @@ class ScanOdometry:
         self._ready = ready
         self._warn = warn
         self._pending: deque[LaserScan] = deque()
-        self.tf = TfListener(node, warn, cache_s, on_tf=self._on_tf).buffer
+        self.tf = TfListener(node, warn, cache_s, on_tf=self._on_tf, needs_static=True).buffer
 
     def add(self, msg: LaserScan) -> None:
         """Queue the scan until odometry reaches its stamp."""

@@ -2,11 +2,20 @@
 
 Node name ``diff_drive_base_controller``. Takes ``~/cmd_vel`` (TwistStamped, as
 Jazzy) and ``~/cmd_vel_unstamped`` (Twist, as ppp_bot's twist_mux feeds it);
-limits the command per axis; sends wheel velocities by joint name on
-``/joint_commands``; integrates odometry from ``/joint_states`` (wheel positions,
-or velocities, or the command in open loop) and publishes ``/odom`` and TF
-``odom → base_link``. With no command for ``cmd_vel_timeout`` it brakes to zero
-within its deceleration limits.
+limits the command per axis; integrates odometry from the wheels (positions, or
+velocities, or the command in open loop) and publishes ``/odom`` and TF ``odom →
+base_link``. With no command for ``cmd_vel_timeout`` it brakes to zero within its
+deceleration limits.
+
+Two ways to run, as ros2_control has them:
+
+* **hosted** (what ``launch_sim`` does): the simulator loads it in its own process, as
+  gz_ros2_control loads controllers into Gazebo, and calls :meth:`DiffDriveController.update`
+  every ``update_rate`` of sim time with the wheels read directly (:class:`HostedWheels`):
+  it never misses a period, however busy the machine;
+* **standalone** (``pppbot run pppbot_control diff_drive_controller``): its own process,
+  reading ``/joint_states`` and sending wheel velocities by joint name on ``/joint_commands``
+  on a timer.
 """
 from __future__ import annotations
 
@@ -14,7 +23,7 @@ import math
 import sys
 from collections import deque
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Mapping, Protocol, Sequence
 
 from geometry_msgs.msg import TransformStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry as OdometryMsg
@@ -24,6 +33,7 @@ from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.ros.lockstep import create_timer, destroy_timer
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.se2 import quaternion_from_yaw
@@ -133,18 +143,30 @@ def _mean(values: deque[float]) -> float:
     return sum(values) / len(values) if values else 0.0
 
 
+class HostedWheels(Protocol):
+    """The wheels as a simulator hosting the controller gives them (ros2_control's hardware interface)."""
+
+    def read(self) -> tuple[Sequence[str], Sequence[float], Sequence[float], int]:
+        """(joint names, positions, velocities, sim time in ns of the reading)."""
+
+    def write(self, velocities: Mapping[str, float]) -> None:
+        """Velocity targets (rad/s) by joint name."""
+
+
 class DiffDriveController(Node):
-    def __init__(self) -> None:
-        super().__init__("diff_drive_base_controller")
+    def __init__(self, hosted: HostedWheels | None = None, **kwargs: object) -> None:
+        super().__init__("diff_drive_base_controller", **kwargs)  # type: ignore[arg-type]
         self.params = declare_parameters(self, DiffDriveParameters)
         self._configure(self.params)
+        self.hosted = hosted
         self.cmd_sub = self.create_subscription(TwistStamped, "~/cmd_vel",
                                                 guarded(self, self.on_cmd_vel, "TwistStamped"), 10)
         self.cmd_unstamped_sub = self.create_subscription(Twist, "~/cmd_vel_unstamped",
                                                           guarded(self, self.on_cmd_vel_unstamped, "Twist"), 10)
-        self.joint_sub = self.create_subscription(JointState, "/joint_states",
-                                                  guarded(self, self.on_joint_states, "JointState"), 10)
-        self.command_pub = self.create_publisher(JointState, "/joint_commands", 10)
+        if hosted is None:
+            self.create_subscription(JointState, "/joint_states", guarded(self, self.on_joint_states, "JointState"),
+                                     10)
+            self.command_pub = self.create_publisher(JointState, "/joint_commands", 10)
         self.odom_pub = self.create_publisher(OdometryMsg, "odom", 10)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
         self.limited_pub = self.create_publisher(TwistStamped, "~/cmd_vel_out", 10)
@@ -152,16 +174,17 @@ class DiffDriveController(Node):
         self._target = (0.0, 0.0)
         self._target_time: Time | None = None
         self._last_update: Time | None = None
-        self._last_odom_publish: Time | None = None
+        self._next_odom_publish_ns = 0  # on a grid of publish periods, as ros2_control publishes
         self._wheels: tuple[float, float, float, float] | None = None  # left pos, right pos, left vel, right vel
         self._wheels_stamp_ns = 0  # when the wheels were measured (the joint states' stamp)
         self._odom_stamp_ns = -1  # the stamp of the odometry last published
-        self.timer = self.create_timer(1.0 / self.params.update_rate, self.update)
+        self.timer = None if hosted else create_timer(self, 1.0 / self.params.update_rate, self.update)
         on_valid_update(self, lambda: self.params, self._apply)
         self.get_logger().info(
             f"wheels {self.params.left_wheel_names} / {self.params.right_wheel_names}, separation "
             f"{self.params.wheel_separation} m, radius {self.params.wheel_radius} m; odometry "
-            f"{'open loop' if self.params.open_loop else 'from wheel ' + ('positions' if self.params.position_feedback else 'velocities')}")
+            f"{'open loop' if self.params.open_loop else 'from wheel ' + ('positions' if self.params.position_feedback else 'velocities')}"
+            f"; {'in the simulator, ' if hosted else ''}{self.params.update_rate:g} Hz")
 
     def _configure(self, params: DiffDriveParameters) -> None:
         self.geometry = params.geometry()
@@ -179,9 +202,9 @@ class DiffDriveController(Node):
         rate_changed = params.update_rate != self.params.update_rate
         self.params = params
         self._configure(params)
-        if rate_changed:
-            self.destroy_timer(self.timer)
-            self.timer = self.create_timer(1.0 / params.update_rate, self.update)
+        if rate_changed and self.timer is not None:
+            destroy_timer(self, self.timer)
+            self.timer = create_timer(self, 1.0 / params.update_rate, self.update)
 
     # ------------------------------------------------------------------ inputs
 
@@ -199,7 +222,12 @@ class DiffDriveController(Node):
         self._set_target(msg.linear.x, msg.angular.z)
 
     def on_joint_states(self, msg: JointState) -> None:
-        index = {name: i for i, name in enumerate(msg.name)}
+        self._store_wheels(msg.name, msg.position, msg.velocity,
+                           msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+
+    def _store_wheels(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
+                      stamp_ns: int) -> None:
+        index = {name: i for i, name in enumerate(names)}
         wanted = [*self.params.left_wheel_names, *self.params.right_wheel_names]
         missing = [n for n in wanted if n not in index]
         if missing:
@@ -214,18 +242,21 @@ class DiffDriveController(Node):
 
         left = self.params.left_wheel_names
         right = self.params.right_wheel_names
-        sample = (side(left, msg.position), side(right, msg.position),
-                  side(left, msg.velocity), side(right, msg.velocity))
+        sample = (side(left, positions), side(right, positions), side(left, velocities), side(right, velocities))
         needed = sample[:2] if self.params.position_feedback else sample[2:]
         if not all(math.isfinite(v) for v in needed):
             self._warn("feedback", "ignoring joint states without finite wheel "
                        + ("positions" if self.params.position_feedback else "velocities"))
             return
         self._wheels = sample
-        self._wheels_stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        self._wheels_stamp_ns = stamp_ns
 
     # ------------------------------------------------------------------- loop
     def update(self) -> None:
+        """One control period: read the wheels (hosted), limit the command, send it, integrate odometry."""
+        if self.hosted is not None:
+            names, positions, velocities, stamp_ns = self.hosted.read()
+            self._store_wheels(names, positions, velocities, stamp_ns)
         now = self.get_clock().now()
         dt = 0.0 if self._last_update is None else (now - self._last_update).nanoseconds * 1e-9
         if dt < 0:  # time went back (sim reset): start over
@@ -233,6 +264,7 @@ class DiffDriveController(Node):
             self.angular.reset()
             dt = 0.0
             self._odom_stamp_ns = -1
+            self._next_odom_publish_ns = 0
         self._last_update = now
         v, w = self._target
         if self._target_time is None or (now - self._target_time).nanoseconds * 1e-9 > self.params.cmd_vel_timeout:
@@ -241,10 +273,14 @@ class DiffDriveController(Node):
         w = self.angular.limit(w, dt)
         left, right = self.geometry.wheel_speeds(v, w)
         p = self.params
-        command = JointState(name=[*p.left_wheel_names, *p.right_wheel_names],
-                             velocity=[left] * len(p.left_wheel_names) + [right] * len(p.right_wheel_names))
-        command.header.stamp = now.to_msg()
-        self.command_pub.publish(command)
+        names = [*p.left_wheel_names, *p.right_wheel_names]
+        speeds = [left] * len(p.left_wheel_names) + [right] * len(p.right_wheel_names)
+        if self.hosted is not None:
+            self.hosted.write(dict(zip(names, speeds)))
+        else:
+            command = JointState(name=names, velocity=speeds)
+            command.header.stamp = now.to_msg()
+            self.command_pub.publish(command)
         if p.publish_limited_velocity:
             out = TwistStamped()
             out.header.stamp = now.to_msg()
@@ -252,7 +288,7 @@ class DiffDriveController(Node):
             out.twist.linear.x, out.twist.angular.z = v, w
             self.limited_pub.publish(out)
         self._integrate(v, w, dt)
-        if self._last_odom_publish is None or (now - self._last_odom_publish).nanoseconds * 1e-9 >= 1.0 / p.publish_rate - 1e-6:
+        if now.nanoseconds >= self._next_odom_publish_ns:
             # From wheel positions, the pose is the robot's when the wheels were measured: stamp
             # it with that time, not the update's (later by the joint states' trip here), so that
             # odom → base_link at a scan's stamp is where the robot was when it scanned. Nothing
@@ -262,7 +298,10 @@ class DiffDriveController(Node):
             if stamp_ns > self._odom_stamp_ns:
                 self._publish_odometry(Time(nanoseconds=stamp_ns, clock_type=now.clock_type))
                 self._odom_stamp_ns = stamp_ns
-            self._last_odom_publish = now
+            # The next multiple of the period: odometry at fixed times (a scan at 10 Hz finds the
+            # transform at its own stamp when the rates divide).
+            period_ns = max(1, round(1e9 / p.publish_rate))
+            self._next_odom_publish_ns = (now.nanoseconds // period_ns + 1) * period_ns
 
     def _integrate(self, v: float, w: float, dt: float) -> None:
         if self.params.open_loop:

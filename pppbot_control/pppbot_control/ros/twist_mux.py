@@ -14,6 +14,7 @@ from rclpy.node import Node
 from std_msgs.msg import Bool
 
 from pppbot_common.params import ParameterError
+from pppbot_common.ros.lockstep import create_timer, require_match
 from pppbot_common.ros.node_main import guarded, run_node
 from pppbot_control.mux import MuxConfigError, TwistMux, parse_config
 
@@ -47,11 +48,12 @@ class TwistMuxNode(Node):
         self.mux = TwistMux(inputs, locks)
         self.msg_type = TwistStamped if self.stamped else Twist
         self.output = self.create_publisher(self.msg_type, "cmd_vel_out", 10)
+        require_match(self, self.output)
         for spec in inputs:
             self.create_subscription(self.msg_type, spec.topic, self._input_callback(spec.name), 10)
         for lock in locks:
             self.create_subscription(Bool, lock.topic, self._lock_callback(lock.name), 10)
-        self.create_timer(1.0 / CHECK_RATE_HZ, self.check)
+        create_timer(self, 1.0 / CHECK_RATE_HZ, self.check)
         summary = ", ".join(f"{s.name} ({s.topic}, priority {s.priority}, {s.timeout_s:g} s)" for s in inputs)
         self.get_logger().info(f"inputs: {summary}" + (f"; locks: {', '.join(l.name for l in locks)}" if locks else ""))
 

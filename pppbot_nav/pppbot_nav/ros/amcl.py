@@ -39,6 +39,7 @@ from std_srvs.srv import Empty
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.ros.lockstep import at_step, require, require_match
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
@@ -173,11 +174,13 @@ class Amcl(Node):
         self._no_pose = Warnings(self, NO_POSE_WARN_PERIOD_S)
         self.scans = ScanOdometry(self, p.odom_frame_id, p.base_frame_id, self._on_scan_with_odometry, self._warn,
                                   p.tf_buffer_duration)
+        self._map_arrived = require(self, f"a map on '{p.map_topic}'")
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
         self.cloud_pub = self.create_publisher(ParticleCloud, "particle_cloud", SENSOR)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
         self.create_subscription(OccupancyGridMsg, p.map_topic, guarded(self, self._on_map, "OccupancyGrid"), LATCHED)
-        self.create_subscription(LaserScan, p.scan_topic, guarded(self, self.scans.add, "LaserScan"), SENSOR)
+        require_match(self, self.create_subscription(LaserScan, p.scan_topic, guarded(self, at_step(self, self.scans.add), "LaserScan"),
+                                                     SENSOR))
         self.create_subscription(PoseWithCovarianceStamped, "initialpose",
                                  guarded(self, self._on_initial_pose, "PoseWithCovarianceStamped"), 10)
         self.create_service(Empty, "reinitialize_global_localization", self._global_localization)
@@ -216,6 +219,7 @@ class Amcl(Node):
             return
         self.get_logger().info(f"map: {grid.width} × {grid.height} cells at {grid.resolution} m, "
                                f"{int(self.localizer.field.free.sum())} free")
+        self._map_arrived()
         if self._pose is not None:
             self._start_at(*self._pose)
 

@@ -17,24 +17,21 @@ from __future__ import annotations
 import dataclasses
 import math
 import sys
-import threading
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import Twist
 from nav2_msgs.action import FollowPath
 from nav_msgs.msg import Odometry, Path
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
-from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.node_main import Warnings, guarded, run_node, spin_together
+from pppbot_common.ros.goals import GoalEnd, GoalServer
+from pppbot_common.ros.lockstep import create_timer, require_match
+from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters
-from pppbot_common.ros.wait import sleep_until_clock
 from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_common.transforms import TransformError, compose
 from pppbot_nav.controller.checkers import SimpleGoalChecker, SimpleProgressChecker
@@ -101,27 +98,40 @@ def _follow_path_parameters() -> type:
 FollowPathParameters = _follow_path_parameters()
 
 
+class _Following:
+    """The goal being followed: its path (in its own frame), goal pose and failure clock."""
+
+    def __init__(self, handle: ServerGoalHandle, path3: np.ndarray, path_frame: str,
+                 goal: tuple[float, float, float]) -> None:
+        self.handle = handle
+        self.path3 = path3
+        self.path_frame = path_frame
+        self.goal = goal
+        self.failing_since: float | None = None
+
+
 class ControllerServer(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("controller_server", **kwargs)
         self.params = p = declare_parameters(self, ControllerServerParameters)
         self.rpp_settings: PurePursuitSettings = declare_parameters(self, FollowPathParameters).settings()
         self.costmap_node = CostmapNode("local_costmap")
+        self.composed_nodes = [self.costmap_node]
         self.controller = PurePursuit(self.rpp_settings)
         self.goal_checker = p.goal_checker()
         self.progress_checker = p.progress_checker()
         self._warn = Warnings(self)
         self._speed = (0.0, 0.0)
-        self._lock = threading.Lock()
-        self._active: ServerGoalHandle | None = None
+        self._active: _Following | None = None
         self.cmd_pub = self.create_publisher(Twist, "cmd_vel", 1)
+        require_match(self, self.cmd_pub)
         self.local_plan_pub = self.create_publisher(Path, "local_plan", 1)
-        group = ReentrantCallbackGroup()
-        self.create_subscription(Odometry, p.odom_topic, guarded(self, self._on_odom, "Odometry"), 10,
-                                 callback_group=group)
-        self.server = ActionServer(self, FollowPath, "follow_path", self._execute, callback_group=group,
-                                   goal_callback=lambda goal: GoalResponse.ACCEPT,
-                                   cancel_callback=lambda goal: CancelResponse.ACCEPT)
+        require_match(self, self.create_subscription(Odometry, p.odom_topic, guarded(self, self._on_odom, "Odometry"),
+                                                     10))
+        self.server = GoalServer(self, FollowPath, "follow_path", self._on_goal)
+        # The control loop runs while a path is followed (an idle controller makes no sync times).
+        self.timer = create_timer(self, 1.0 / p.controller_frequency, self._control)
+        self.timer.cancel()
         self.get_logger().info(f"controller '{CONTROLLER_ID}' (regulated pure pursuit) at "
                                f"{p.controller_frequency} Hz on local_costmap")
 
@@ -137,45 +147,34 @@ class ControllerServer(Node):
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def _sleep_until(self, t_s: float) -> None:
-        """Wait until the node's clock (sim time) reaches ``t_s``; at most a wall second, so that a
-        stopped clock (shutdown) cannot hold the goal's thread."""
-        sleep_until_clock(self, t_s, timeout_s=1.0)
-
     def stop(self) -> None:
         self.cmd_pub.publish(Twist())
 
-    def _execute(self, goal_handle: ServerGoalHandle) -> FollowPath.Result:
-        with self._lock:
-            preempting = self._active is not None
-            self._active = goal_handle
-        if not preempting:
+    # ------------------------------------------------------------------ goals
+    def _on_goal(self, handle: ServerGoalHandle) -> None:
+        """A new path: it preempts the one followed (whose goal aborts), keeping the progress
+        checker's history, as Nav2's path updates do."""
+        previous = self._active
+        if previous is not None:
+            self._end(previous, Result.UNKNOWN, "preempted by a new path", stop=False)
+        else:
             self.progress_checker.reset()
         self.goal_checker.reset()
-        result = Result()
-        try:
-            code, message = self._follow(goal_handle)
-        except Exception as exc:  # a bug must end the goal, not the server
-            code, message = Result.UNKNOWN, f"{type(exc).__name__}: {exc}"
-        result.error_code, result.error_msg = code, message
-        with self._lock:
-            still_ours = self._active is goal_handle
-            if still_ours:
-                self._active = None
-        if still_ours:
-            self.stop()
-        if code == Result.NONE:
-            goal_handle.succeed()
-        elif goal_handle.is_cancel_requested:
-            goal_handle.canceled()
-        else:
-            if code != Result.UNKNOWN or still_ours:
-                self.get_logger().warning(f"following failed: {message}")
-            goal_handle.abort()
-        return result
+        problem = self._start(handle)
+        if problem is not None:
+            code, message = problem
+            self.server.finish(handle, GoalEnd.ABORTED, Result(error_code=code, error_msg=message))
+            self.get_logger().warning(f"following failed: {message}")
+            if previous is not None:
+                self.stop()
+            return
+        if self.timer.is_canceled():
+            self.timer.reset()
+        if previous is None:
+            self._control()  # the first command now, not a period later
 
-    def _follow(self, goal_handle: ServerGoalHandle) -> tuple[int, str]:
-        request = goal_handle.request
+    def _start(self, handle: ServerGoalHandle) -> tuple[int, str] | None:
+        request = handle.request
         if request.controller_id not in ("", CONTROLLER_ID):
             return Result.INVALID_CONTROLLER, f"unknown controller_id '{request.controller_id}'"
         path_msg: Path = request.path
@@ -188,74 +187,97 @@ class ControllerServer(Node):
             return Result.INVALID_PATH, "the path has a point that is not finite"
         goal = (float(path[-1, 0]), float(path[-1, 1]), yaw_from_quaternion(o.x, o.y, o.z, o.w))
         path3 = np.column_stack([path, np.full(len(path), goal[2])])
-        with self._lock:  # a preempted goal's thread may still be computing on the old path
-            if self._active is not goal_handle:
-                return Result.UNKNOWN, "preempted by a new path"
+        try:
             self.controller.set_path(path3)
-        period = 1.0 / self.params.controller_frequency
-        failing_since: float | None = None
+        except ControllerError as exc:
+            return Result.INVALID_PATH, str(exc)
+        self._active = _Following(handle, path3, path_frame, goal)
+        return None
+
+    def _end(self, following: _Following, code: int, message: str, stop: bool = True) -> None:
+        """End the followed goal: success with ``Result.NONE``, else aborted (or canceled when asked)."""
+        if self._active is following:
+            self._active = None
+            self.timer.cancel()
+        if stop:
+            self.stop()
+        handle = following.handle
+        if code == Result.NONE:
+            end = GoalEnd.SUCCEEDED
+        elif handle.is_cancel_requested:
+            end = GoalEnd.CANCELED
+        else:
+            end = GoalEnd.ABORTED
+            if code != Result.UNKNOWN:
+                self.get_logger().warning(f"following failed: {message}")
+        self.server.finish(handle, end, Result(error_code=code, error_msg=message))
+
+    # ------------------------------------------------------------------- loop
+    def _control(self) -> None:
+        """One control period of the followed path (every 1 / controller_frequency of sim time)."""
+        following = self._active
+        if following is None:
+            self.timer.cancel()
+            return
+        try:
+            outcome = self._step(following)
+        except Exception as exc:  # a bug must end the goal, not the server
+            outcome = (Result.UNKNOWN, f"{type(exc).__name__}: {exc}")
+        if outcome is not None:
+            self._end(following, *outcome)
+
+    def _step(self, following: _Following) -> tuple[int, str] | None:
+        """The command of this period, or how the goal ends (code, message)."""
+        if following.handle.is_cancel_requested:
+            return Result.UNKNOWN, "canceled"
+        now = self._now_s()
         tf = self.costmap_node.tf
         local_frame = self.costmap_node.params.global_frame
         base = self.costmap_node.params.robot_base_frame
-        tick = self._now_s()
-        while True:
-            if not rclpy.ok():  # shutting down: the goal must not keep its thread (and the process) alive
-                return Result.UNKNOWN, "the controller is shutting down"
-            if goal_handle.is_cancel_requested:
-                return Result.UNKNOWN, "canceled"
-            if self._active is not goal_handle:
-                return Result.UNKNOWN, "preempted by a new path"
-            now = self._now_s()
-            try:
-                in_path_frame = tf.lookup(path_frame, base)
-                to_local = tf.lookup(local_frame, path_frame)
-            except TransformError as exc:
-                if failing_since is None:
-                    failing_since = now
-                if now - failing_since > max(self.params.failure_tolerance, 1.0):
-                    return Result.TF_ERROR, f"no transform for the path: {exc}"
-                self.stop()
-                tick += period
-                self._sleep_until(tick)
-                continue
-            if self.goal_checker.is_goal_reached(in_path_frame, goal):
-                return Result.NONE, ""
-            if not self.progress_checker.check(in_path_frame[:2], now):
-                return Result.FAILED_TO_MAKE_PROGRESS, (
-                    f"the robot moved less than {self.params.required_movement_radius} m in "
-                    f"{self.params.movement_time_allowance} s")
-            # The path stays in its frame (its progress with it); the costmap is looked up in odom.
-            pose_in_costmap = compose(to_local, in_path_frame)
-            try:
-                with self._lock:
-                    if self._active is not goal_handle:
-                        return Result.UNKNOWN, "preempted by a new path"
-                    command = self.controller.compute(in_path_frame, self._speed, path3, self.costmap_node.costmap,
-                                                      period, costmap_pose=pose_in_costmap)
-                failing_since = None
-            except (CollisionAhead, ControllerError) as exc:
-                if failing_since is None:
-                    failing_since = now
-                self.stop()
-                if now - failing_since > self.params.failure_tolerance:
-                    return Result.NO_VALID_CONTROL, str(exc)
-                self._warn("control", f"no command this period: {exc}")
-            else:
-                twist = Twist()
-                twist.linear.x, twist.angular.z = command.linear_mps, command.angular_radps
-                self.cmd_pub.publish(twist)
-                self.local_plan_pub.publish(path_message(command.local_plan, 0.0, path_frame,
-                                                         self.get_clock().now().to_msg()))
-                feedback = FollowPath.Feedback()
-                feedback.distance_to_goal = float(math.hypot(goal[0] - in_path_frame[0], goal[1] - in_path_frame[1]))
-                feedback.speed = float(abs(self._speed[0]))
-                goal_handle.publish_feedback(feedback)
-            tick += period
-            if tick < now:
-                tick = now
-            self._sleep_until(tick)
+        try:
+            in_path_frame = tf.lookup(following.path_frame, base)
+            to_local = tf.lookup(local_frame, following.path_frame)
+        except TransformError as exc:
+            if following.failing_since is None:
+                following.failing_since = now
+            if now - following.failing_since > max(self.params.failure_tolerance, 1.0):
+                return Result.TF_ERROR, f"no transform for the path: {exc}"
+            self.stop()
+            return None
+        if self.goal_checker.is_goal_reached(in_path_frame, following.goal):
+            return Result.NONE, ""
+        if not self.progress_checker.check(in_path_frame[:2], now):
+            return Result.FAILED_TO_MAKE_PROGRESS, (
+                f"the robot moved less than {self.params.required_movement_radius} m in "
+                f"{self.params.movement_time_allowance} s")
+        # The path stays in its frame (its progress with it); the costmap is looked up in odom.
+        pose_in_costmap = compose(to_local, in_path_frame)
+        period = 1.0 / self.params.controller_frequency
+        try:
+            command = self.controller.compute(in_path_frame, self._speed, following.path3, self.costmap_node.costmap,
+                                              period, costmap_pose=pose_in_costmap)
+            following.failing_since = None
+        except (CollisionAhead, ControllerError) as exc:
+            if following.failing_since is None:
+                following.failing_since = now
+            self.stop()
+            if now - following.failing_since > self.params.failure_tolerance:
+                return Result.NO_VALID_CONTROL, str(exc)
+            self._warn("control", f"no command this period: {exc}")
+            return None
+        twist = Twist()
+        twist.linear.x, twist.angular.z = command.linear_mps, command.angular_radps
+        self.cmd_pub.publish(twist)
+        if self.local_plan_pub.get_subscription_count():
+            self.local_plan_pub.publish(path_message(command.local_plan, 0.0, following.path_frame,
+                                                     self.get_clock().now().to_msg()))
+        feedback = FollowPath.Feedback()
+        feedback.distance_to_goal = float(math.hypot(following.goal[0] - in_path_frame[0],
+                                                     following.goal[1] - in_path_frame[1]))
+        feedback.speed = float(abs(self._speed[0]))
+        following.handle.publish_feedback(feedback)
+        return None
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run_node(lambda: ControllerServer(), "controller_server", args,
-                      spin=lambda node: spin_together(node, node.costmap_node, threads=3)))
+    sys.exit(run_nodes([ControllerServer], "controller_server", args))

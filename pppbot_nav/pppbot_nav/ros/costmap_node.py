@@ -27,6 +27,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 
 from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.ros.lockstep import at_step, create_timer, require, require_match
 from pppbot_common.ros.maps import grid_from_message, grid_message
 from pppbot_common.ros.node_main import Warnings, guarded
 from pppbot_common.ros.params import declare_parameters
@@ -132,14 +133,16 @@ class CostmapNode(Node):
                                           default_value=NO_INFORMATION if p.track_unknown_space else 0)
         self.costmap: Costmap | None = None  # the last update, a copy owned by its readers
         self.pub = self.create_publisher(OccupancyGridMsg, "costmap", LATCHED)
+        self._map_arrived = require(self, f"a map on '{p.map_topic}'") if self.static is not None else None
         if self.static is not None:
             self.create_subscription(OccupancyGridMsg, p.map_topic, guarded(self, self._on_map, "OccupancyGrid"),
                                      LATCHED)
         if self.obstacles:
-            self.create_subscription(LaserScan, p.scan_topic, guarded(self, self._on_scan, "LaserScan"), SENSOR)
+            require_match(self, self.create_subscription(LaserScan, p.scan_topic,
+                                                         guarded(self, at_step(self, self._on_scan), "LaserScan"), SENSOR))
         self.create_service(ClearEntireCostmap, f"clear_entirely_{name}", self._clear)
-        self.create_timer(1.0 / p.update_frequency, self.update)
-        self.create_timer(1.0 / p.publish_frequency, self.publish)
+        create_timer(self, 1.0 / p.update_frequency, self.update)
+        create_timer(self, 1.0 / p.publish_frequency, self.publish)
         self.get_logger().info(f"{name}: {', '.join(p.plugins)} in '{p.global_frame}'"
                                + (f", rolling {p.width} × {p.height} m" if p.rolling_window else ""))
 
@@ -155,6 +158,9 @@ class CostmapNode(Node):
                                         (grid.origin[0], grid.origin[1]), NO_INFORMATION, self.params.global_frame)
                 self.layered = LayeredCostmap(master, self.layers)
         self.update()
+        if self._map_arrived is not None:
+            self._map_arrived()
+            self._map_arrived = None
 
     def robot_pose(self) -> tuple[float, float, float] | None:
         """The robot's newest (x, y, yaw) in the costmap's frame, or None without TF."""

@@ -22,21 +22,16 @@ from __future__ import annotations
 
 import math
 import sys
-import threading
-import time
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import PoseStamped, Twist
 from nav2_msgs.action import ComputePathToPose, FollowPath, NavigateToPose
 from nav2_msgs.srv import ClearEntireCostmap
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Path
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
-from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.task import Future
@@ -44,8 +39,9 @@ from rclpy.task import Future
 from pppbot_common.params import check_finite_range, param
 from pppbot_common.ros.action_client import ActionClient
 from pppbot_common.ros.maps import grid_from_message
-from pppbot_common.ros.node_main import Warnings, guarded, run_node, spin_together
-from pppbot_common.ros.wait import sleep_until_clock, wait_for_future
+from pppbot_common.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stopped
+from pppbot_common.ros.lockstep import Participant, create_timer, require_match
+from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.tf_listener import TfListener
@@ -87,10 +83,6 @@ class Failed(Exception):
         self.code = code
 
 
-class Stopped(Exception):
-    """The goal was canceled or preempted."""
-
-
 def path_length_from(path: np.ndarray, xy: tuple[float, float]) -> float:
     """Length (m) along ``path`` (K, 2) from its point closest to ``xy`` to its end."""
     if len(path) == 0:
@@ -100,31 +92,36 @@ def path_length_from(path: np.ndarray, xy: tuple[float, float]) -> float:
     return float(math.hypot(rest[0, 0] - xy[0], rest[0, 1] - xy[1]) + np.hypot(*np.diff(rest, axis=0).T).sum())
 
 
+#: The navigator's loop period (sim s): feedback, goal checks, recovery commands.
+TICK_S = 0.05
+
+
 class Navigator(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("navigator", **kwargs)
         self.params = declare_parameters(self, NavigatorParameters)
         self._warn = Warnings(self)
         self.tf = TfListener(self, self._warn).buffer
-        group = ReentrantCallbackGroup()
-        self.planner = ActionClient(self, ComputePathToPose, "compute_path_to_pose", callback_group=group)
-        self.controller = ActionClient(self, FollowPath, "follow_path", callback_group=group)
-        self.clear_global = self.create_client(ClearEntireCostmap, "global_costmap/clear_entirely_global_costmap",
-                                               callback_group=group)
-        self.clear_local = self.create_client(ClearEntireCostmap, "local_costmap/clear_entirely_local_costmap",
-                                              callback_group=group)
+        self.planner = ActionClient(self, ComputePathToPose, "compute_path_to_pose")
+        self.controller = ActionClient(self, FollowPath, "follow_path")
+        self.clear_global = self.create_client(ClearEntireCostmap, "global_costmap/clear_entirely_global_costmap")
+        self.clear_local = self.create_client(ClearEntireCostmap, "local_costmap/clear_entirely_local_costmap")
         self.cmd_pub = self.create_publisher(Twist, "cmd_vel", 1)
+        require_match(self, self.cmd_pub)
+        participant = Participant.current()
+        if participant is not None:
+            participant.require_when("the compute_path_to_pose server", self.planner.server_is_ready)
+            participant.require_when("the follow_path server", self.controller.server_is_ready)
         self._local_costmap: OccupancyGridMsg | None = None
         self.create_subscription(OccupancyGridMsg, "local_costmap/costmap",
-                                 guarded(self, self._on_local_costmap, "OccupancyGrid"), LATCHED, callback_group=group)
-        self._lock = threading.Lock()
-        self._active: ServerGoalHandle | None = None
-        self._self_client = ActionClient(self, NavigateToPose, "navigate_to_pose", callback_group=group)
-        self.server = ActionServer(self, NavigateToPose, "navigate_to_pose", self._execute, callback_group=group,
-                                   goal_callback=lambda goal: GoalResponse.ACCEPT,
-                                   cancel_callback=lambda goal: CancelResponse.ACCEPT)
-        self.create_subscription(PoseStamped, "goal_pose", guarded(self, self._on_goal_pose, "PoseStamped"), 10,
-                                 callback_group=group)
+                                 guarded(self, self._on_local_costmap, "OccupancyGrid"), LATCHED)
+        self._active: tuple[ServerGoalHandle, Flow[None], _Progress] | None = None
+        self._self_client = ActionClient(self, NavigateToPose, "navigate_to_pose")
+        self.server = GoalServer(self, NavigateToPose, "navigate_to_pose", self._on_goal)
+        self.create_subscription(PoseStamped, "goal_pose", guarded(self, self._on_goal_pose, "PoseStamped"), 10)
+        # Ticks while a goal runs (an idle navigator makes no sync times in lockstep).
+        self.timer = create_timer(self, TICK_S, self._tick)
+        self.timer.cancel()
         self.get_logger().info("navigator ready: navigate_to_pose and goal_pose")
 
     def destroy_node(self) -> None:
@@ -143,6 +140,34 @@ class Navigator(Node):
                                f"in '{msg.header.frame_id}'")
         self._self_client.send_goal_async(goal)
 
+    def _on_goal(self, handle: ServerGoalHandle) -> None:
+        """A new goal preempts the running one (which aborts) and starts its flow."""
+        previous = self._active
+        request: PoseStamped = handle.request.pose
+        if not request.header.frame_id:
+            request.header.frame_id = self.params.global_frame
+        state = _Progress(self._now_s())
+        p = request.pose.position
+        self.get_logger().info(f"navigating to ({p.x:.2f}, {p.y:.2f}) in '{request.header.frame_id}'")
+        flow: Flow[None] = Flow(self._navigate(handle, request, state), self._now_s,
+                                lambda value, error: self._ended(handle, state, error),
+                                check=lambda: self._check(handle))
+        self._active = (handle, flow, state)
+        if previous is not None:
+            previous[1].tick()  # it sees the preemption now and ends
+        else:
+            self.timer.reset()
+        flow.start()
+
+    def _tick(self) -> None:
+        if self._active is None:
+            self.timer.cancel()
+            return
+        handle, flow, state = self._active
+        flow.tick()
+        if not flow.ended and state.path is not None:
+            self._feedback(handle, state)
+
     # ---------------------------------------------------------------- helpers
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -150,86 +175,63 @@ class Navigator(Node):
     def _pose(self, frame: str) -> tuple[float, float, float]:
         return self.tf.lookup(frame, self.params.robot_base_frame)
 
-    def _check(self, goal_handle: ServerGoalHandle) -> None:
-        if not rclpy.ok():  # shutting down: a waiting goal must not keep its thread (and the process) alive
-            raise Stopped("the navigator is shutting down")
-        if goal_handle.is_cancel_requested:
+    def _check(self, handle: ServerGoalHandle) -> None:
+        if handle.is_cancel_requested:
             raise Stopped("canceled")
-        if self._active is not goal_handle:
+        if self._active is None or self._active[0] is not handle:
             raise Stopped("preempted by a new goal")
-
-    def _wait(self, future: Future, goal_handle: ServerGoalHandle, timeout_s: float | None = None) -> Any:
-        """The future's result; the goal is checked (canceled, preempted) while waiting.
-
-        Raises:
-            Stopped: see :meth:`_check`. Failed: no answer within ``timeout_s`` wall seconds.
-        """
-        if not wait_for_future(future, math.inf if timeout_s is None else timeout_s, lambda: self._check(goal_handle)):
-            raise Failed(0, "a server did not answer in time")
-        return future.result()
-
-    def _sleep(self, seconds: float, goal_handle: ServerGoalHandle, step: Callable[[], None] | None = None) -> None:
-        """Wait ``seconds`` of sim time, calling ``step`` every 50 ms of it."""
-        end = self._now_s() + seconds
-        while self._now_s() < end:
-            self._check(goal_handle)
-            if step is not None:
-                step()
-            sleep_until_clock(self, min(self._now_s() + 0.05, end), timeout_s=1.0)
 
     def stop(self) -> None:
         self.cmd_pub.publish(Twist())
 
-    # ------------------------------------------------------------ navigation
-    def _execute(self, goal_handle: ServerGoalHandle) -> NavigateToPose.Result:
-        with self._lock:
-            self._active = goal_handle
+    def _ended(self, handle: ServerGoalHandle, state: _Progress, error: BaseException | None) -> None:
+        """The goal's flow ended: success, a stop (cancel or preemption) or a failure."""
+        if self._active is not None and self._active[0] is handle:
+            self._active = None
         result = NavigateToPose.Result()
-        request: PoseStamped = goal_handle.request.pose
-        if not request.header.frame_id:
-            request.header.frame_id = self.params.global_frame
-        state = _Progress(self._now_s())
-        p = request.pose.position
-        self.get_logger().info(f"navigating to ({p.x:.2f}, {p.y:.2f}) in '{request.header.frame_id}'")
-        try:
-            self._navigate(goal_handle, request, state)
-            goal_handle.succeed()
+        if error is None:
             self.get_logger().info(f"goal reached in {self._now_s() - state.start_s:.1f} s "
                                    f"({state.recoveries} recoveries)")
-        except Stopped as exc:
-            self._cancel_follow(state)
-            if goal_handle.is_cancel_requested:
+            self.server.finish(handle, GoalEnd.SUCCEEDED, result)
+            return
+        self._cancel_follow(state)
+        if isinstance(error, Stopped):
+            result.error_msg = str(error)
+            if handle.is_cancel_requested:
                 self.stop()
-                goal_handle.canceled()
-            else:
-                goal_handle.abort()
-            result.error_msg = str(exc)
-        except Failed as exc:
-            self._cancel_follow(state)
-            self.stop()
-            result.error_code, result.error_msg = exc.code, str(exc)
-            self.get_logger().warning(f"navigation failed: {exc}")
-            goal_handle.abort()
-        with self._lock:
-            if self._active is goal_handle:
-                self._active = None
-        return result
+            self.server.finish(handle, GoalEnd.CANCELED if handle.is_cancel_requested else GoalEnd.ABORTED, result)
+            return
+        self.stop()
+        if isinstance(error, Failed):
+            result.error_code, result.error_msg = error.code, str(error)
+        else:
+            result.error_code, result.error_msg = 0, f"{type(error).__name__}: {error}"
+        self.get_logger().warning(f"navigation failed: {result.error_msg}")
+        self.server.finish(handle, GoalEnd.ABORTED, result)
 
     def _cancel_follow(self, state: _Progress) -> None:
         if state.follow is not None:
             state.follow.cancel_goal_async()
             state.follow = None
+            state.follow_result = None
 
-    def _navigate(self, goal_handle: ServerGoalHandle, request: PoseStamped, state: _Progress) -> None:
+    def _sleep(self, seconds: float) -> Sleep:
+        return Sleep(self._now_s() + seconds)
+
+    # ------------------------------------------------------------ navigation
+    def _navigate(self, handle: ServerGoalHandle, request: PoseStamped, state: _Progress) -> Step[None]:
         p = self.params
+        deadline = self._now_s() + p.server_timeout
         for client, name in ((self.planner, "compute_path_to_pose"), (self.controller, "follow_path")):
-            if not client.wait_for_server(timeout_sec=p.server_timeout):
-                raise Failed(0, f"the {name} server is not available")
-        self._wait_for_pose(goal_handle)
+            while not client.server_is_ready():
+                if self._now_s() > deadline:
+                    raise Failed(0, f"the {name} server is not available")
+                yield self._sleep(TICK_S)
+        yield from self._wait_for_pose()
         robin = RecoveryRoundRobin()
         while True:
             try:
-                self._plan_and_follow(goal_handle, request, state)
+                yield from self._plan_and_follow(request, state)
                 return
             except Failed as exc:
                 if state.recoveries >= p.number_of_retries:
@@ -240,63 +242,63 @@ class Navigator(Node):
                 state.recoveries += 1
                 self.get_logger().info(f"recovery {state.recoveries}/{p.number_of_retries}: {recovery.value} "
                                        f"(after: {exc})")
-                self._recover(recovery, goal_handle)
+                yield from self._recover(recovery)
 
-    def _wait_for_pose(self, goal_handle: ServerGoalHandle) -> None:
-        """As bt_navigator does before it navigates: wait (up to ``server_timeout`` wall seconds) for
-        the robot's pose in the global frame, which a just-started stack may not have yet."""
-        deadline = time.monotonic() + self.params.server_timeout
+    def _wait_for_pose(self) -> Step[None]:
+        """As bt_navigator does before it navigates: wait (up to ``server_timeout``) for the robot's pose
+        in the global frame, which a just-started stack may not have yet."""
+        deadline = self._now_s() + self.params.server_timeout
         while True:
             try:
                 self._pose(self.params.global_frame)
                 return
             except TransformError as exc:
-                if time.monotonic() > deadline:
+                if self._now_s() > deadline:
                     raise Failed(ComputePathToPose.Result.TF_ERROR, f"no robot pose: {exc}") from exc
-            self._sleep(0.1, goal_handle)
+            yield self._sleep(0.1)
 
-    def _plan(self, goal_handle: ServerGoalHandle, request: PoseStamped) -> Path:
+    def _plan(self, request: PoseStamped) -> Step[Path]:
         """A path from the planner. A planner that is not ready yet (no robot pose, no map: TF_ERROR
         or UNKNOWN, as a just-started stack's may be) is asked again every half second for up to
         ``server_timeout`` s; any other failure once more after clearing the global costmap.
 
         Raises:
-            Failed: with the planner's error code. Stopped: see :meth:`_check`.
+            Failed: with the planner's error code.
         """
         goal = ComputePathToPose.Goal()
         goal.goal = request
         not_ready = (ComputePathToPose.Result.TF_ERROR, ComputePathToPose.Result.UNKNOWN)
-        deadline = time.monotonic() + self.params.server_timeout
+        deadline = self._now_s() + self.params.server_timeout
         cleared = False
         while True:
-            handle = self._wait(self.planner.send_goal_async(goal), goal_handle, self.params.server_timeout)
-            response = self._wait(handle.get_result_async(), goal_handle)
+            handle = yield self.planner.send_goal_async(goal)
+            if handle is None or not handle.accepted:
+                raise Failed(ComputePathToPose.Result.UNKNOWN, "the planner refused the goal")
+            response = yield handle.get_result_async()
             res = response.result
             if res.error_code == ComputePathToPose.Result.NONE and res.path.poses:
                 return res.path
-            if res.error_code in not_ready and time.monotonic() < deadline:
-                self._sleep(0.5, goal_handle)
+            if res.error_code in not_ready and self._now_s() < deadline:
+                yield self._sleep(0.5)
             elif not cleared:
-                self._clear(self.clear_global, goal_handle)
+                yield from self._clear(self.clear_global)
                 cleared = True
             else:
                 raise Failed(res.error_code, f"planning: {res.error_msg}")
 
-    def _plan_and_follow(self, goal_handle: ServerGoalHandle, request: PoseStamped, state: _Progress) -> None:
+    def _plan_and_follow(self, request: PoseStamped, state: _Progress) -> Step[None]:
         follow_failures = 0
         next_plan = -math.inf
         while True:
-            self._check(goal_handle)
             now = self._now_s()
             if now >= next_plan:
                 next_plan = now + 1.0 / self.params.replanning_frequency
-                path = self._plan(goal_handle, request)
+                path = yield from self._plan(request)
                 state.path = np.array([[ps.pose.position.x, ps.pose.position.y] for ps in path.poses])
                 follow = FollowPath.Goal()
                 follow.path = path
-                handle = self._wait(self.controller.send_goal_async(follow, feedback_callback=state.on_feedback),
-                                    goal_handle, self.params.server_timeout)
-                if not handle.accepted:
+                handle = yield self.controller.send_goal_async(follow, feedback_callback=state.on_feedback)
+                if handle is None or not handle.accepted:
                     raise Failed(FollowPath.Result.UNKNOWN, "the controller refused the path")
                 state.follow, state.follow_result = handle, handle.get_result_async()
             if state.follow_result is not None and state.follow_result.done():
@@ -307,12 +309,13 @@ class Navigator(Node):
                 follow_failures += 1
                 if follow_failures > 1:
                     raise Failed(res.error_code, f"following: {res.error_msg}")
-                self._clear(self.clear_local, goal_handle)
+                yield from self._clear(self.clear_local)
                 next_plan = -math.inf
-            self._feedback(goal_handle, state)
-            self._sleep(0.05, goal_handle)
+                continue
+            # Until the follow ends or the next plan is due, whichever comes first.
+            yield Sleep(next_plan, wake=state.follow_result)
 
-    def _feedback(self, goal_handle: ServerGoalHandle, state: _Progress) -> None:
+    def _feedback(self, handle: ServerGoalHandle, state: _Progress) -> None:
         try:
             x, y, yaw = self._pose(self.params.global_frame)
         except TransformError as exc:
@@ -330,20 +333,20 @@ class Navigator(Node):
         fb.distance_remaining = float(remaining)
         speed = state.speed if state.speed > 0.05 else 0.0
         fb.estimated_time_remaining = Duration(seconds=remaining / speed if speed else 0.0).to_msg()
-        goal_handle.publish_feedback(fb)
+        handle.publish_feedback(fb)
 
-    def _clear(self, client: Any, goal_handle: ServerGoalHandle) -> None:
+    def _clear(self, client: Any) -> Step[None]:
         if not client.service_is_ready():
             self._warn("clear", f"{client.srv_name} is not available: not cleared")
             return
-        self._wait(client.call_async(ClearEntireCostmap.Request()), goal_handle, self.params.server_timeout)
+        yield client.call_async(ClearEntireCostmap.Request())
 
     # ------------------------------------------------------------ recoveries
-    def _recover(self, recovery: Recovery, goal_handle: ServerGoalHandle) -> None:
+    def _recover(self, recovery: Recovery) -> Step[None]:
         p = self.params
         if recovery is Recovery.CLEAR_COSTMAPS:
-            self._clear(self.clear_local, goal_handle)
-            self._clear(self.clear_global, goal_handle)
+            yield from self._clear(self.clear_local)
+            yield from self._clear(self.clear_global)
             return
         behavior: Spin | BackUp | Wait
         if recovery is Recovery.SPIN:
@@ -352,39 +355,29 @@ class Navigator(Node):
             behavior = BackUp(backup_dist_m=p.backup_dist, backup_speed=p.backup_speed)
         else:
             behavior = Wait(wait_duration_s=p.wait_duration)
+        odom_frame = self._local_costmap.header.frame_id if self._local_costmap is not None else "odom"
         try:
-            odom_frame = self._local_costmap.header.frame_id if self._local_costmap is not None else "odom"
             behavior.start(self._pose(odom_frame), self._now_s())
         except TransformError as exc:
             self._warn("behavior", f"{recovery.value} skipped: {exc}")
             return
-        done = threading.Event()
-
-        def step() -> None:
-            if done.is_set():
-                return
-            try:
-                pose = self._pose(odom_frame)
-            except TransformError:
-                return
-            command = behavior.step(pose, self._now_s())
-            if command is None or (command[0] < 0 and self._blocked_behind(pose)):
-                self.stop()
-                done.set()
-                return
-            twist = Twist()
-            twist.linear.x, twist.angular.z = command
-            self.cmd_pub.publish(twist)
-
-        timeout = {Recovery.SPIN: 12.0, Recovery.BACKUP: 12.0}.get(recovery, p.wait_duration + 1.0)
-        self._run_until(done, timeout, goal_handle, step)
-        self.stop()
-
-    def _run_until(self, done: threading.Event, timeout_s: float, goal_handle: ServerGoalHandle,
-                   step: Callable[[], None]) -> None:
-        end = self._now_s() + timeout_s
-        while not done.is_set() and self._now_s() < end:
-            self._sleep(0.05, goal_handle, step)
+        end = self._now_s() + {Recovery.SPIN: 12.0, Recovery.BACKUP: 12.0}.get(recovery, p.wait_duration + 1.0)
+        try:
+            while self._now_s() < end:
+                try:
+                    pose = self._pose(odom_frame)
+                except TransformError:
+                    yield self._sleep(TICK_S)
+                    continue
+                command = behavior.step(pose, self._now_s())
+                if command is None or (command[0] < 0 and self._blocked_behind(pose)):
+                    return
+                twist = Twist()
+                twist.linear.x, twist.angular.z = command
+                self.cmd_pub.publish(twist)
+                yield self._sleep(TICK_S)
+        finally:
+            self.stop()
 
     def _blocked_behind(self, pose: tuple[float, float, float]) -> bool:
         """Whether the local costmap is inscribed or lethal just behind the robot (odom frame)."""
@@ -417,4 +410,4 @@ class _Progress:
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run_node(lambda: Navigator(), "navigator", args, spin=lambda node: spin_together(node, threads=4)))
+    sys.exit(run_nodes([Navigator], "navigator", args))

@@ -26,7 +26,7 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 
 from pppbot_common.params import ParameterError, param
-from pppbot_common.ros.node_main import run_node, spin_together
+from pppbot_common.ros.node_main import run_nodes
 from pppbot_common.ros.params import declare_parameters
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
 from pppbot_common.transforms import TransformError, compose
@@ -103,6 +103,7 @@ class PlannerServer(Node):
         super().__init__("planner_server", **kwargs)
         self.params = declare_parameters(self, PlannerServerParameters)
         self.costmap_node = CostmapNode("global_costmap")
+        self.composed_nodes = [self.costmap_node]
         self.planner = GridPlanner(self.params.settings())
         self.plan_pub = self.create_publisher(Path, "plan", 1)
         self.server = ActionServer(self, ComputePathToPose, "compute_path_to_pose", self._execute)
@@ -172,5 +173,4 @@ class PlannerServer(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run_node(lambda: PlannerServer(), "planner_server", args,
-                      spin=lambda node: spin_together(node, node.costmap_node)))
+    sys.exit(run_nodes([PlannerServer], "planner_server", args))

@@ -2,11 +2,17 @@
 
 Publishes ``/clock``, ``/scan``, ``/imu``, ``/joint_states``, ``/ground_truth/odom`` and
 ``/ground_truth/collisions`` (a PointStamped in ``world`` where each contact episode
-between the robot and anything but the ground began);
-takes wheel velocity commands on ``/joint_commands`` (JointState, by name);
-services ``pause_physics``, ``unpause_physics``, ``reset_world`` (std_srvs/Empty)
-and ``step_physics`` (std_srvs/Trigger, ``step_count`` steps while paused).
-The node is the clock: it never uses sim time itself, it makes it.
+between the robot and anything but the ground began); takes wheel velocity commands on
+``/joint_commands`` (JointState, by name) from a controller outside; services
+``pause_physics``, ``unpause_physics``, ``reset_world`` (std_srvs/Empty) and
+``step_physics`` (std_srvs/Trigger, ``step_count`` steps while paused). The node is the
+clock: it never uses sim time itself, it makes it.
+
+Controllers named by the robot's gz_ros2_control plugin run in this process, ticked by
+the physics loop (:mod:`pppbot_sim.ros.hosted`). With ``lockstep:=true`` time advances
+only when the lockstep participants have done their work (:mod:`pppbot_sim.ros.coordinator`);
+``real_time_factor`` then caps the speed (0: as fast as they allow). Without lockstep it
+runs against the wall clock at ``real_time_factor``.
 """
 from __future__ import annotations
 
@@ -16,9 +22,8 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
-import rclpy
 from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
@@ -27,26 +32,32 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, LaserScan
 from std_srvs.srv import Empty, Trigger
 
+from pppbot_common.lockstep import LockstepError
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.node_main import Warnings, guarded, run_node
+from pppbot_common.ros.node_main import Process, Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters, on_valid_update
+from pppbot_control.ros.diff_drive_controller import DiffDriveController
 from pppbot_description.errors import DescriptionError
 from pppbot_description.urdf_model import parse_urdf
 from pppbot_description.xacro_model import read_robot_description
 from pppbot_sim.errors import SpawnError, WorldError
 from pppbot_sim.mj_build import SpawnPose
-from pppbot_sim.sdf_world import World
-from pppbot_sim.runner import PhysicsRunner, Reading
-from pppbot_sim.simulation import (
-    Collision,
-    GroundTruth,
-    ImuSample,
-    LidarScan,
-    Simulation,
-    WheelState,
-    load_world,
-    unsimulated_summary,
+from pppbot_sim.ros.coordinator import Coordinator
+from pppbot_sim.ros.hosted import SimWheels, controller_arguments, controllers_file, drive_clock, read_plan
+from pppbot_sim.runner import (
+    ClockTick,
+    CollisionReading,
+    ControlTick,
+    GroundTruthReading,
+    ImuReadingAt,
+    JointStatesReading,
+    LidarReading,
+    Pacer,
+    PhysicsRunner,
+    Reading,
 )
+from pppbot_sim.sdf_world import World
+from pppbot_sim.simulation import Collision, Event, EventKind, Simulation, load_world, unsimulated_summary
 from pppbot_sim.wheel_slip import MAX_SLIP_STDDEV, SlipModel
 from pppbot_sim.worlds import find_world, model_paths
 
@@ -66,7 +77,11 @@ class SimulatorParameters:
     y: float = param(0.0, "spawn y (m)")
     z: float = param(0.05, "spawn z of the robot's root link (m); ppp_bot rests at 0.05")
     yaw: float = param(0.0, "spawn yaw (rad)")
-    real_time_factor: float = param(1.0, "simulated seconds per wall second; 0 = as fast as possible")
+    real_time_factor: float = param(1.0, "simulated seconds per wall second; 0 = as fast as possible "
+                                         "(with lockstep: as fast as the participants allow)")
+    lockstep: bool = param(False, "advance time only when the lockstep participants have done their work")
+    lockstep_participants: list = param([""], "lockstep participants that must join before time starts")
+    lockstep_timeout: float = param(30.0, "wall seconds a lockstep participant may take to answer a step")
     seed: int = param(0, "seed of the sensor-noise and wheel-slip generators")
     wheel_slip: float = param(0.0, "standard deviation of each wheel's slip fraction as its encoder reports it "
                                    "(0.02 = 2 %); makes odometry drift; 0 = exact encoders")
@@ -74,7 +89,7 @@ class SimulatorParameters:
     command_timeout: float = param(0.5, "wheels stop when no command came for this long (sim s); 0 = never")
     joint_states_rate: float = param(100.0, "/joint_states rate (Hz, sim time)")
     ground_truth_rate: float = param(50.0, "/ground_truth/odom rate (Hz, sim time)")
-    clock_rate: float = param(100.0, "/clock rate (Hz, sim time)")
+    clock_rate: float = param(100.0, "/clock rate (Hz, sim time); with lockstep /clock comes with each step")
     step_count: int = param(1, "physics steps per step_physics call")
     paused: bool = param(False, "start paused")
     viewer: bool = param(False, "open MuJoCo's viewer window (needs a display)")
@@ -84,6 +99,7 @@ class SimulatorParameters:
             check_finite_range(name, getattr(self, name))
         check_finite_range("real_time_factor", self.real_time_factor, 0.0, 1000.0)
         check_finite_range("command_timeout", self.command_timeout, 0.0, 3600.0)
+        check_finite_range("lockstep_timeout", self.lockstep_timeout, 0.0, 86400.0, low_open=True)
         check_finite_range("wheel_slip", self.wheel_slip, 0.0, MAX_SLIP_STDDEV)
         check_finite_range("wheel_slip_correlation", self.wheel_slip_correlation, 0.0, 3600.0, low_open=True)
         for name in ("joint_states_rate", "ground_truth_rate", "clock_rate"):
@@ -92,6 +108,11 @@ class SimulatorParameters:
             raise ParameterError("step_count", self.step_count, "must be in [1, 1000000]")
         if not self.robot_name or "/" in self.robot_name:
             raise ParameterError("robot_name", self.robot_name, "must be a non-empty name without '/'")
+        if not all(isinstance(n, str) for n in self.lockstep_participants):
+            raise ParameterError("lockstep_participants", self.lockstep_participants, "must be a list of names")
+
+    def expected_participants(self) -> list[str]:
+        return [n for n in self.lockstep_participants if n]
 
 
 def set_stamp(target: TimeMsg, seconds: float) -> None:
@@ -126,29 +147,65 @@ class Simulator(Node):
         self.create_service(Empty, "reset_world", self._reset)
         self.create_service(Trigger, "step_physics", self._step)
         schedule = self.sim.schedule
-        schedule.add("clock", p.clock_rate)
-        schedule.add("joint_states", p.joint_states_rate)
-        schedule.add("ground_truth", p.ground_truth_rate)
+        if not p.lockstep:
+            schedule.add(Event(EventKind.CLOCK), p.clock_rate)
+        schedule.add(Event(EventKind.JOINT_STATES), p.joint_states_rate)
+        schedule.add(Event(EventKind.GROUND_TRUTH), p.ground_truth_rate)
         self._init_messages()
         self.viewer = self._open_viewer() if p.viewer else None
         self._viewer_synced = 0.0
         self.published_s = 0.0
+        self._clock_ns = -1  # the time of the last /clock
+        self._scans_since_sync = False
         self._warn = Warnings(self, WARN_PERIOD_S)
-        self.runner = PhysicsRunner(self.sim, p.real_time_factor, p.command_timeout, p.paused,
+        self.runner = PhysicsRunner(self.sim, p.command_timeout, p.paused,
                                     log=lambda text: self.get_logger().error(text))
+        self.pacer = Pacer(p.real_time_factor)
+        self.coordinator = (Coordinator(self, p.expected_participants(), p.lockstep_timeout,
+                                        lambda text: self.get_logger().info(text)) if p.lockstep else None)
+        self.controllers = self._host_controllers(robot)
+        self.composed_nodes = list(self.controllers)
         on_valid_update(self, lambda: self.params, self._apply)
+
+    def _host_controllers(self, robot: Any) -> list[DiffDriveController]:
+        """The controllers of the robot's gz_ros2_control plugin, in this process (see :mod:`.hosted`)."""
+        path = controllers_file(robot)
+        if path is None:
+            return []
+        plan = read_plan(path)
+        for name, kind in plan.unsupported:
+            self.get_logger().warning(f"controller '{name}' of type {kind} (in {path}) is not supported: left out")
+        wheels = SimWheels(self.runner)
+        controllers = [DiffDriveController(hosted=wheels, cli_args=controller_arguments(plan))
+                       if name == "diff_drive_base_controller" else
+                       DiffDriveController(hosted=wheels, cli_args=[*controller_arguments(plan), "-r",
+                                                                    f"__node:={name}"])
+                       for name in plan.diff_drives]
+        if controllers:
+            self.sim.schedule.add(Event(EventKind.CONTROL), plan.update_rate_hz)
+            names = ", ".join(c.get_name() for c in controllers)
+            self.get_logger().info(f"controllers from {path} in this process at {plan.update_rate_hz:g} Hz: {names}")
+        return controllers
+
+    def destroy_node(self) -> None:
+        for controller in self.controllers:
+            controller.destroy_node()
+        super().destroy_node()
 
     def _apply(self, params: SimulatorParameters) -> None:
         """Runtime updates: real_time_factor, command_timeout, step_count take effect now."""
         fixed = ("world", "robot_description", "robot_name", "x", "y", "z", "yaw", "seed",
-                 "wheel_slip", "wheel_slip_correlation",
+                 "wheel_slip", "wheel_slip_correlation", "lockstep", "lockstep_participants",
                  "joint_states_rate", "ground_truth_rate", "clock_rate")
         changed = [n for n in fixed if getattr(params, n) != getattr(self.params, n)]
         if changed:
             self.get_logger().warning(f"{', '.join(changed)} apply at the next start of the simulator")
         self.params = params
-        self.runner.real_time_factor = params.real_time_factor
+        self.pacer.real_time_factor = params.real_time_factor
+        self.pacer.restart()
         self.runner.command_timeout_s = params.command_timeout
+        if self.coordinator is not None:
+            self.coordinator.timeout_s = params.lockstep_timeout
 
     def _open_viewer(self) -> Any:
         try:
@@ -210,6 +267,10 @@ class Simulator(Node):
             log.info(f"imu '{imu.spec.name}': {imu.spec.rate_hz:g} Hz on /{imu.spec.topic.lstrip('/')}")
         if self.sim.unsimulated_sensors:
             log.info(f"accepted but not rendered yet: {unsimulated_summary(self.sim.unsimulated_sensors)}")
+        if p.lockstep:
+            expected = ", ".join(p.expected_participants()) or "nobody named"
+            log.info(f"lockstep: time waits for its participants (at start: {expected}); "
+                     f"{'as fast as they allow' if p.real_time_factor == 0 else f'at most {p.real_time_factor:g}x'}")
 
     # -------------------------------------------------------------- commands
     def on_joint_commands(self, msg: JointState) -> None:
@@ -223,7 +284,6 @@ class Simulator(Node):
             reason = exc.args[0] if exc.args else str(exc)
             self._warn(type(exc).__name__, f"rejecting a joint command: {reason}")
 
-
     # -------------------------------------------------------------- services
     def _pause(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
         self.runner.pause()
@@ -231,6 +291,7 @@ class Simulator(Node):
 
     def _unpause(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
         self.runner.unpause()
+        self.pacer.restart()
         return response
 
     def _reset(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
@@ -242,40 +303,54 @@ class Simulator(Node):
         if not self.runner.paused:
             response.success, response.message = False, "pause the simulation first (pause_physics)"
             return response
-        self._publish_batch(self.runner.step(self.params.step_count))
+        self._handle(self.runner.step(self.params.step_count))
         response.success = True
         response.message = f"stepped {self.params.step_count} step(s) to t = {self.sim.time_s:.6f} s"
         return response
 
     # ------------------------------------------------------------ publishing
-    def _publish_batch(self, readings: list[Reading]) -> None:
+    def _handle(self, readings: Sequence[Reading]) -> None:
         for r in readings:
-            if r.kind == "clock":
-                set_stamp(self._clock_msg.clock, r.stamp_s)
-                self.clock_pub.publish(self._clock_msg)
-            elif r.kind == "joint_states":
-                self._publish_joints(r.stamp_s, r.value)
-            elif r.kind == "ground_truth":
-                self._publish_truth(r.stamp_s, r.value)
-            elif r.kind == "lidar":
-                self._publish_scan(r.index, r.value)
-            elif r.kind == "imu":
-                self._publish_imu(r.index, r.value)
-            elif r.kind == "collision":
-                self._publish_collision(r.value)
+            if isinstance(r, ControlTick):
+                self._update_controllers()
+            elif isinstance(r, ClockTick):
+                self._publish_clock()
+            elif isinstance(r, JointStatesReading):
+                self._publish_joints(r)
+            elif isinstance(r, GroundTruthReading):
+                self._publish_truth(r)
+            elif isinstance(r, LidarReading):
+                self._publish_scan(r)
+            elif isinstance(r, ImuReadingAt):
+                self._publish_imu(r)
+            elif isinstance(r, CollisionReading):
+                self._publish_collision(r.collision)
             self.published_s = r.stamp_s
 
-    def _publish_joints(self, now_s: float, state: WheelState) -> None:
-        msg = self._joint_msg
-        set_stamp(msg.header.stamp, now_s)
+    def _update_controllers(self) -> None:
+        now_ns = self.sim.time_ns
+        for controller in self.controllers:
+            drive_clock(controller, now_ns)
+            controller.update()
+
+    def _publish_clock(self, again: bool = False) -> None:
+        now_ns = self.sim.time_ns
+        if now_ns != self._clock_ns or again:
+            self._clock_ns = now_ns
+            self._clock_msg.clock.sec, self._clock_msg.clock.nanosec = divmod(now_ns, 1_000_000_000)
+            self.clock_pub.publish(self._clock_msg)
+
+    def _publish_joints(self, reading: JointStatesReading) -> None:
+        msg, state = self._joint_msg, reading.state
+        set_stamp(msg.header.stamp, reading.stamp_s)
         msg.position = array.array("d", state.positions.tobytes())
         msg.velocity = array.array("d", state.velocities.tobytes())
         msg.effort = array.array("d", state.efforts.tobytes())
         self.joint_pub.publish(msg)
 
-    def _publish_truth(self, now_s: float, truth: GroundTruth) -> None:
-        msg = self._truth_msg
-        set_stamp(msg.header.stamp, now_s)
+    def _publish_truth(self, reading: GroundTruthReading) -> None:
+        msg, truth = self._truth_msg, reading.truth
+        set_stamp(msg.header.stamp, reading.stamp_s)
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         p.x, p.y, p.z = truth.position.tolist()
         q.x, q.y, q.z, q.w = truth.orientation_xyzw.tolist()
@@ -284,11 +359,12 @@ class Simulator(Node):
         ang.x, ang.y, ang.z = truth.angular_velocity.tolist()
         self.truth_pub.publish(msg)
 
-    def _publish_scan(self, index: int, scan: LidarScan) -> None:
-        msg = self._scan_msgs[index]
-        set_stamp(msg.header.stamp, scan.stamp_s)
-        msg.ranges = array.array("f", scan.ranges.tobytes())
-        self.scan_pubs[index].publish(msg)
+    def _publish_scan(self, reading: LidarReading) -> None:
+        self._scans_since_sync = True
+        msg = self._scan_msgs[reading.index]
+        set_stamp(msg.header.stamp, reading.scan.stamp_s)
+        msg.ranges = array.array("f", reading.scan.ranges.tobytes())
+        self.scan_pubs[reading.index].publish(msg)
 
     def _publish_collision(self, collision: Collision) -> None:
         msg = PointStamped()
@@ -299,41 +375,99 @@ class Simulator(Node):
         self._warn("collision", f"collision at t = {collision.stamp_s:.2f} s: {collision.robot_part} touched "
                                 f"{collision.obstacle} at ({collision.position[0]:.2f}, {collision.position[1]:.2f})")
 
-    def _publish_imu(self, index: int, sample: ImuSample) -> None:
-        r, msg = sample.reading, self._imu_msgs[index]
-        set_stamp(msg.header.stamp, sample.stamp_s)
+    def _publish_imu(self, reading: ImuReadingAt) -> None:
+        r, msg = reading.sample.reading, self._imu_msgs[reading.index]
+        set_stamp(msg.header.stamp, reading.sample.stamp_s)
         o, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
         o.x, o.y, o.z, o.w = r.orientation_xyzw.tolist()
         w.x, w.y, w.z = r.angular_velocity.tolist()
         a.x, a.y, a.z = r.linear_acceleration.tolist()
-        self.imu_pubs[index].publish(msg)
+        self.imu_pubs[reading.index].publish(msg)
 
     # ------------------------------------------------------------------ loop
-    def run(self, until_s: float = math.inf) -> None:
-        """Step, publish and serve callbacks at ``real_time_factor`` until shutdown
-        (or until published time reaches ``until_s``)."""
-        log_wall, log_sim = time.monotonic(), self.published_s
+    def _next_sync_s(self) -> float | None:
+        """Lockstep: the next time to stop at: a participant's timer or a scan (None: free running)."""
+        if self.coordinator is None or not self.coordinator.active:
+            return None
+        times = [self.sim.schedule.next_due_s(Event(EventKind.LIDAR, i)) for i in range(len(self.sim.lidars))]
+        wakeup = self.coordinator.next_wakeup_ns()
+        candidates = [t for t in times if t is not None] + ([wakeup * 1e-9] if wakeup is not None else [])
+        return min(candidates) if candidates else None
 
-        def idle(timeout_s: float) -> None:
-            nonlocal log_wall, log_sim
-            rclpy.spin_once(self, timeout_sec=timeout_s)
-            self._sync_viewer()
+    def _at_sync(self, sync_s: float | None) -> bool:
+        return sync_s is not None and self.sim.time_s >= sync_s - 0.5 * self.sim.step_s
+
+    def _sync(self, process: Process) -> None:
+        """Lockstep at the current time: /clock, then steps until the participants are done (first for
+        the scans published since the last sync, if any, then for the timers)."""
+        assert self.coordinator is not None
+        self._publish_clock()
+        self.coordinator.sync(process, self.sim.time_ns, readings=self._scans_since_sync)
+        self._scans_since_sync = False
+
+    def run(self, process: Process, until_s: float = math.inf) -> None:
+        """Step, publish and serve callbacks until stopped (or until published time reaches ``until_s``)."""
+        if self.coordinator is not None:
+            self._publish_clock()
+            if not self.coordinator.wait_for_start(process, lambda: self._publish_clock(again=True)):
+                return
+        log_wall, log_sim = time.monotonic(), self.sim.time_s
+        last_service = time.monotonic()
+        sync_s = self._next_sync_s()
+        while process.running() and self.published_s < until_s:
+            if self.runner.paused:
+                process.spin_once(0.05)
+                self.pacer.restart()
+                continue
+            ahead_s = self.pacer.ahead_s(self.sim.time_s)
+            if ahead_s > 0:
+                process.spin_once(ahead_s)
+                last_service = time.monotonic()
+                continue
+            self.sim.schedule.stop_at_s = sync_s
+            readings = self.runner.advance()
+            if readings:
+                self._handle(readings)
+            if self._at_sync(sync_s):
+                self._sync(process)
+                sync_s = self._next_sync_s()
+                last_service = time.monotonic()
+            elif sync_s is None and self.coordinator is not None and self.coordinator.active:
+                sync_s = self._next_sync_s()  # someone joined while time ran freely
             now = time.monotonic()
-            if now - log_wall >= RTF_LOG_PERIOD_S:
-                rtf = self.params.real_time_factor
-                target = "as fast as possible" if rtf == 0 else f"target {rtf:g}x"
-                if not self.runner.paused:
-                    achieved = (self.published_s - log_sim) / (now - log_wall)
-                    self.get_logger().info(f"real-time factor {achieved:.1f}x ({target}), "
-                                           f"t = {self.published_s:.1f} s")
-                log_wall, log_sim = now, self.published_s
+            if now - last_service >= SERVICE_PERIOD_S:
+                process.spin_once(0.0)
+                self._sync_viewer()
+                last_service = now
+                if now - log_wall >= RTF_LOG_PERIOD_S:
+                    self._log_speed(now - log_wall, self.sim.time_s - log_sim)
+                    log_wall, log_sim = now, self.sim.time_s
 
-        self.runner.run_until(lambda: not rclpy.ok() or self.published_s >= until_s,
-                              self._publish_batch, idle, SERVICE_PERIOD_S)
+    def _log_speed(self, wall_s: float, sim_s: float) -> None:
+        rtf = self.params.real_time_factor
+        target = ("as fast as possible" if rtf == 0 else f"target {rtf:g}x")
+        extra = ""
+        if self.coordinator is not None:
+            c = self.coordinator
+            extra = f"; lockstep: {c.steps} steps, {c.rounds} rounds with {len(c.barrier.members)} participant(s)"
+        self.get_logger().info(f"real-time factor {sim_s / wall_s:.1f}x ({target}), t = {self.sim.time_s:.1f} s"
+                               + extra)
+
+
+def _spin(nodes: Sequence[Node], process: Process) -> int | None:
+    simulator = nodes[0]
+    assert isinstance(simulator, Simulator)
+    try:
+        simulator.run(process)
+    except LockstepError as exc:
+        simulator.get_logger().error(str(exc))
+        return 1
+    return None
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node(Simulator, "simulator", args, spin=lambda node: node.run(), fatal=(ParameterError, DescriptionError, WorldError, SpawnError))
+    return run_nodes([Simulator], "simulator", args, loop=_spin, lockstep=False,
+                     fatal=(ParameterError, DescriptionError, WorldError, SpawnError, LockstepError))
 
 
 if __name__ == "__main__":

@@ -16,6 +16,9 @@ and map on from it; also done at startup when it is set), ``~/pause_new_measurem
 Three threads besides the executor's: scan processing (keyframes matched against the
 running buffer), loop closing (each new keyframe's loop search, matched and solved on a
 copy of the graph, then merged), and the map builder. Scans never wait for a loop search.
+In lockstep each piece of work is held for (:func:`pppbot_common.ros.lockstep.hold`): a
+step is answered once its scan is processed, its loop search merged and its map
+published, so the map and the pose graph are the same on every run.
 """
 from __future__ import annotations
 
@@ -41,6 +44,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from pppbot_common.maps import MapFileError, OccupancyGrid, save_map
 from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.resources import maps_directory
+from pppbot_common.ros.lockstep import at_step, create_timer, hold, require_match
 from pppbot_common.ros.maps import grid_message, map_metadata
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
@@ -173,24 +177,30 @@ class Slam(Node):
         self.scans = ScanOdometry(self, p.odom_frame, p.base_frame, self._queue, self._warn, p.tf_buffer_duration)
         self._scan_frame: str | None = None
         # Scans with their odometry, processed in a worker thread: the executor stays free
-        # for TF (in and out) while a keyframe is matched or a loop searched.
-        self._work: queue.Queue[tuple[LaserScan, float, str, np.ndarray, np.ndarray] | None] = \
+        # for TF (in and out) while a keyframe is matched or a loop searched. Each item carries
+        # the release of its lockstep hold.
+        self._work: queue.Queue[tuple[Callable[[], None], LaserScan, float, str, np.ndarray, np.ndarray] | None] = \
             queue.Queue(maxsize=MAX_QUEUED)
         # Keyframes (of which mapper: a reset or a loaded graph replaces it) to search for loops.
-        self._loops: queue.Queue[tuple[Mapper, int] | None] = queue.Queue(maxsize=MAX_LOOP_QUEUED)
+        self._loops: queue.Queue[tuple[Callable[[], None], Mapper, int] | None] = queue.Queue(maxsize=MAX_LOOP_QUEUED)
         self.map_pub = self.create_publisher(OccupancyGridMsg, "/map", LATCHED)
         self.meta_pub = self.create_publisher(MapMetaData, "/map_metadata", LATCHED)
         self.graph_pub = self.create_publisher(MarkerArray, "~/graph_visualization", 1)
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "pose", 10)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
-        self.create_subscription(LaserScan, p.scan_topic, guarded(self, self.on_scan, "LaserScan"), SENSOR)
+        require_match(self, self.create_subscription(LaserScan, p.scan_topic, guarded(self, at_step(self, self.on_scan), "LaserScan"),
+                                                     SENSOR))
         self.create_service(Trigger, "~/save_map", self._save_map)
         self.create_service(Trigger, "~/serialize_map", self._serialize)
         self.create_service(Trigger, "~/deserialize_map", self._deserialize)
         self.create_service(SetBool, "~/pause_new_measurements", self._pause)
         self.create_service(Trigger, "~/reset", self._reset)
-        self.create_timer(p.transform_publish_period, self._publish_transform)
+        # map → odom is stamped ahead (transform_timeout): nobody waits for each one.
+        create_timer(self, p.transform_publish_period, self._publish_transform, wakes=False)
+        create_timer(self, p.map_update_interval, self._request_map)
         self._map_wake = threading.Event()
+        self._map_holds: list[Callable[[], None]] = []
+        self._map_lock = threading.Lock()
         self._stopping = threading.Event()
         self._map_thread = threading.Thread(target=self._map_loop, name="map-builder", daemon=True)
         self._map_thread.start()
@@ -231,20 +241,24 @@ class Slam(Node):
         self.scans.add(msg)
 
     def _queue(self, msg: LaserScan, stamp: float, frame: str, odom_pose: np.ndarray, sensor: np.ndarray) -> None:
-        if _put_dropping_oldest(self._work, (msg, stamp, frame, odom_pose, sensor)):
+        if _put_dropping_oldest(self._work, (hold(), msg, stamp, frame, odom_pose, sensor)):
             self._warn("behind", f"scan processing is {MAX_QUEUED} scans behind: dropping the oldest")
 
     def _serve(self, work: queue.Queue[Any], handle: Callable[..., None], kind: str, failure: str) -> None:
         """A thread's loop: ``handle`` each item of ``work`` until the stop sign; one that fails
-        is warned about (``failure``, throttled per ``kind``) and the thread goes on."""
+        is warned about (``failure``, throttled per ``kind``) and the thread goes on. The item's
+        lockstep hold is released when it is done."""
         while True:
             item = work.get()
             if item is None or self._stopping.is_set():
                 return
+            release, *args = item
             try:
-                handle(*item)
+                handle(*args)
             except Exception as exc:  # noqa: BLE001 - one bad scan or search must not stop the thread
                 self._warn(kind, f"{failure}: {type(exc).__name__}: {exc}")
+            finally:
+                release()
 
     def _process(self, msg: LaserScan, stamp: float, frame: str, odom_pose: np.ndarray, sensor: np.ndarray) -> None:
         try:
@@ -273,8 +287,8 @@ class Slam(Node):
                     f"(response {response:.2f})")
             self._publish_pose(msg.header.stamp, pose)
             if keyframe.index == 0:
-                self._map_wake.set()  # a first map at once
-            if mapper.settings.do_loop_closing and _put_dropping_oldest(self._loops, (mapper, keyframe.index)):
+                self._request_map()  # a first map at once
+            if mapper.settings.do_loop_closing and _put_dropping_oldest(self._loops, (hold(), mapper, keyframe.index)):
                 self._warn("loops behind", f"loop closing is {MAX_LOOP_QUEUED} keyframes behind: the oldest "
                                            "keyframe's search is skipped")
 
@@ -332,13 +346,26 @@ class Slam(Node):
         self.tf_pub.publish(TFMessage(transforms=[t]))
 
     # ------------------------------------------------------------------- map
+    def _request_map(self) -> None:
+        """A map rebuild by the map thread (every map_update_interval of sim time, and at the first keyframe)."""
+        with self._map_lock:
+            self._map_holds.append(hold())
+        self._map_wake.set()
+
     def _map_loop(self) -> None:
         while not self._stopping.is_set():
-            self._map_wake.wait(self.params.map_update_interval)
+            self._map_wake.wait()
             self._map_wake.clear()
-            if self._stopping.is_set():
-                return
-            self.publish_map()
+            with self._map_lock:
+                releases, self._map_holds = self._map_holds, []
+            try:
+                if not self._stopping.is_set():
+                    self.publish_map()
+            except Exception as exc:  # noqa: BLE001 - a failed build must not stop the map thread
+                self._warn("map", f"the map could not be built: {type(exc).__name__}: {exc}")
+            finally:
+                for release in releases:
+                    release()
 
     def build_map(self) -> OccupancyGrid | None:
         """The grid from the keyframes' current poses; built outside the lock (scans go on)."""
@@ -402,7 +429,7 @@ class Slam(Node):
         with self.lock:
             mapper.sensor_offset = self.mapper.sensor_offset
             self.mapper = mapper
-        self._map_wake.set()
+        self._request_map()
         response.success, response.message = True, f"mapping on from {posegraph_path(self.params.map_file_name)}"
         return response
 
@@ -428,7 +455,8 @@ class Slam(Node):
 
 
 def _put_dropping_oldest(work: queue.Queue[Any], item: Any) -> bool:
-    """Put ``item``, first dropping the oldest entries while ``work`` is full; whether any went."""
+    """Put ``item``, first dropping the oldest entries while ``work`` is full (releasing the lockstep
+    hold each carries first); whether any went."""
     dropped = False
     while True:
         try:
@@ -436,8 +464,10 @@ def _put_dropping_oldest(work: queue.Queue[Any], item: Any) -> bool:
             return dropped
         except queue.Full:
             try:
-                work.get_nowait()
+                old = work.get_nowait()
                 dropped = True
+                if old is not None:
+                    old[0]()
             except queue.Empty:
                 pass
 

@@ -1,0 +1,229 @@
+"""Lockstep's bookkeeping, without ROS: the simulator's barrier and a participant's timers.
+
+In lockstep the simulator (the clock) stops at each sync time and sends a step; every
+participant (a process with its nodes) answers once it has done its work for that time.
+While any answer says the participant sent messages, another round at the same time
+follows, so a message and everything it causes is handled before time moves on. The
+next sync time is the earliest timer any participant has due (or a sensor reading).
+
+:class:`Barrier` is the simulator's side: who is waited for, the answers of the current
+round, and whether another round is needed. :class:`StepTimers` is a participant's
+side: timers that fire on steps instead of on a clock, in a fixed order. Times are
+integer nanoseconds of sim time. The protocol on the wire is ``pppbot_interfaces/msg/
+Lockstep{Step,Ack,Status}``; the adapters are :mod:`pppbot_common.ros.lockstep` and the
+simulator node.
+"""
+from __future__ import annotations
+
+import enum
+import heapq
+import itertools
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+from pppbot_common.errors import PppbotError
+
+
+class LockstepError(PppbotError):
+    """A lockstep protocol error; the message names the participant and what it did."""
+
+
+class AckOutcome(enum.Enum):
+    """What :meth:`Barrier.ack` made of an answer."""
+
+    COUNTED = "counted"
+    STALE = "stale"  # an answer to an earlier step (or from a participant not waited for now)
+    DUPLICATE = "duplicate"
+
+
+@dataclass
+class Barrier:
+    """The simulator's view of the participants and of the step in progress.
+
+    Participants named in ``expected`` must join before time starts (:meth:`may_start`);
+    others may join at any time and are waited for from the next round on.
+    """
+
+    expected: set[str] = field(default_factory=set)
+    members: set[str] = field(default_factory=set)
+    #: Joined but not waited for yet: they become members when the next round starts.
+    joining: set[str] = field(default_factory=set)
+    seq: int = 0
+    round: int = 0
+    stamp_ns: int = 0
+    #: Members that have answered the current step, and what they said.
+    answered: dict[str, bool] = field(default_factory=dict)
+    #: Members of the current step (a member that leaves during it is dropped here too).
+    waiting_for: set[str] = field(default_factory=set)
+    wakeups_ns: dict[str, int] = field(default_factory=dict)
+    in_step: bool = False
+
+    def join(self, name: str) -> None:
+        """``name`` is ready; it is waited for from the next step on."""
+        if not name:
+            raise LockstepError("a participant joined without a name")
+        if name not in self.members:
+            self.joining.add(name)
+
+    def leave(self, name: str) -> None:
+        """``name`` stops: never waited for again (nor in the current step)."""
+        self.members.discard(name)
+        self.joining.discard(name)
+        self.expected.discard(name)
+        self.waiting_for.discard(name)
+        self.answered.pop(name, None)
+        self.wakeups_ns.pop(name, None)
+        if self.in_step and set(self.answered) >= self.waiting_for:
+            self.in_step = False  # the one left was the last one missing
+
+    def may_start(self) -> bool:
+        """Whether every expected participant has joined (time holds at its start until then)."""
+        return not (self.expected - self.members - self.joining)
+
+    def unjoined(self) -> list[str]:
+        return sorted(self.expected - self.members - self.joining)
+
+    def start_step(self, stamp_ns: int) -> tuple[int, int]:
+        """Begin a step at ``stamp_ns``: round 0 at a new time, the next round at the same time.
+        Joiners become members now. Returns (seq, round).
+
+        Raises:
+            LockstepError: a step is still in progress, or time went back.
+        """
+        if self.in_step:
+            raise LockstepError(f"step {self.seq} is still waiting for {', '.join(self.missing())}")
+        if stamp_ns < self.stamp_ns:
+            raise LockstepError(f"time went back from {self.stamp_ns} ns to {stamp_ns} ns")
+        self.round = self.round + 1 if stamp_ns == self.stamp_ns and self.seq > 0 else 0
+        self.stamp_ns = stamp_ns
+        self.seq += 1
+        self.members |= self.joining
+        self.joining.clear()
+        self.waiting_for = set(self.members)
+        self.answered = {}
+        self.in_step = bool(self.waiting_for)
+        return self.seq, self.round
+
+    def ack(self, name: str, seq: int, sent: bool, next_wakeup_ns: int) -> AckOutcome:
+        """Record ``name``'s answer to step ``seq``; ``next_wakeup_ns`` 0 means no timer due."""
+        if seq != self.seq or name not in self.waiting_for:
+            return AckOutcome.STALE
+        if name in self.answered:
+            return AckOutcome.DUPLICATE
+        self.answered[name] = sent
+        if next_wakeup_ns > 0:
+            self.wakeups_ns[name] = next_wakeup_ns
+        else:
+            self.wakeups_ns.pop(name, None)
+        if len(self.answered) == len(self.waiting_for):
+            self.in_step = False
+        return AckOutcome.COUNTED
+
+    def missing(self) -> list[str]:
+        """Members that have not answered the current step."""
+        return sorted(self.waiting_for - set(self.answered)) if self.in_step else []
+
+    def complete(self) -> bool:
+        return not self.in_step
+
+    def another_round(self) -> bool:
+        """After a complete step: whether someone sent messages others have not handled yet."""
+        return any(self.answered.values())
+
+    def senders(self) -> list[str]:
+        return sorted(name for name, sent in self.answered.items() if sent)
+
+    def next_wakeup_ns(self) -> int | None:
+        """The earliest time a member's timer is due, after the current time (None: no timer)."""
+        due = [t for name, t in self.wakeups_ns.items() if name in self.members and t > self.stamp_ns]
+        return min(due) if due else None
+
+
+class StepTimer:
+    """A periodic timer driven by steps (see :class:`StepTimers`); ``cancel`` and ``reset`` as rclpy's."""
+
+    def __init__(self, owner: StepTimers, period_ns: int, callback: Callable[[], object], wakes: bool,
+                 next_ns: int, ident: int) -> None:
+        self.owner = owner
+        self.period_ns = period_ns
+        self.callback = callback
+        #: Whether its deadline is a sync time (False: it fires at the first step at or after it).
+        self.wakes = wakes
+        self.next_ns = next_ns
+        self.ident = ident
+        self.canceled = False
+
+    @property
+    def timer_period_ns(self) -> int:
+        return self.period_ns
+
+    def cancel(self) -> None:
+        self.canceled = True
+
+    def is_canceled(self) -> bool:
+        return self.canceled
+
+    def reset(self) -> None:
+        """Restart: the next call one period after the current sim time (uncancels, as rclpy's)."""
+        self.canceled = False
+        self.next_ns = self.owner.now_ns + self.period_ns
+        self.owner.schedule(self)
+
+    def destroy(self) -> None:
+        self.canceled = True
+        self.owner.remove(self)
+
+
+class StepTimers:
+    """Timers that fire on steps: at step time ``t`` every timer due by ``t`` fires once, in the
+    order of their deadlines (then of their creation), and its next deadline is the first
+    period boundary after ``t`` (missed periods are skipped, as rcl's timers skip them)."""
+
+    def __init__(self) -> None:
+        self.now_ns = 0
+        self._timers: list[StepTimer] = []
+        self._ids = itertools.count()
+
+    def create(self, period_s: float, callback: Callable[[], object], wakes: bool = True) -> StepTimer:
+        """A timer whose first call is one period from now.
+
+        Raises:
+            LockstepError: the period is not a positive number.
+        """
+        if not (math.isfinite(period_s) and period_s > 0):
+            raise LockstepError(f"a timer period must be a positive number of seconds, not {period_s}")
+        period_ns = max(1, round(period_s * 1e9))
+        timer = StepTimer(self, period_ns, callback, wakes, self.now_ns + period_ns, next(self._ids))
+        self._timers.append(timer)
+        return timer
+
+    def schedule(self, timer: StepTimer) -> None:
+        if timer not in self._timers:
+            self._timers.append(timer)
+
+    def remove(self, timer: StepTimer) -> None:
+        if timer in self._timers:
+            self._timers.remove(timer)
+
+    def advance(self, now_ns: int) -> list[StepTimer]:
+        """Time is ``now_ns``: the timers due, in firing order, their next deadlines moved on.
+
+        A timer that fires several times in one step (its period shorter than the gap)
+        fires once.
+        """
+        self.now_ns = max(self.now_ns, now_ns)
+        due = [(t.next_ns, t.ident, t) for t in self._timers if not t.canceled and t.next_ns <= self.now_ns]
+        heapq.heapify(due)
+        fired = []
+        while due:
+            _, _, timer = heapq.heappop(due)
+            missed = (self.now_ns - timer.next_ns) // timer.period_ns
+            timer.next_ns += (missed + 1) * timer.period_ns
+            fired.append(timer)
+        return fired
+
+    def next_wakeup_ns(self) -> int | None:
+        """The earliest deadline of a waking timer (None: none)."""
+        due = [t.next_ns for t in self._timers if t.wakes and not t.canceled]
+        return min(due) if due else None

@@ -1,0 +1,180 @@
+"""Action servers whose goals never block a thread, and sequential logic that waits without blocking.
+
+pppbot's nodes run on one thread (the EventsExecutor): a callback must return quickly, and
+an awaiting coroutine would keep that executor busy (it re-runs a pending task at once).
+Two helpers keep long-running goals readable anyway:
+
+* :class:`GoalServer`: an rclpy ActionServer whose goals the node advances on its timers.
+  An accepted goal is EXECUTING at once; the node ends it with :meth:`GoalServer.finish`
+  (succeeded, aborted or canceled, with a result). A cancel request is accepted and shows
+  as ``is_cancel_requested``; a new goal may preempt the running one.
+* :class:`Flow`: runs a generator that yields what it waits for (a future, or
+  :class:`Sleep` for sim time) and is resumed when that is done, from the future's
+  callback or the node's tick. It reads like a thread's loop, but holds no thread: in
+  lockstep every step of it happens at a fixed sim time.
+"""
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+from typing import Any, Callable, Generator, Generic, TypeVar
+
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.node import Node
+from rclpy.task import Future
+
+T = TypeVar("T")
+
+
+class GoalEnd(enum.Enum):
+    SUCCEEDED = "succeeded"
+    ABORTED = "aborted"
+    CANCELED = "canceled"
+
+
+class GoalServer:
+    """An action server for goals advanced by the node (see the module docstring).
+
+    ``on_goal(handle)`` is called for each accepted goal (in the executor's thread).
+    ``accept(request)`` may refuse a goal (False).
+    """
+
+    def __init__(self, node: Node, action_type: Any, name: str, on_goal: Callable[[ServerGoalHandle], None],
+                 accept: Callable[[Any], bool] | None = None, **kwargs: Any) -> None:
+        self.action_type = action_type
+        self._on_goal = on_goal
+        self._accept = accept
+        self.server = ActionServer(node, action_type, name, execute_callback=self._never,
+                                   goal_callback=self._goal_response, cancel_callback=lambda _: CancelResponse.ACCEPT,
+                                   handle_accepted_callback=self._accepted, **kwargs)
+
+    def _goal_response(self, request: Any) -> GoalResponse:
+        if self._accept is not None and not self._accept(request):
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _accepted(self, handle: ServerGoalHandle) -> None:
+        if not handle.is_cancel_requested:
+            # EXECUTING now: the goal runs on the node's timers, not in an execute callback
+            # (rclpy 7.1's own state transition; :meth:`finish` schedules the result).
+            handle._update_state(_rclpy.GoalEvent.EXECUTE)
+        self._on_goal(handle)
+
+    @staticmethod
+    def _never(handle: ServerGoalHandle) -> Any:
+        raise RuntimeError("GoalServer goals end through finish()")
+
+    def finish(self, handle: ServerGoalHandle, end: GoalEnd, result: Any) -> None:
+        """End the goal with ``end`` and send ``result``: the client's result request is answered."""
+        def done(goal: ServerGoalHandle) -> Any:
+            if goal.is_active:
+                if end is GoalEnd.SUCCEEDED and not goal.is_cancel_requested:
+                    goal.succeed()
+                elif end is GoalEnd.CANCELED and goal.is_cancel_requested:
+                    goal.canceled()
+                else:
+                    goal.abort()
+            return result
+
+        self.server.notify_execute(handle, done)
+
+    def destroy(self) -> None:
+        self.server.destroy()
+
+
+@dataclass(frozen=True)
+class Sleep:
+    """Yielded by a :class:`Flow`: resume once the node's clock reads ``until_s`` (sim s), or, with
+    ``wake``, when that future is done if that comes first."""
+
+    until_s: float
+    wake: Future | None = None
+
+
+class Stopped(Exception):
+    """Thrown into a :class:`Flow` whose ``check`` fails (its goal was canceled or preempted)."""
+
+
+Step = Generator[Any, Any, T]
+
+
+class Flow(Generic[T]):
+    """Runs ``steps``: each yielded future resumes it with the future's result (or raises its
+    exception in it); each yielded :class:`Sleep` resumes it on the first :meth:`tick` at or after
+    its time. ``check()`` runs before every resume and may raise (e.g. :class:`Stopped`) into
+    the flow. ``on_end(value, error)`` gets the return value or the exception that ended it.
+    """
+
+    def __init__(self, steps: Step[T], clock_s: Callable[[], float], on_end: Callable[[T | None, BaseException | None], None],
+                 check: Callable[[], None] | None = None) -> None:
+        self._steps = steps
+        self._clock_s = clock_s
+        self._on_end = on_end
+        self._check = check
+        self._sleep_until: float | None = None
+        self._waiting: Future | None = None
+        self.ended = False
+
+    def start(self) -> None:
+        self._resume(None, None)
+
+    def tick(self) -> None:
+        """Resume a sleeping flow whose time has come; run the check on a waiting one."""
+        if self.ended:
+            return
+        if self._sleep_until is not None and self._clock_s() >= self._sleep_until:
+            self._sleep_until = None
+            self._waiting = None
+            self._resume(None, None)
+        elif self._check is not None:
+            try:
+                self._check()
+            except Exception as exc:  # noqa: BLE001 - whatever check raises ends the wait
+                self._sleep_until = None
+                self._waiting = None
+                self._resume(None, exc)
+
+    def _on_wake(self, future: Future) -> None:
+        if self.ended or future is not self._waiting or self._sleep_until is None:
+            return
+        self._waiting = None
+        self._sleep_until = None
+        self._resume(None, None)
+
+    def _on_future(self, future: Future) -> None:
+        if self.ended or future is not self._waiting:
+            return
+        self._waiting = None
+        exception = future.exception()
+        self._resume(None if exception is not None else future.result(), exception)
+
+    def _resume(self, value: Any, error: BaseException | None) -> None:
+        if error is None and self._check is not None:
+            try:
+                self._check()
+            except Exception as exc:  # noqa: BLE001 - see tick
+                error = exc
+        try:
+            item = self._steps.throw(error) if error is not None else self._steps.send(value)
+        except StopIteration as stop:
+            self._end(stop.value, None)
+            return
+        except Exception as exc:  # noqa: BLE001 - the flow's own failure is its end
+            self._end(None, exc)
+            return
+        if isinstance(item, Sleep):
+            self._sleep_until = item.until_s
+            if item.wake is not None:
+                self._waiting = item.wake
+                item.wake.add_done_callback(self._on_wake)
+        elif isinstance(item, Future):
+            self._waiting = item
+            item.add_done_callback(self._on_future)
+        else:
+            self._end(None, TypeError(f"a flow yields futures or Sleep, not {type(item).__name__}"))
+
+    def _end(self, value: T | None, error: BaseException | None) -> None:
+        self.ended = True
+        self._on_end(value, error)

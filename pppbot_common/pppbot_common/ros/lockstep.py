@@ -1,0 +1,453 @@
+"""A process's part in lockstep: answer the simulator's steps once its nodes have done their work.
+
+One :class:`Participant` per process (all its nodes share it; composition makes one
+participant of many nodes). It runs when the process is started with the parameter
+``lockstep:=true`` (``--ros-args -p lockstep:=true``); ``lockstep_name`` names it
+(default: the process's name). Without it nothing here is active and the nodes' timers
+are ordinary rclpy timers on the ROS clock.
+
+What a participant does, on the protocol of :mod:`pppbot_common.lockstep`:
+
+* **Join.** Once spinning, and once its nodes have what they need to handle their first
+  messages (:func:`require`: AMCL its map, SLAM the robot's static transforms), it sends
+  JOIN on ``/lockstep/ack`` until the simulator lists it on ``/lockstep/status``; from
+  then on time waits for it. LEAVE when it stops.
+* **Steps.** On each ``/lockstep/step`` it sets its nodes' clocks to the step's time, runs
+  the work readings from the simulator set off (:func:`at_step`, :func:`in_step`), on a
+  step that says so fires the timers due (timers made with :func:`create_timer`: they
+  run on steps, in a fixed order, instead of on the clock), then answers DONE once
+  nothing is left to run: no executor task created since (a future's callbacks, an
+  action's goal), and no work held by a thread (:meth:`Participant.hold`). The answer says whether the process sent
+  anything since its previous answer (topics, services, actions: counted by wrapping
+  rclpy's send methods, so any node composed into the process counts) and when its
+  next timer is due.
+
+Messages from the simulator come before its step (one writer process, one reader process:
+delivered and executed in order by the EventsExecutor), so a scan published at a step's
+time is handled before the step is answered.
+"""
+from __future__ import annotations
+
+import functools
+import itertools
+import threading
+import time
+from typing import Any, Callable, ClassVar, Sequence
+
+import rclpy.action.client
+import rclpy.action.server
+import rclpy.client
+import rclpy.publisher
+import rclpy.service
+import rclpy.task
+from builtin_interfaces.msg import Time as TimeMsg
+from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
+from rclpy.clock import ClockType, ROSClock
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.time import Time
+
+from pppbot_common.lockstep import LockstepError, StepTimer, StepTimers
+from pppbot_common.throttle import Throttle
+
+STEP_TOPIC = "/lockstep/step"
+ACK_TOPIC = "/lockstep/ack"
+STATUS_TOPIC = "/lockstep/status"
+#: Steps and answers are never dropped and never replayed to a late joiner.
+PROTOCOL_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
+#: Who time waits for: the last status, also for late subscribers.
+STATUS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: Wall seconds between JOINs until the simulator lists the participant.
+JOIN_RESEND_S = 0.5
+WARN_PERIOD_S = 5.0
+
+
+# --------------------------------------------------------------------------- counting
+class _Counters:
+    """Process-wide counts of what was sent and of executor tasks created (both only grow)."""
+
+    def __init__(self) -> None:
+        self._sends = itertools.count()
+        self._tasks = itertools.count()
+        self.sends = 0
+        self.tasks = 0
+        self.installed = False
+
+    def sent(self) -> None:
+        self.sends = next(self._sends) + 1
+
+    def task(self) -> None:
+        self.tasks = next(self._tasks) + 1
+
+
+COUNTERS = _Counters()
+_ORIGINAL_PUBLISH = rclpy.publisher.Publisher.publish
+
+#: rclpy's methods that put a message on the wire (rclpy 7.1, pinned): (class, method name).
+SEND_METHODS: tuple[tuple[type, str], ...] = (
+    (rclpy.publisher.Publisher, "publish"),
+    (rclpy.client.Client, "call_async"),
+    (rclpy.service.Service, "send_response"),
+    (rclpy.action.client.ActionClient, "send_goal_async"),
+    (rclpy.action.client.ActionClient, "_cancel_goal_async"),
+    (rclpy.action.client.ActionClient, "_get_result_async"),
+    (rclpy.action.server.ActionServer, "_execute_goal_request"),
+    (rclpy.action.server.ActionServer, "_execute_cancel_request"),
+    (rclpy.action.server.ActionServer, "_execute_get_result_request"),
+    (rclpy.action.server.ActionServer, "_send_result_response"),
+    (rclpy.action.server.ServerGoalHandle, "publish_feedback"),
+    (rclpy.action.server.ServerGoalHandle, "_update_state"),
+)
+
+
+def install_counting() -> None:
+    """Count every send and every executor task of this process (once; idempotent)."""
+    if COUNTERS.installed:
+        return
+    for cls, name in SEND_METHODS:
+        setattr(cls, name, _counting(getattr(cls, name)))
+    task_init = rclpy.task.Task.__init__
+
+    @functools.wraps(task_init)
+    def counting_init(self: Any, *args: Any, **kwargs: Any) -> None:
+        COUNTERS.task()
+        task_init(self, *args, **kwargs)
+
+    rclpy.task.Task.__init__ = counting_init  # type: ignore[method-assign]
+    COUNTERS.installed = True
+
+
+def _counting(method: Callable[..., Any]) -> Callable[..., Any]:
+    import inspect
+
+    if inspect.iscoroutinefunction(method):
+        @functools.wraps(method)
+        async def counted_async(self: Any, *args: Any, **kwargs: Any) -> Any:
+            COUNTERS.sent()
+            return await method(self, *args, **kwargs)
+        return counted_async
+
+    @functools.wraps(method)
+    def counted(self: Any, *args: Any, **kwargs: Any) -> Any:
+        COUNTERS.sent()
+        return method(self, *args, **kwargs)
+    return counted
+
+
+def stamp_ns(stamp: TimeMsg) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def time_msg(ns: int) -> TimeMsg:
+    sec, nanosec = divmod(int(ns), 1_000_000_000)
+    return TimeMsg(sec=sec, nanosec=nanosec)
+
+
+# ------------------------------------------------------------------------ participant
+class Participant:
+    """This process's lockstep participant (see the module's docstring).
+
+    Made by the node runner (:func:`pppbot_common.ros.node_main.run_nodes`) before the
+    process's nodes, so that their timers (:func:`create_timer`) are step timers.
+    """
+
+    _current: ClassVar[Participant | None] = None
+
+    def __init__(self, name: str, node: Node) -> None:
+        self.name = name
+        self.node = node
+        self.timers = StepTimers()
+        self.joined = False
+        self._executor: Any = None
+        self._nodes: list[Node] = []
+        self._lock = threading.Lock()
+        self._holds = 0
+        self._pending_seq: int | None = None
+        self._task_mark = 0
+        self._sends_at_answer = 0
+        self._last_join = -1e9
+        self._throttle = Throttle(WARN_PERIOD_S)
+        self._requirements: set[str] = set()
+        self._deferred: dict[Callable[[], None], None] = {}  # in order, each once
+        self._conditions: list[tuple[str, Callable[[], bool]]] = []
+        self.steps = 0
+        self._last_step_ns = 0
+        install_counting()
+        self.ack_pub = node.create_publisher(LockstepAck, ACK_TOPIC, PROTOCOL_QOS)
+        node.create_subscription(LockstepStep, STEP_TOPIC, self._on_step, PROTOCOL_QOS)
+        node.create_subscription(LockstepStatus, STATUS_TOPIC, self._on_status, STATUS_QOS)
+
+    # ------------------------------------------------------------ process-wide
+    @classmethod
+    def current(cls) -> Participant | None:
+        return cls._current
+
+    @classmethod
+    def from_parameters(cls, default_name: str) -> Participant | None:
+        """The process's participant when its parameters say ``lockstep:=true`` (else None); made
+        current. Its node is hidden (``_lockstep_<name>``) and belongs to the default context.
+
+        Raises:
+            LockstepError: ``lockstep_name`` is empty.
+        """
+        node = Node(f"_lockstep_{_node_safe(default_name)}", start_parameter_services=False, enable_rosout=False)
+        enabled = bool(node.declare_parameter("lockstep", False).value)
+        name = str(node.declare_parameter("lockstep_name", default_name).value)
+        if not enabled:
+            node.destroy_node()
+            return None
+        if not name:
+            node.destroy_node()
+            raise LockstepError("parameter 'lockstep_name' = '': a lockstep participant needs a name")
+        cls._current = cls(name, node)
+        return cls._current
+
+    @classmethod
+    def for_node(cls, name: str, node: Node) -> Participant:
+        """A participant answering for ``node``'s context (a process that runs its own executor, such
+        as the evaluation), made current."""
+        cls._current = cls(name, node)
+        return cls._current
+
+    @classmethod
+    def clear_current(cls) -> None:
+        cls._current = None
+
+    def start(self, executor: Any, nodes: Sequence[Node]) -> None:
+        """Spinning starts with ``executor``; ``nodes`` get their clocks set to each step's time."""
+        self._executor = executor
+        self._nodes = list(nodes)
+        self.maintain()
+
+    # ---------------------------------------------------------------- joining
+    def require(self, what: str) -> Callable[[], None]:
+        """Do not join before ``what`` is there; call the returned function when it is."""
+        self._requirements.add(what)
+        return functools.partial(self._fulfil, what)
+
+    def _fulfil(self, what: str) -> None:
+        self._requirements.discard(what)
+
+    def require_when(self, what: str, condition: Callable[[], bool]) -> None:
+        """Do not join before ``condition()`` holds (checked as the process spins)."""
+        self._conditions.append((what, condition))
+
+    def _unmet(self) -> list[str]:
+        return sorted(self._requirements | {what for what, ok in self._conditions if not ok()})
+
+    def _graph_nodes(self) -> int:
+        return len(self.node.get_node_names_and_namespaces())
+
+    def maintain(self) -> None:
+        """Called by the spin loop: (re)send JOIN until the simulator lists this participant."""
+        if self.joined or self.ack_pub.get_subscription_count() == 0:
+            return
+        now = time.monotonic()
+        if now - self._last_join < JOIN_RESEND_S:
+            return
+        self._last_join = now
+        unmet = self._unmet()
+        if unmet:
+            self._warn("requirements", f"lockstep: '{self.name}' joins once it has {', '.join(unmet)}")
+            return
+        self._send(LockstepAck(kind=LockstepAck.JOIN, participant=self.name, settled=True,
+                               graph_nodes=self._graph_nodes()))
+
+    def _on_status(self, msg: LockstepStatus) -> None:
+        listed = self.name in msg.participants
+        if listed and not self.joined:
+            self.node.get_logger().info(f"lockstep: joined as '{self.name}'")
+        self.joined = listed
+
+    def leave(self) -> None:
+        """Tell the simulator to stop waiting for this process (it is ending)."""
+        if self.joined:
+            self.joined = False
+            try:
+                self._send(LockstepAck(kind=LockstepAck.LEAVE, participant=self.name))
+                self.ack_pub.wait_for_all_acked(Duration(seconds=1.0))
+            except Exception:  # noqa: BLE001 - the context may be going down already
+                pass
+
+    # ------------------------------------------------------------------ steps
+    def _on_step(self, msg: LockstepStep) -> None:
+        if not self.joined:
+            return  # the simulator does not wait for us yet
+        self.steps += 1
+        t_ns = self._last_step_ns = stamp_ns(msg.stamp)
+        self._set_clocks(t_ns)
+        self._run_deferred()
+        if msg.timers and t_ns > self.timers.now_ns:
+            for timer in self.timers.advance(t_ns):
+                if not timer.canceled:
+                    self._fire(timer)
+        with self._lock:
+            self._pending_seq = msg.seq
+        self._post_idle_check()
+
+    def defer(self, work: Callable[[], None]) -> None:
+        """Run ``work`` at the next step (once, however often deferred meanwhile)."""
+        self._deferred[work] = None
+
+    def _run_deferred(self) -> None:
+        while self._deferred:
+            work = next(iter(self._deferred))
+            del self._deferred[work]
+            try:
+                work()
+            except Exception as exc:  # noqa: BLE001 - as a failing timer
+                self._warn(f"deferred:{getattr(work, '__qualname__', work)}",
+                           f"deferred work failed: {type(exc).__name__}: {exc}")
+
+    def _set_clocks(self, t_ns: int) -> None:
+        """The step's time on every node's clock that runs on sim time (normally /clock, which the
+        simulator sends just before the step, has set it already)."""
+        for node in self._nodes:
+            clock = node.get_clock()
+            if isinstance(clock, ROSClock) and clock.ros_time_is_active and clock.now().nanoseconds < t_ns:
+                clock.set_ros_time_override(Time(nanoseconds=t_ns, clock_type=ClockType.ROS_TIME))
+
+    def _fire(self, timer: StepTimer) -> None:
+        try:
+            timer.callback()
+        except Exception as exc:  # noqa: BLE001 - one failing timer must not stop the process's answers
+            self._warn(f"timer:{timer.ident}", f"a timer callback failed: {type(exc).__name__}: {exc}")
+
+    def _post_idle_check(self) -> None:
+        """Answer once every task queued so far has run: a task created meanwhile posts the check again."""
+        self._executor.create_task(self._idle_check)
+        self._task_mark = COUNTERS.tasks
+
+    def _idle_check(self) -> None:
+        if COUNTERS.tasks != self._task_mark:
+            self._post_idle_check()
+            return
+        self._answer_if_free()
+
+    def hold(self) -> None:
+        """A thread of this process has work the current step must wait for (call in the executor's
+        thread, when the work is handed over)."""
+        with self._lock:
+            self._holds += 1
+
+    def release(self) -> None:
+        """That work is done (any thread); answers a step that waited for it."""
+        with self._lock:
+            self._holds -= 1
+            if self._holds < 0:
+                self._holds = 0
+                raise LockstepError(f"lockstep participant '{self.name}': release() without hold()")
+        self._answer_if_free()
+
+    def _answer_if_free(self) -> None:
+        with self._lock:
+            if self._pending_seq is None or self._holds > 0:
+                return
+            seq, self._pending_seq = self._pending_seq, None
+            sends = COUNTERS.sends
+            sent, self._sends_at_answer = sends > self._sends_at_answer, sends
+        wakeup = self.timers.next_wakeup_ns()
+        starting = self._last_step_ns == 0  # time holds at its start: the simulator asks whether all is set
+        self._send(LockstepAck(kind=LockstepAck.DONE, participant=self.name, seq=seq, sent=sent,
+                               next_wakeup=time_msg(wakeup or 0), settled=not starting or not self._unmet(),
+                               graph_nodes=self._graph_nodes() if starting else 0))
+
+    def _send(self, msg: LockstepAck) -> None:
+        _ORIGINAL_PUBLISH(self.ack_pub, msg)  # the protocol's own messages are not "sent" work
+
+    def _warn(self, key: str, text: str) -> None:
+        if self._throttle.allow(key, time.monotonic()):
+            self.node.get_logger().warning(text)
+
+
+def _node_safe(name: str) -> str:
+    safe = "".join(ch if ch.isalnum() or ch == "_" else "_" for ch in name)
+    return safe if safe and not safe[0].isdigit() else f"_{safe}"
+
+
+# ---------------------------------------------------------------------- node helpers
+Timer = Any  # rclpy.timer.Timer or StepTimer: both have cancel(), reset(), is_canceled()
+
+
+def create_timer(node: Node, period_s: float, callback: Callable[[], object], *, wakes: bool = True) -> Timer:
+    """A periodic timer on sim time: on lockstep steps when the process takes part in lockstep,
+    otherwise an rclpy timer on the node's clock.
+
+    ``wakes=False``: in lockstep, the timer fires at the first step at or after its deadline
+    but does not make one (for outputs nobody waits on, such as a transform republished
+    ahead of its use).
+    """
+    participant = Participant.current()
+    if participant is not None and node.context is participant.node.context:
+        return participant.timers.create(period_s, callback, wakes)
+    return node.create_timer(period_s, callback)
+
+
+def destroy_timer(node: Node, timer: Timer) -> None:
+    """Undo :func:`create_timer`."""
+    if isinstance(timer, StepTimer):
+        timer.destroy()
+    else:
+        node.destroy_timer(timer)
+
+
+def require(node: Node, what: str) -> Callable[[], None]:
+    """``node``'s process joins lockstep only once ``what`` is there (call the returned function
+    then). Without lockstep the function does nothing."""
+    participant = Participant.current()
+    if participant is None or node.context is not participant.node.context:
+        return _nothing
+    return participant.require(what)
+
+
+def require_match(node: Node, endpoint: Any, what: str = "") -> None:
+    """In lockstep, ``node``'s process joins only once ``endpoint`` (a publisher or a subscription of a
+    topic on the data path) is matched: a publisher with at least one subscriber, a subscription
+    with at least one publisher and with every publisher the graph knows of. A message sent at the
+    first step is then not lost to discovery still going on."""
+    participant = Participant.current()
+    if participant is None or node.context is not participant.node.context:
+        return
+    topic = endpoint.topic_name
+    if hasattr(endpoint, "get_subscription_count"):
+        participant.require_when(what or f"a subscriber of {topic}", lambda: endpoint.get_subscription_count() > 0)
+    else:
+        participant.require_when(what or f"the publishers of {topic}",
+                                 lambda: endpoint.get_publisher_count() >= max(1, node.count_publishers(topic)))
+
+
+def in_step(node: Node, work: Callable[[], None]) -> None:
+    """Run ``work`` now, or, in lockstep, at the next step: for work the simulator's data set off
+    between steps (a transform that lets a waiting scan through), so that what it sends goes out
+    at a step, at the same sim time on every run."""
+    participant = Participant.current()
+    if participant is None or node.context is not participant.node.context or not participant.joined:
+        work()
+    else:
+        participant.defer(work)
+
+
+def at_step(node: Node, callback: Callable[[Any], None]) -> Callable[[Any], None]:
+    """``callback`` for messages from the simulator that make the node send (a scan: AMCL's pose and
+    transform): in lockstep each message is handled at the next step, so that what it causes goes
+    out after every participant has that step, and is seen by all at the same round."""
+    def handle(msg: Any) -> None:
+        in_step(node, functools.partial(callback, msg))
+    return handle
+
+
+def hold() -> Callable[[], None]:
+    """Mark work a worker thread will do for the current step; call the returned function when
+    it is done. Without lockstep both are no-ops."""
+    participant = Participant.current()
+    if participant is None:
+        return _nothing
+    participant.hold()
+    return participant.release
+
+
+def _nothing() -> None:
+    pass

@@ -1,0 +1,207 @@
+"""The simulator's side of lockstep: steps out, answers in, time held until everyone is done.
+
+At each sync time the simulator publishes ``/clock`` and a ``/lockstep/step``, then
+handles callbacks until every participant has answered (its own in-process nodes, such as
+a hosted controller, run in the same executor). While an answer says its participant sent
+messages, another round at the same time follows; then time moves on to the next sync
+time: the earliest timer a participant has due, or the next reading participants consume
+(a scan). Participants the launch names (``lockstep_participants``) must join before time
+starts, so every run starts the same way. A participant that does not answer within
+``lockstep_timeout`` wall seconds is named, and the simulator stops (the launch then stops
+the rest): a node that dies or hangs never leaves the stack waiting forever.
+
+The bookkeeping is :class:`pppbot_common.lockstep.Barrier`; this is its ROS adapter.
+"""
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
+from rclpy.node import Node
+
+from pppbot_common.lockstep import AckOutcome, Barrier, LockstepError
+from pppbot_common.ros.lockstep import (
+    ACK_TOPIC,
+    COUNTERS,
+    PROTOCOL_QOS,
+    STATUS_QOS,
+    STATUS_TOPIC,
+    STEP_TOPIC,
+    install_counting,
+    stamp_ns,
+    time_msg,
+)
+from pppbot_common.ros.node_main import Process
+
+#: Rounds at one time before the simulator moves on anyway (participants echoing each other).
+MAX_ROUNDS = 50
+#: Wall seconds between reminders of whom time waits for at its start.
+START_REMINDER_S = 10.0
+#: Wall seconds between repeats of the start time while time holds.
+HEARTBEAT_S = 0.5
+#: Wall seconds between the steps at time 0 that wait for everyone to settle, and their limit.
+SETTLE_PAUSE_S = 0.05
+SETTLE_TIMEOUT_S = 20.0
+
+
+class LockstepTimeout(LockstepError):
+    """A participant did not answer in time (the message names it, the step and the sim time)."""
+
+
+class Coordinator:
+    def __init__(self, node: Node, expected: list[str], timeout_s: float, log: Callable[[str], None]) -> None:
+        self.node = node
+        self.barrier = Barrier(expected=set(expected))
+        self.timeout_s = timeout_s
+        self.log = log
+        self.rounds = 0
+        self.steps = 0
+        self.extra_rounds = 0
+        install_counting()  # a reply by one of this process's nodes may need another round too
+        self.step_pub = node.create_publisher(LockstepStep, STEP_TOPIC, PROTOCOL_QOS)
+        self.status_pub = node.create_publisher(LockstepStatus, STATUS_TOPIC, STATUS_QOS)
+        node.create_subscription(LockstepAck, ACK_TOPIC, self._on_ack, PROTOCOL_QOS)
+        self._members_published: tuple[list[str], list[str]] | None = None
+        #: (settled, graph nodes) each participant answered the current step with
+        self._readiness: dict[str, tuple[bool, int]] = {}
+        self.publish_status(0)
+
+    # --------------------------------------------------------------- answers
+    def _on_ack(self, msg: LockstepAck) -> None:
+        name = msg.participant
+        if msg.kind == LockstepAck.JOIN:
+            if name not in self.barrier.members and name not in self.barrier.joining:
+                self.log(f"lockstep: '{name}' joins")
+            self.barrier.join(name)
+            # Listed at once (waited for from the next step on); asked again, it missed the status.
+            self.publish_status(self.barrier.stamp_ns, force=True)
+        elif msg.kind == LockstepAck.LEAVE:
+            if name in self.barrier.members or name in self.barrier.joining:
+                self.log(f"lockstep: '{name}' leaves")
+            self.barrier.leave(name)
+            self.publish_status(self.barrier.stamp_ns)
+        elif msg.kind == LockstepAck.DONE:
+            outcome = self.barrier.ack(name, msg.seq, msg.sent, stamp_ns(msg.next_wakeup))
+            if outcome is AckOutcome.DUPLICATE:
+                self.log(f"lockstep: '{name}' answered step {msg.seq} twice")
+            elif outcome is AckOutcome.COUNTED:
+                self._readiness[name] = (bool(msg.settled), int(msg.graph_nodes))
+
+    def publish_status(self, t_ns: int, force: bool = False) -> None:
+        """Who is waited for: members, and joiners (waited for from the next step on; an answer of
+        theirs to the current one is ignored)."""
+        members = sorted(self.barrier.members | self.barrier.joining)
+        unjoined = self.barrier.unjoined()
+        if not force and self._members_published == (members, unjoined):
+            return
+        self._members_published = (members, unjoined)
+        self.status_pub.publish(LockstepStatus(stamp=time_msg(t_ns), participants=members, expected=unjoined))
+
+    # ------------------------------------------------------------------ start
+    def wait_for_start(self, process: Process, heartbeat: Callable[[], None]) -> bool:
+        """Hold time at its start until every expected participant has joined, and then until all are
+        settled (see :meth:`settle`); False when stopped. ``heartbeat`` runs every
+        :data:`HEARTBEAT_S` meanwhile (the simulator republishes /clock, so that nodes starting
+        now learn the time)."""
+        reminded = beat = time.monotonic()
+        while not self.barrier.may_start():
+            if not process.running():
+                return False
+            process.spin_once(0.1)
+            if time.monotonic() - beat > HEARTBEAT_S:
+                beat = time.monotonic()
+                heartbeat()
+            if time.monotonic() - reminded > START_REMINDER_S:
+                reminded = time.monotonic()
+                self.log(f"lockstep: time holds at 0 until {', '.join(self.barrier.unjoined())} join(s)")
+        return self.settle(process, heartbeat)
+
+    def settle(self, process: Process, heartbeat: Callable[[], None]) -> bool:
+        """Steps at time 0 until every participant answers settled (its data-path topics matched) and
+        sees as many nodes as the simulator does: then discovery is over everywhere, and no message
+        of the first steps can be lost to it. At most :data:`SETTLE_TIMEOUT_S` (then time starts anyway,
+        with a warning naming who was not settled)."""
+        deadline = time.monotonic() + SETTLE_TIMEOUT_S
+        while process.running():
+            self._readiness = {}
+            self.sync(process, 0, readings=True, timers=False)
+            nodes = len(self.node.get_node_names_and_namespaces())
+            unsettled = sorted(name for name, (settled, seen) in self._readiness.items()
+                               if not settled or seen != nodes)
+            if not unsettled:
+                return True
+            if time.monotonic() > deadline:
+                details = ", ".join(f"{n} (settled {self._readiness[n][0]}, sees {self._readiness[n][1]} of "
+                                    f"{nodes} nodes)" for n in unsettled)
+                self.log(f"lockstep: starting although not everyone is settled after {SETTLE_TIMEOUT_S:g} s: "
+                         f"{details}")
+                return True
+            pause = time.monotonic() + SETTLE_PAUSE_S
+            while time.monotonic() < pause and process.running():
+                process.spin_once(SETTLE_PAUSE_S)
+            heartbeat()
+        return False
+
+    # ------------------------------------------------------------------ steps
+    def sync(self, process: Process, t_ns: int, readings: bool = True, timers: bool = True) -> None:
+        """Steps at ``t_ns`` until no participant has anything left to do at this time: first, when
+        ``readings`` (the simulator published what participants handle in steps, such as a scan),
+        rounds that handle them; then, when ``timers``, a round that runs the timers due and the
+        rounds their messages need. Timers thus never race the handling of this time's readings.
+
+        Raises:
+            LockstepTimeout: a participant did not answer within ``timeout_s`` wall seconds.
+        """
+        self.steps += 1
+        self._round_index = 0
+        if readings and not self._rounds(process, t_ns, timers=False):
+            return
+        if timers:
+            self._rounds(process, t_ns, timers=True)
+
+    def _rounds(self, process: Process, t_ns: int, timers: bool) -> bool:
+        """Steps at ``t_ns`` until nobody sends (the first with ``timers``); False when stopping."""
+        for index in range(MAX_ROUNDS):
+            before = set(self.barrier.members)
+            seq, _ = self.barrier.start_step(t_ns)
+            if self.barrier.members != before:
+                self.publish_status(t_ns)  # a joiner learns it is waited for before its first step
+            if not self.barrier.members:
+                return True
+            self.step_pub.publish(LockstepStep(seq=seq, stamp=time_msg(t_ns), round=self._round_index,
+                                               timers=timers and index == 0))
+            self._round_index += 1
+            sends = COUNTERS.sends
+            self.rounds += 1
+            self._wait_for_answers(process, seq, t_ns)
+            if not process.running():
+                return False
+            # Every message a participant sent before its answer has been handled here by now.
+            if not self.barrier.another_round() and COUNTERS.sends == sends:
+                return True
+            self.extra_rounds += 1
+        self.log(f"lockstep: still sending after {MAX_ROUNDS} rounds at t = {t_ns * 1e-9:.3f} s "
+                 f"({', '.join(self.barrier.senders()) or 'the simulator'}); time moves on")
+        return True
+
+    def _wait_for_answers(self, process: Process, seq: int, t_ns: int) -> None:
+        deadline = time.monotonic() + self.timeout_s
+        while not self.barrier.complete():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                missing = self.barrier.missing()
+                raise LockstepTimeout(
+                    f"lockstep: {', '.join(repr(n) for n in missing)} did not answer step {seq} "
+                    f"(t = {t_ns * 1e-9:.3f} s) within lockstep_timeout = {self.timeout_s:g} s; stopping")
+            if not process.running():
+                return
+            process.spin_once(min(remaining, 0.2))
+
+    def next_wakeup_ns(self) -> int | None:
+        return self.barrier.next_wakeup_ns()
+
+    @property
+    def active(self) -> bool:
+        """Whether anyone is waited for (without participants, time runs freely)."""
+        return bool(self.barrier.members or self.barrier.joining)

@@ -1,0 +1,110 @@
+"""Lockstep's bookkeeping without ROS: the simulator's barrier and a participant's step timers."""
+from __future__ import annotations
+
+import pytest
+
+from pppbot_common.lockstep import AckOutcome, Barrier, LockstepError, StepTimers
+
+MS = 1_000_000
+
+
+def test_time_holds_until_every_expected_participant_has_joined():
+    barrier = Barrier(expected={"slam", "eval"})
+    assert not barrier.may_start() and barrier.unjoined() == ["eval", "slam"]
+    barrier.join("slam")
+    assert not barrier.may_start() and barrier.unjoined() == ["eval"]
+    barrier.join("eval")
+    assert barrier.may_start()
+    barrier.join("late")  # not expected: may join at any time
+    assert barrier.may_start()
+
+
+def test_a_step_completes_when_every_member_has_answered_and_says_who_sent():
+    barrier = Barrier()
+    barrier.join("a")
+    barrier.join("b")
+    seq, round_ = barrier.start_step(100 * MS)
+    assert (seq, round_) == (1, 0) and barrier.members == {"a", "b"}
+    assert barrier.ack("a", seq, sent=False, next_wakeup_ns=150 * MS) is AckOutcome.COUNTED
+    assert not barrier.complete() and barrier.missing() == ["b"]
+    assert barrier.ack("a", seq, sent=False, next_wakeup_ns=0) is AckOutcome.DUPLICATE
+    assert barrier.ack("b", seq - 1, sent=True, next_wakeup_ns=0) is AckOutcome.STALE
+    assert barrier.ack("b", seq, sent=True, next_wakeup_ns=120 * MS) is AckOutcome.COUNTED
+    assert barrier.complete() and barrier.another_round() and barrier.senders() == ["b"]
+    assert barrier.next_wakeup_ns() == 120 * MS
+    # Another round at the same time, then time moves on: rounds count from 0 again.
+    assert barrier.start_step(100 * MS) == (2, 1)
+    barrier.ack("a", 2, False, 150 * MS)
+    barrier.ack("b", 2, False, 0)  # b has no timer due any more
+    assert not barrier.another_round() and barrier.next_wakeup_ns() == 150 * MS
+    assert barrier.start_step(150 * MS) == (3, 0)
+
+
+def test_a_joiner_is_waited_for_from_the_next_step_and_a_leaver_at_once():
+    barrier = Barrier()
+    barrier.join("a")
+    seq, _ = barrier.start_step(0)
+    barrier.join("b")  # mid-step: its answer to this step would be stale
+    assert barrier.ack("b", seq, False, 0) is AckOutcome.STALE
+    barrier.ack("a", seq, False, 0)
+    assert barrier.complete()
+    seq, _ = barrier.start_step(10 * MS)
+    assert barrier.members == {"a", "b"}
+    barrier.ack("b", seq, False, 0)
+    assert barrier.missing() == ["a"]
+    barrier.leave("a")  # the last one missing leaves: the step is complete
+    assert barrier.complete() and barrier.members == {"b"}
+
+
+def test_a_step_in_progress_or_time_going_back_is_refused():
+    barrier = Barrier()
+    barrier.join("a")
+    barrier.start_step(50 * MS)
+    with pytest.raises(LockstepError, match="still waiting for a"):
+        barrier.start_step(60 * MS)
+    barrier.ack("a", 1, False, 0)
+    with pytest.raises(LockstepError, match="time went back"):
+        barrier.start_step(40 * MS)
+
+
+def test_without_members_a_step_is_complete_at_once():
+    barrier = Barrier()
+    barrier.start_step(0)
+    assert barrier.complete() and not barrier.another_round() and barrier.next_wakeup_ns() is None
+
+
+def test_step_timers_fire_in_deadline_order_once_per_step_skipping_missed_periods():
+    timers = StepTimers()
+    fired: list[str] = []
+    fast = timers.create(0.02, lambda: fired.append("fast"))
+    slow = timers.create(0.05, lambda: fired.append("slow"))
+    assert timers.next_wakeup_ns() == 20 * MS
+    assert [t is fast for t in timers.advance(10 * MS)] == []
+    due = timers.advance(50 * MS)  # fast was due at 20 and 40, slow at 50: each fires once
+    assert due == [fast, slow]
+    assert fast.next_ns == 60 * MS and slow.next_ns == 100 * MS
+
+
+def test_timers_due_at_the_same_time_fire_in_the_order_they_were_made():
+    timers = StepTimers()
+    a = timers.create(0.05, lambda: None)
+    b = timers.create(0.05, lambda: None)
+    assert timers.advance(50 * MS) == [a, b]
+
+
+def test_canceled_timers_do_not_wake_and_reset_restarts_from_now():
+    timers = StepTimers()
+    tick = timers.create(0.05, lambda: None)
+    lazy = timers.create(0.01, lambda: None, wakes=False)
+    tick.cancel()
+    assert timers.next_wakeup_ns() is None  # an idle controller makes no sync times
+    assert timers.advance(100 * MS) == [lazy]  # a lazy timer fires at a step past its deadline
+    tick.reset()
+    assert not tick.is_canceled() and tick.next_ns == 150 * MS and timers.next_wakeup_ns() == 150 * MS
+    tick.destroy()
+    assert timers.advance(200 * MS) == [lazy]
+
+
+def test_a_timer_period_must_be_positive():
+    with pytest.raises(LockstepError, match="positive number of seconds, not 0"):
+        StepTimers().create(0, lambda: None)
