@@ -225,7 +225,7 @@ def generate(world: str, route_name: str | None, seed: int, wheel_slip: float, o
         wheels = None
         kinds = {event.kind for event in events}
         for event in sorted(events, key=lambda e: (e.kind is EventKind.LIDAR, e.index)):
-            # In the simulator node's order (IMU before lidar): the sensor noise stream is the same.
+            # Each sensor has its own noise generator: the same scans as the simulator node's.
             if event.kind is EventKind.LIDAR:
                 pending_scan = (now, sim.lidar_scan(event.index).ranges.astype(np.float32))
             elif event.kind is EventKind.IMU:

@@ -119,9 +119,11 @@ class PhysicsRunner:
             readings += self.advance(int(round((target - self.sim.time_s) / self.sim.step_s)))
         return readings
 
-    def advance(self, max_steps: int = MAX_STEPS_PER_ADVANCE) -> list[Reading]:
-        """Step to the next event(s) (or the schedule's stop); their readings. A diverged state is
-        reset and logged."""
+    def advance(self, max_steps: int = MAX_STEPS_PER_ADVANCE,
+                wanted: Callable[[Event], bool] | None = None) -> list[Reading]:
+        """Step to the next event(s) (or the schedule's stop); their readings, except those ``wanted``
+        refuses (nobody would use them: they are not even computed). A diverged state is reset and
+        logged."""
         sim = self.sim
         try:
             events = sim.advance(max_steps)
@@ -134,6 +136,8 @@ class PhysicsRunner:
                 and sim.time_s - self._last_command_s > self.command_timeout_s):
             sim.stop_wheels()
             self._last_command_s = None
+        if wanted is not None:
+            events = [e for e in events if wanted(e)]
         readings = [self.reading(event) for event in sorted(events, key=lambda e: (_ORDER[e.kind], e.index))]
         readings += [CollisionReading(c.stamp_s, c) for c in sim.take_collisions()]
         return readings

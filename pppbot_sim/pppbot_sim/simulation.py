@@ -200,7 +200,9 @@ class Simulation:
         except ValueError as exc:
             raise SpawnError(f"MuJoCo could not compile the world with the robot: {exc}") from exc
         self.data = mujoco.MjData(self.model)
-        self.rng = np.random.default_rng(seed)
+        # One generator per sensor: a reading skipped (nobody listens) never shifts another's noise.
+        self.lidar_rngs = [np.random.default_rng((seed, 2, i)) for i in range(len(lidar_specs))]
+        self.imu_rngs = [np.random.default_rng((seed, 3, i)) for i in range(len(imu_specs))]
         self.lidars = [Lidar(s, self.model, sensor_sites[s.name]) for s in lidar_specs]
         self.imus = [Imu(s, self.model, f"{name}/{s.name}/") for s in imu_specs]
         self.schedule = Schedule()
@@ -373,11 +375,12 @@ class Simulation:
 
     def lidar_scan(self, index: int) -> LidarScan:
         lidar = self.lidars[index]
-        return LidarScan(lidar.spec, self.time_s, finalize_ranges(lidar.scan(self.data), lidar.spec, self.rng))
+        return LidarScan(lidar.spec, self.time_s, finalize_ranges(lidar.scan(self.data), lidar.spec,
+                                                                  self.lidar_rngs[index]))
 
     def imu_sample(self, index: int) -> ImuSample:
         imu = self.imus[index]
-        return ImuSample(imu.spec, self.time_s, imu.read(self.data, self.rng))
+        return ImuSample(imu.spec, self.time_s, imu.read(self.data, self.imu_rngs[index]))
 
     # ------------------------------------------------------------------- reset
     def reset_robot(self) -> None:

@@ -49,6 +49,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.time import Time
 
 from pppbot_common.lockstep import LockstepError, StepTimer, StepTimers
+from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_common.throttle import Throttle
 
 STEP_TOPIC = "/lockstep/step"
@@ -177,6 +178,8 @@ class Participant:
         self._last_step_ns = 0
         install_counting()
         self.ack_pub = node.create_publisher(LockstepAck, ACK_TOPIC, PROTOCOL_QOS)
+        self._done_wire = MessageTemplate(LockstepAck(kind=LockstepAck.DONE, participant=name),
+                                          ["seq", "sent", *stamp_fields("next_wakeup"), "settled", "graph_nodes"])
         node.create_subscription(LockstepStep, STEP_TOPIC, self._on_step, PROTOCOL_QOS)
         node.create_subscription(LockstepStatus, STATUS_TOPIC, self._on_status, STATUS_QOS)
 
@@ -351,9 +354,9 @@ class Participant:
             sent, self._sends_at_answer = sends > self._sends_at_answer, sends
         wakeup = self.timers.next_wakeup_ns()
         starting = self._last_step_ns == 0  # time holds at its start: the simulator asks whether all is set
-        self._send(LockstepAck(kind=LockstepAck.DONE, participant=self.name, seq=seq, sent=sent,
-                               next_wakeup=time_msg(wakeup or 0), settled=not starting or not self._unmet(),
-                               graph_nodes=self._graph_nodes() if starting else 0))
+        _ORIGINAL_PUBLISH(self.ack_pub, self._done_wire.serialize({
+            "seq": seq, "sent": sent, **stamp_values(wakeup or 0, "next_wakeup"),
+            "settled": not starting or not self._unmet(), "graph_nodes": self._graph_nodes() if starting else 0}))
 
     def _send(self, msg: LockstepAck) -> None:
         _ORIGINAL_PUBLISH(self.ack_pub, msg)  # the protocol's own messages are not "sent" work

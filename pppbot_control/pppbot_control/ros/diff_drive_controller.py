@@ -25,10 +25,10 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Mapping, Protocol, Sequence
 
+from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import TransformStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry as OdometryMsg
 from rclpy.node import Node
-from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
@@ -36,6 +36,7 @@ from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.ros.lockstep import create_timer, destroy_timer
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
+from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_control.kinematics import DiffDriveGeometry, Odometry
 from pppbot_control.limits import AxisLimits, SpeedLimiter
@@ -172,8 +173,9 @@ class DiffDriveController(Node):
         self.limited_pub = self.create_publisher(TwistStamped, "~/cmd_vel_out", 10)
         self._warn = Warnings(self, WARN_PERIOD_S)
         self._target = (0.0, 0.0)
-        self._target_time: Time | None = None
-        self._last_update: Time | None = None
+        self._target_ns: int | None = None  # when the command came (node clock, ns)
+        self._last_update_ns: int | None = None
+        self._wheel_index: tuple[tuple[str, ...], list[list[int]]] | None = None  # joint names → indices
         self._next_odom_publish_ns = 0  # on a grid of publish periods, as ros2_control publishes
         self._wheels: tuple[float, float, float, float] | None = None  # left pos, right pos, left vel, right vel
         self._wheels_stamp_ns = 0  # when the wheels were measured (the joint states' stamp)
@@ -197,6 +199,25 @@ class DiffDriveController(Node):
         namespace = self.get_namespace().strip("/")
         prefix = params.tf_frame_prefix or (namespace if params.tf_frame_prefix_enable else "")
         self.prefix = f"{prefix.rstrip('/')}/" if prefix else ""
+        self._command_names = [*params.left_wheel_names, *params.right_wheel_names]
+        self._wheel_index = None
+        # Odometry and its transform as templates (bytes serialized once, values patched in).
+        odom = OdometryMsg()
+        odom.header.frame_id = self.prefix + params.odom_frame_id
+        odom.child_frame_id = self.prefix + params.base_frame_id
+        for i in range(6):
+            odom.pose.covariance[i * 7] = float(params.pose_covariance_diagonal[i])
+            odom.twist.covariance[i * 7] = float(params.twist_covariance_diagonal[i])
+        self._odom_wire = MessageTemplate(odom, [*stamp_fields(), "pose.pose.position.x", "pose.pose.position.y",
+                                                 "pose.pose.orientation.z", "pose.pose.orientation.w",
+                                                 "twist.twist.linear.x", "twist.twist.angular.z"])
+        transform = TransformStamped()
+        transform.header.frame_id = odom.header.frame_id
+        transform.child_frame_id = odom.child_frame_id
+        self._tf_wire = MessageTemplate(TFMessage(transforms=[transform]), [
+            *stamp_fields("transforms.0.header.stamp"), "transforms.0.transform.translation.x",
+            "transforms.0.transform.translation.y", "transforms.0.transform.rotation.z",
+            "transforms.0.transform.rotation.w"])
 
     def _apply(self, params: DiffDriveParameters) -> None:
         rate_changed = params.update_rate != self.params.update_rate
@@ -213,7 +234,7 @@ class DiffDriveController(Node):
             self._warn("nonfinite", f"dropping a velocity command with non-finite values (v={v}, w={w})")
             return
         self._target = (v, w)
-        self._target_time = self.get_clock().now()
+        self._target_ns = self.get_clock().now().nanoseconds
 
     def on_cmd_vel(self, msg: TwistStamped) -> None:
         self._set_target(msg.twist.linear.x, msg.twist.angular.z)
@@ -227,21 +248,26 @@ class DiffDriveController(Node):
 
     def _store_wheels(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
                       stamp_ns: int) -> None:
-        index = {name: i for i, name in enumerate(names)}
-        wanted = [*self.params.left_wheel_names, *self.params.right_wheel_names]
-        missing = [n for n in wanted if n not in index]
-        if missing:
-            if not any(n in index for n in wanted):
-                return  # another robot part's joint states
-            self._warn("missing", f"joint states lack wheel joint(s) {', '.join(missing)}")
-            return
+        key = tuple(names)
+        if self._wheel_index is None or self._wheel_index[0] != key:
+            index = {name: i for i, name in enumerate(names)}
+            wanted = [*self.params.left_wheel_names, *self.params.right_wheel_names]
+            missing = [n for n in wanted if n not in index]
+            if missing:
+                if not any(n in index for n in wanted):
+                    return  # another robot part's joint states
+                self._warn("missing", f"joint states lack wheel joint(s) {', '.join(missing)}")
+                return
+            self._wheel_index = (key, [[index[n] for n in self.params.left_wheel_names],
+                                       [index[n] for n in self.params.right_wheel_names]])
+        left, right = self._wheel_index[1]
 
-        def side(names: list[str], values: Sequence[float]) -> float:
-            picked = [values[index[n]] for n in names if index[n] < len(values)]
-            return sum(picked) / len(picked) if len(picked) == len(names) else math.nan
+        def side(indices: list[int], values: Sequence[float]) -> float:
+            if len(indices) == 1:
+                return float(values[indices[0]]) if indices[0] < len(values) else math.nan
+            picked = [values[i] for i in indices if i < len(values)]
+            return sum(picked) / len(picked) if len(picked) == len(indices) else math.nan
 
-        left = self.params.left_wheel_names
-        right = self.params.right_wheel_names
         sample = (side(left, positions), side(right, positions), side(left, velocities), side(right, velocities))
         needed = sample[:2] if self.params.position_feedback else sample[2:]
         if not all(math.isfinite(v) for v in needed):
@@ -257,51 +283,50 @@ class DiffDriveController(Node):
         if self.hosted is not None:
             names, positions, velocities, stamp_ns = self.hosted.read()
             self._store_wheels(names, positions, velocities, stamp_ns)
-        now = self.get_clock().now()
-        dt = 0.0 if self._last_update is None else (now - self._last_update).nanoseconds * 1e-9
+        now_ns = self.get_clock().now().nanoseconds
+        dt = 0.0 if self._last_update_ns is None else (now_ns - self._last_update_ns) * 1e-9
         if dt < 0:  # time went back (sim reset): start over
             self.linear.reset()
             self.angular.reset()
             dt = 0.0
             self._odom_stamp_ns = -1
             self._next_odom_publish_ns = 0
-        self._last_update = now
+        self._last_update_ns = now_ns
         v, w = self._target
-        if self._target_time is None or (now - self._target_time).nanoseconds * 1e-9 > self.params.cmd_vel_timeout:
+        if self._target_ns is None or (now_ns - self._target_ns) * 1e-9 > self.params.cmd_vel_timeout:
             v, w = 0.0, 0.0
         v = self.linear.limit(v, dt)
         w = self.angular.limit(w, dt)
         left, right = self.geometry.wheel_speeds(v, w)
         p = self.params
-        names = [*p.left_wheel_names, *p.right_wheel_names]
         speeds = [left] * len(p.left_wheel_names) + [right] * len(p.right_wheel_names)
         if self.hosted is not None:
-            self.hosted.write(dict(zip(names, speeds)))
+            self.hosted.write(dict(zip(self._command_names, speeds)))
         else:
-            command = JointState(name=names, velocity=speeds)
-            command.header.stamp = now.to_msg()
+            command = JointState(name=self._command_names, velocity=speeds)
+            command.header.stamp = _time_msg(now_ns)
             self.command_pub.publish(command)
         if p.publish_limited_velocity:
             out = TwistStamped()
-            out.header.stamp = now.to_msg()
+            out.header.stamp = _time_msg(now_ns)
             out.header.frame_id = self.prefix + p.base_frame_id
             out.twist.linear.x, out.twist.angular.z = v, w
             self.limited_pub.publish(out)
         self._integrate(v, w, dt)
-        if now.nanoseconds >= self._next_odom_publish_ns:
+        if now_ns >= self._next_odom_publish_ns:
             # From wheel positions, the pose is the robot's when the wheels were measured: stamp
             # it with that time, not the update's (later by the joint states' trip here), so that
             # odom → base_link at a scan's stamp is where the robot was when it scanned. Nothing
             # new since the last odometry: nothing to publish (TF would see repeated data).
             stamp_ns = self._wheels_stamp_ns if (p.position_feedback and not p.open_loop
-                                                 and self._wheels_stamp_ns > 0) else now.nanoseconds
+                                                 and self._wheels_stamp_ns > 0) else now_ns
             if stamp_ns > self._odom_stamp_ns:
-                self._publish_odometry(Time(nanoseconds=stamp_ns, clock_type=now.clock_type))
+                self._publish_odometry(stamp_ns)
                 self._odom_stamp_ns = stamp_ns
             # The next multiple of the period: odometry at fixed times (a scan at 10 Hz finds the
             # transform at its own stamp when the rates divide).
             period_ns = max(1, round(1e9 / p.publish_rate))
-            self._next_odom_publish_ns = (now.nanoseconds // period_ns + 1) * period_ns
+            self._next_odom_publish_ns = (now_ns // period_ns + 1) * period_ns
 
     def _integrate(self, v: float, w: float, dt: float) -> None:
         if self.params.open_loop:
@@ -316,28 +341,25 @@ class DiffDriveController(Node):
             self._v_window.append(self.odometry.v)
             self._w_window.append(self.odometry.w)
 
-    def _publish_odometry(self, now: Time) -> None:
-        p, o = self.params, self.odometry
-        msg = OdometryMsg()
-        msg.header.stamp = now.to_msg()
-        msg.header.frame_id = self.prefix + p.odom_frame_id
-        msg.child_frame_id = self.prefix + p.base_frame_id
-        msg.pose.pose.position.x, msg.pose.pose.position.y = o.x, o.y
+    def _publish_odometry(self, stamp_ns: int) -> None:
+        """/odom and odom → base on /tf at ``stamp_ns``, each only when somebody listens."""
+        o = self.odometry
         _, _, qz, qw = quaternion_from_yaw(o.yaw)
-        msg.pose.pose.orientation.z, msg.pose.pose.orientation.w = qz, qw
-        msg.twist.twist.linear.x = _mean(self._v_window)
-        msg.twist.twist.angular.z = _mean(self._w_window)
-        for i in range(6):
-            msg.pose.covariance[i * 7] = float(p.pose_covariance_diagonal[i])
-            msg.twist.covariance[i * 7] = float(p.twist_covariance_diagonal[i])
-        self.odom_pub.publish(msg)
-        if p.enable_odom_tf:
-            t = TransformStamped()
-            t.header = msg.header
-            t.child_frame_id = msg.child_frame_id
-            t.transform.translation.x, t.transform.translation.y = o.x, o.y
-            t.transform.rotation.z, t.transform.rotation.w = qz, qw
-            self.tf_pub.publish(TFMessage(transforms=[t]))
+        if self.odom_pub.get_subscription_count():
+            self.odom_pub.publish(self._odom_wire.serialize({
+                **stamp_values(stamp_ns), "pose.pose.position.x": o.x, "pose.pose.position.y": o.y,
+                "pose.pose.orientation.z": qz, "pose.pose.orientation.w": qw,
+                "twist.twist.linear.x": _mean(self._v_window), "twist.twist.angular.z": _mean(self._w_window)}))
+        if self.params.enable_odom_tf and self.tf_pub.get_subscription_count():
+            self.tf_pub.publish(self._tf_wire.serialize({
+                **stamp_values(stamp_ns, "transforms.0.header.stamp"), "transforms.0.transform.translation.x": o.x,
+                "transforms.0.transform.translation.y": o.y, "transforms.0.transform.rotation.z": qz,
+                "transforms.0.transform.rotation.w": qw}))
+
+
+def _time_msg(ns: int) -> TimeMsg:
+    sec, nanosec = divmod(ns, 1_000_000_000)
+    return TimeMsg(sec=sec, nanosec=nanosec)
 
 
 def main(args: list[str] | None = None) -> int:

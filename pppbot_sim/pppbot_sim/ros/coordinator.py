@@ -33,6 +33,7 @@ from pppbot_common.ros.lockstep import (
     time_msg,
 )
 from pppbot_common.ros.node_main import Process
+from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 
 #: Rounds at one time before the simulator moves on anyway (participants echoing each other).
 MAX_ROUNDS = 50
@@ -60,6 +61,7 @@ class Coordinator:
         self.extra_rounds = 0
         install_counting()  # a reply by one of this process's nodes may need another round too
         self.step_pub = node.create_publisher(LockstepStep, STEP_TOPIC, PROTOCOL_QOS)
+        self._step_wire = MessageTemplate(LockstepStep(), ["seq", *stamp_fields("stamp"), "round", "timers"])
         self.status_pub = node.create_publisher(LockstepStatus, STATUS_TOPIC, STATUS_QOS)
         node.create_subscription(LockstepAck, ACK_TOPIC, self._on_ack, PROTOCOL_QOS)
         self._members_published: tuple[list[str], list[str]] | None = None
@@ -169,8 +171,9 @@ class Coordinator:
                 self.publish_status(t_ns)  # a joiner learns it is waited for before its first step
             if not self.barrier.members:
                 return True
-            self.step_pub.publish(LockstepStep(seq=seq, stamp=time_msg(t_ns), round=self._round_index,
-                                               timers=timers and index == 0))
+            self.step_pub.publish(self._step_wire.serialize({"seq": seq, **stamp_values(t_ns, "stamp"),
+                                                             "round": self._round_index,
+                                                             "timers": timers and index == 0}))
             self._round_index += 1
             sends = COUNTERS.sends
             self.rounds += 1

@@ -16,7 +16,6 @@ runs against the wall clock at ``real_time_factor``.
 """
 from __future__ import annotations
 
-import array
 import math
 import sys
 import time
@@ -36,6 +35,7 @@ from pppbot_common.lockstep import LockstepError
 from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.ros.node_main import Process, Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters, on_valid_update
+from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values, vector
 from pppbot_control.ros.diff_drive_controller import DiffDriveController
 from pppbot_description.errors import DescriptionError
 from pppbot_description.urdf_model import parse_urdf
@@ -115,6 +115,10 @@ class SimulatorParameters:
         return [n for n in self.lockstep_participants if n]
 
 
+def _ns(seconds: float) -> int:
+    return int(round(seconds * 1e9))
+
+
 def set_stamp(target: TimeMsg, seconds: float) -> None:
     """Write ``seconds`` into a builtin_interfaces/Time in place (messages are reused)."""
     nanoseconds = int(round(seconds * 1e9))
@@ -161,6 +165,11 @@ class Simulator(Node):
         self.runner = PhysicsRunner(self.sim, p.command_timeout, p.paused,
                                     log=lambda text: self.get_logger().error(text))
         self.pacer = Pacer(p.real_time_factor)
+        # Readings nobody listens to are not even computed (each sensor has its own noise
+        # generator, so skipping one never changes another's readings).
+        self._listeners: dict[EventKind, list[Any]] = {
+            EventKind.JOINT_STATES: [self.joint_pub], EventKind.GROUND_TRUTH: [self.truth_pub],
+            EventKind.LIDAR: self.scan_pubs, EventKind.IMU: self.imu_pubs}
         self.coordinator = (Coordinator(self, p.expected_participants(), p.lockstep_timeout,
                                         lambda text: self.get_logger().info(text)) if p.lockstep else None)
         self.controllers = self._host_controllers(robot)
@@ -222,20 +231,27 @@ class Simulator(Node):
             self._viewer_synced = now
 
     def _init_messages(self) -> None:
-        """One message object per topic, filled in place: publishing serializes at once."""
-        self._clock_msg = Clock()
-        self._joint_msg = JointState(name=list(self.sim.joint_names))
-        self._truth_msg = Odometry()
-        self._truth_msg.header.frame_id = "world"
-        self._truth_msg.child_frame_id = self.root_frame
-        self._scan_msgs = []
+        """A template per topic (:mod:`pppbot_common.ros.wire`): each publish patches the values into
+        bytes serialized once and publishes those."""
+        self._clock_wire = MessageTemplate(Clock(), stamp_fields("clock"))
+        count = len(self.sim.joint_names)
+        self._joints_wire = MessageTemplate(JointState(name=list(self.sim.joint_names), position=[0.0] * count,
+                                                  velocity=[0.0] * count, effort=[0.0] * count),
+                                       [*stamp_fields(), "position", "velocity", "effort"])
+        truth = Odometry()
+        truth.header.frame_id = "world"
+        truth.child_frame_id = self.root_frame
+        self._truth_wire = MessageTemplate(truth, [*stamp_fields(), *vector("pose.pose.position"),
+                                              *vector("pose.pose.orientation", "xyzw"), *vector("twist.twist.linear"),
+                                              *vector("twist.twist.angular")])
+        self._scan_wires = []
         for lidar in self.sim.lidars:
             s = lidar.spec
             msg = LaserScan(angle_min=s.angle_min, angle_max=s.angle_max, angle_increment=s.angle_increment,
                             time_increment=0.0, scan_time=1.0 / s.rate_hz, range_min=s.range_min,
-                            range_max=s.range_max)
+                            range_max=s.range_max, ranges=[0.0] * s.samples)
             msg.header.frame_id = s.frame_id
-            self._scan_msgs.append(msg)
+            self._scan_wires.append(MessageTemplate(msg, [*stamp_fields(), "ranges"]))
         self._imu_msgs = []
         for imu in self.sim.imus:
             msg = Imu()
@@ -327,6 +343,10 @@ class Simulator(Node):
                 self._publish_collision(r.collision)
             self.published_s = r.stamp_s
 
+    def _wanted(self, event: Event) -> bool:
+        publishers = self._listeners.get(event.kind)
+        return publishers is None or publishers[event.index].get_subscription_count() > 0
+
     def _update_controllers(self) -> None:
         now_ns = self.sim.time_ns
         for controller in self.controllers:
@@ -337,34 +357,30 @@ class Simulator(Node):
         now_ns = self.sim.time_ns
         if now_ns != self._clock_ns or again:
             self._clock_ns = now_ns
-            self._clock_msg.clock.sec, self._clock_msg.clock.nanosec = divmod(now_ns, 1_000_000_000)
-            self.clock_pub.publish(self._clock_msg)
+            self.clock_pub.publish(self._clock_wire.serialize(stamp_values(now_ns, "clock")))
 
     def _publish_joints(self, reading: JointStatesReading) -> None:
-        msg, state = self._joint_msg, reading.state
-        set_stamp(msg.header.stamp, reading.stamp_s)
-        msg.position = array.array("d", state.positions.tobytes())
-        msg.velocity = array.array("d", state.velocities.tobytes())
-        msg.effort = array.array("d", state.efforts.tobytes())
-        self.joint_pub.publish(msg)
+        state = reading.state
+        self.joint_pub.publish(self._joints_wire.serialize({**stamp_values(_ns(reading.stamp_s)),
+                                                       "position": state.positions, "velocity": state.velocities,
+                                                       "effort": state.efforts}))
 
     def _publish_truth(self, reading: GroundTruthReading) -> None:
-        msg, truth = self._truth_msg, reading.truth
-        set_stamp(msg.header.stamp, reading.stamp_s)
-        p, q = msg.pose.pose.position, msg.pose.pose.orientation
-        p.x, p.y, p.z = truth.position.tolist()
-        q.x, q.y, q.z, q.w = truth.orientation_xyzw.tolist()
-        lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
-        lin.x, lin.y, lin.z = truth.linear_velocity.tolist()
-        ang.x, ang.y, ang.z = truth.angular_velocity.tolist()
-        self.truth_pub.publish(msg)
+        truth = reading.truth
+        (px, py, pz), (qx, qy, qz, qw) = truth.position.tolist(), truth.orientation_xyzw.tolist()
+        (vx, vy, vz), (wx, wy, wz) = truth.linear_velocity.tolist(), truth.angular_velocity.tolist()
+        self.truth_pub.publish(self._truth_wire.serialize({
+            **stamp_values(_ns(reading.stamp_s)),
+            "pose.pose.position.x": px, "pose.pose.position.y": py, "pose.pose.position.z": pz,
+            "pose.pose.orientation.x": qx, "pose.pose.orientation.y": qy, "pose.pose.orientation.z": qz,
+            "pose.pose.orientation.w": qw, "twist.twist.linear.x": vx, "twist.twist.linear.y": vy,
+            "twist.twist.linear.z": vz, "twist.twist.angular.x": wx, "twist.twist.angular.y": wy,
+            "twist.twist.angular.z": wz}))
 
     def _publish_scan(self, reading: LidarReading) -> None:
         self._scans_since_sync = True
-        msg = self._scan_msgs[reading.index]
-        set_stamp(msg.header.stamp, reading.scan.stamp_s)
-        msg.ranges = array.array("f", reading.scan.ranges.tobytes())
-        self.scan_pubs[reading.index].publish(msg)
+        self.scan_pubs[reading.index].publish(self._scan_wires[reading.index].serialize(
+            {**stamp_values(_ns(reading.scan.stamp_s)), "ranges": reading.scan.ranges}))
 
     def _publish_collision(self, collision: Collision) -> None:
         msg = PointStamped()
@@ -425,7 +441,7 @@ class Simulator(Node):
                 last_service = time.monotonic()
                 continue
             self.sim.schedule.stop_at_s = sync_s
-            readings = self.runner.advance()
+            readings = self.runner.advance(wanted=self._wanted)
             if readings:
                 self._handle(readings)
             if self._at_sync(sync_s):
