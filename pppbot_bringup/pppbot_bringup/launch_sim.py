@@ -111,12 +111,13 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
                 ReadyCheck(f"{description} (joined lockstep)", probes.joined(name), timeout_s=check.timeout_s))
 
     mux_params, mux_ready = participant("twist_mux", "its inputs", ReadyCheck("its inputs", output_pattern=r"inputs: "))
+    # A participant too: its wheel transforms are on /tf, which the data path counts.
+    rsp_params, rsp_ready = participant("robot_state_publisher", "/robot_description", ReadyCheck(
+        "/robot_description", probes.first_message("/robot_description", "std_msgs/msg/String", True)))
     nodes = [
         NodeSpec("robot_state_publisher", [resolve("pppbot_description", "robot_state_publisher"),
-                                           *ros_args(level, {"robot_description": urdf_file})],
-                 after=("simulator",), required=True,
-                 ready=ReadyCheck("/robot_description",
-                                  probes.first_message("/robot_description", "std_msgs/msg/String", True))),
+                                           *ros_args(level, {"robot_description": urdf_file, **rsp_params})],
+                 after=("simulator",), required=True, ready=rsp_ready),
         NodeSpec("twist_mux", [resolve("pppbot_control", "twist_mux"), *ros_args(
             level, mux_params, params_file=config / "twist_mux.yaml",
             remaps={"cmd_vel_out": "/diff_drive_base_controller/cmd_vel_unstamped"})],

@@ -20,7 +20,7 @@ import heapq
 import itertools
 import math
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Mapping, Sequence
 
 from pppbot_common.errors import PppbotError
 
@@ -227,3 +227,110 @@ class StepTimers:
         """The earliest deadline of a waking timer (None: none)."""
         due = [t.next_ns for t in self._timers if t.wakes and not t.canceled]
         return min(due) if due else None
+
+
+# ----------------------------------------------------------------------------- delivery
+# DDS keeps the order of one writer's messages only: a scan or a transform published before
+# a step may reach a participant after the step (rarely, most often on a busy machine). So
+# each step says how many messages the lockstep processes have published on the topics the
+# participants wait for, and a participant handles the step only once it has received them.
+class Publications:
+    """The simulator's tally: per topic that a participant counts (its data-path subscriptions),
+    how many messages the lockstep processes have published on it in all.
+
+    Participants report their own cumulative counts with every answer, aligned with
+    :attr:`topics` of the step answered; the simulator's process adds its own. Topics become
+    counted at a step's start (:meth:`next_topics`), so one step's answers all share its list.
+    """
+
+    def __init__(self) -> None:
+        self.topics: tuple[str, ...] = ()
+        self._wanted: set[str] = set()
+        #: Per participant, its last cumulative count per topic; their sums over participants.
+        self._last: dict[str, dict[str, int]] = {}
+        self._others: dict[str, int] = {}
+
+    def want(self, topics: Sequence[str]) -> None:
+        """Participants count receptions on ``topics`` (from the next step on)."""
+        self._wanted.update(t for t in topics if t)
+
+    def joined(self, name: str, topics: Sequence[str]) -> None:
+        """``name`` (re)joined: a new process counts from zero."""
+        self._last[name] = {}
+        self.want(topics)
+
+    def next_topics(self) -> tuple[str, ...]:
+        """The counted topics for the step starting now (sorted; they only grow)."""
+        if len(self._wanted) != len(self.topics):
+            self.topics = tuple(sorted(self._wanted))
+        return self.topics
+
+    def report(self, name: str, counts: Sequence[int]) -> None:
+        """``name``'s cumulative counts, aligned with :attr:`topics` (a shorter list: those first)."""
+        last = self._last.setdefault(name, {})
+        for topic, count in zip(self.topics, counts):
+            count = int(count)
+            delta = count - last.get(topic, 0)
+            if delta > 0:
+                self._others[topic] = self._others.get(topic, 0) + delta
+                last[topic] = count
+
+    def totals(self, own: Mapping[str, int]) -> list[int]:
+        """Per topic of :attr:`topics`: what the participants and ``own`` (this process) published."""
+        return [self._others.get(topic, 0) + own.get(topic, 0) for topic in self.topics]
+
+
+@dataclass
+class Counted:
+    """One subscription a participant counts receptions on."""
+
+    topic: str
+    received: int = 0
+    #: Messages published before it could receive them (None: not known yet, set at the next step).
+    offset: int | None = None
+
+
+class Deliveries:
+    """A participant's side: whether its counted subscriptions have received everything published
+    on their topics before the step at hand."""
+
+    def __init__(self) -> None:
+        self.subscriptions: list[Counted] = []
+        self.totals: dict[str, int] = {}
+
+    def add(self, topic: str) -> Counted:
+        counted = Counted(topic)
+        self.subscriptions.append(counted)
+        return counted
+
+    def remove(self, counted: Counted) -> None:
+        if counted in self.subscriptions:
+            self.subscriptions.remove(counted)
+
+    def topics(self) -> list[str]:
+        return sorted({c.topic for c in self.subscriptions})
+
+    def expect(self, topics: Sequence[str], totals: Sequence[int]) -> None:
+        """A step's totals. A subscription that learns its topic's total for the first time takes
+        what it has not received by then as published before it listened."""
+        self.totals.update(zip(topics, (int(t) for t in totals)))
+        for counted in self.subscriptions:
+            if counted.offset is None and counted.topic in self.totals:
+                counted.offset = self.totals[counted.topic] - counted.received
+
+    def lacking(self) -> list[tuple[str, int, int]]:
+        """(topic, received, expected) of each subscription still waiting for messages."""
+        out = []
+        for c in self.subscriptions:
+            if c.offset is not None and c.topic in self.totals:
+                expected = self.totals[c.topic] - c.offset
+                if c.received < expected:
+                    out.append((c.topic, c.received, expected))
+        return out
+
+    def rebase(self) -> None:
+        """Take everything not received so far as never coming (at time's start, when discovery may
+        have lost messages, or after waiting for them in vain)."""
+        for c in self.subscriptions:
+            if c.topic in self.totals:
+                c.offset = self.totals[c.topic] - c.received

@@ -144,3 +144,24 @@ def test_navigation_scenario_reaches_random_goals_judged_on_ground_truth(spawn, 
     for log in ("planner_server-1.log", "controller_server-1.log", "navigator-1.log", "amcl-1.log"):
         assert (out / "logs" / log).is_file()
     assert "process has died" not in output
+
+
+def test_lockstep_drive_is_the_same_run_twice(spawn, tmp_path: Path):
+    """Lockstep (eval's default): the same seed gives the same run, bit for bit, however busy the
+    machine is while it runs (the suite runs beside it)."""
+    recordings, reports = [], []
+    for name in ("first", "second"):
+        out = tmp_path / name
+        code, report, output = run_eval(spawn, out, "--seed", "3", "--wheel-slip", "0.03")
+        assert code == 0, output
+        assert report["lockstep"] is True
+        with np.load(out / "recording.npz") as data:
+            recordings.append({key: data[key] for key in data.files})
+        reports.append(report)
+    first, second = recordings
+    assert first.keys() == second.keys() and len(first["truth"]) > 500
+    for key in first:
+        assert np.array_equal(first[key], second[key]), key
+    varying = {"wall_seconds", "real_time_factor", "out"}
+    assert {k: v for k, v in reports[0].items() if k not in varying} == \
+           {k: v for k, v in reports[1].items() if k not in varying}

@@ -152,11 +152,11 @@ def test_lockstep_makes_the_data_path_participants_and_tells_the_simulator_whom_
     p, probes = fake_plan("lockstep:=true", "real_time_factor:=0", "localization:=true", "navigation:=true",
                           extra_participants=("pppbot_eval",))
     by_name = {n.name: " ".join(n.cmd) for n in p.nodes}
-    participants = ["twist_mux", "amcl", "planner_server", "controller_server", "navigator"]
+    # robot_state_publisher too: its wheel transforms are on /tf, which lockstep counts.
+    participants = ["twist_mux", "robot_state_publisher", "amcl", "planner_server", "controller_server", "navigator"]
     for name in participants:
         assert "lockstep:=true" in by_name[name] and f"lockstep_name:={name}" in by_name[name]
-    for name in ("robot_state_publisher", "map_server"):
-        assert "lockstep" not in by_name[name]  # not on the data path: never waited for
+    assert "lockstep" not in by_name["map_server"]  # not on the data path: never waited for
     sim = by_name["simulator"]
     assert "lockstep:=true" in sim and "real_time_factor:=0.0" in sim
     assert f"lockstep_participants:={[*participants, 'pppbot_eval']}" in sim

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from pppbot_common.lockstep import AckOutcome, Barrier, LockstepError, StepTimers
+from pppbot_common.lockstep import AckOutcome, Barrier, Deliveries, LockstepError, Publications, StepTimers
 
 MS = 1_000_000
 
@@ -108,3 +108,51 @@ def test_canceled_timers_do_not_wake_and_reset_restarts_from_now():
 def test_a_timer_period_must_be_positive():
     with pytest.raises(LockstepError, match="positive number of seconds, not 0"):
         StepTimers().create(0, lambda: None)
+
+
+def test_publications_sum_what_each_process_published_on_the_counted_topics():
+    pubs = Publications()
+    pubs.joined("amcl", ["/scan", "/tf"])
+    pubs.joined("controller", ["/tf"])
+    assert pubs.next_topics() == ("/scan", "/tf")
+    pubs.report("amcl", [0, 3])
+    pubs.report("controller", [0, 2])
+    assert pubs.totals({"/scan": 10, "/tf": 5}) == [10, 10]  # the simulator's own 10 scans and 5 transforms
+    pubs.report("amcl", [0, 4])  # cumulative: one more
+    pubs.report("amcl", [0, 4])  # the same answer again changes nothing
+    assert pubs.totals({}) == [0, 6]
+    pubs.joined("amcl", ["/scan"])  # restarted: counts from zero again, the sent ones stay sent
+    pubs.report("amcl", [0, 1])
+    assert pubs.totals({}) == [0, 7]
+    pubs.want(["/odom"])
+    assert pubs.topics == ("/scan", "/tf")  # a new topic counts from the next step on
+    assert pubs.next_topics() == ("/odom", "/scan", "/tf")
+    assert pubs.totals({"/odom": 1}) == [1, 0, 7]
+
+
+def test_deliveries_wait_for_what_was_published_after_they_listened():
+    deliveries = Deliveries()
+    scan, tf = deliveries.add("/scan"), deliveries.add("/tf")
+    tf.received = 2
+    deliveries.expect(["/scan", "/tf"], [5, 4])  # first totals: what came before is taken as given
+    assert deliveries.lacking() == []
+    deliveries.expect(["/scan", "/tf"], [6, 5])  # one scan and one transform published since
+    tf.received += 1
+    assert deliveries.lacking() == [("/scan", 0, 1)]
+    scan.received += 1
+    assert deliveries.lacking() == []
+    assert deliveries.topics() == ["/scan", "/tf"]
+
+
+def test_deliveries_rebase_gives_up_on_lost_messages_and_extras_never_block():
+    deliveries = Deliveries()
+    scan = deliveries.add("/scan")
+    deliveries.expect(["/scan"], [0])
+    deliveries.expect(["/scan"], [3])
+    scan.received = 1
+    assert deliveries.lacking() == [("/scan", 1, 3)]
+    deliveries.rebase()  # two were lost: waited for no more
+    assert deliveries.lacking() == []
+    scan.received += 5  # from a publisher outside lockstep
+    deliveries.expect(["/scan"], [4])
+    assert deliveries.lacking() == []

@@ -16,6 +16,7 @@ from action_msgs.msg import GoalStatus
 from pppbot_bringup.eval.driver import RouteDriver
 from pppbot_bringup.eval.scenarios import GoalRecord, Recording, shortest_path_m
 from pppbot_common.maps import OccupancyGrid
+from pppbot_common.ros.lockstep import Arrival, hold_until
 from pppbot_common.se2 import se2_compose, se2_inverse
 
 #: The evaluation ticks at 20 Hz of sim time, a teleop's or a controller's rate.
@@ -192,7 +193,7 @@ class NavigateGoals:
             if self._handle is None or not self._handle.accepted:
                 self._record(node, "rejected")
                 return
-            self._result = self._handle.get_result_async()
+            self._result = Arrival(self._handle.get_result_async(), lambda: node.sim_now_s)
         if self._result.done():
             response = self._result.result()
             status = STATUS_NAMES.get(response.status, f"status {response.status}")
@@ -202,7 +203,7 @@ class NavigateGoals:
                 self._record(node, status, int(response.result.error_code), str(response.result.error_msg))
         elif not self._canceled and node.sim_now_s - self._start_s > self._limit_s:
             self._canceled = True
-            self._handle.cancel_goal_async()
+            hold_until(self._handle.cancel_goal_async())
 
     def _send(self, node: EvalActions, goal: tuple[float, float, float]) -> None:
         truth = node.truth_pose
@@ -211,7 +212,7 @@ class NavigateGoals:
         x, y, yaw = (float(v) for v in se2_compose(self.world_to_map, goal))
         self._start_s = node.sim_now_s or 0.0
         self._canceled = False
-        self._sent = node.send_goal(x, y, yaw)
+        self._sent = Arrival(hold_until(node.send_goal(x, y, yaw)), lambda: node.sim_now_s)
 
     def _record(self, node: EvalActions, status: str, error_code: int = 0, error_msg: str = "") -> None:
         node.recording.goals.append(GoalRecord(

@@ -16,6 +16,7 @@ Two helpers keep long-running goals readable anyway:
 from __future__ import annotations
 
 import enum
+import functools
 from dataclasses import dataclass
 from typing import Any, Callable, Generator, Generic, TypeVar
 
@@ -24,6 +25,8 @@ from rclpy.action.server import ServerGoalHandle
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.task import Future
+
+from pppbot_common.ros.lockstep import hold, in_lockstep
 
 T = TypeVar("T")
 
@@ -105,6 +108,12 @@ class Flow(Generic[T]):
     exception in it); each yielded :class:`Sleep` resumes it on the first :meth:`tick` at or after
     its time. ``check()`` runs before every resume and may raise (e.g. :class:`Stopped`) into
     the flow. ``on_end(value, error)`` gets the return value or the exception that ended it.
+
+    In lockstep a flow is tied to steps, so that it runs the same on every machine: the step
+    waits for a yielded future (a server's prompt answer: a goal accepted, a plan), so the
+    answer comes within the round that asked; and a :class:`Sleep`'s ``wake`` (a result that
+    comes whenever the server is done) resumes the flow at its next :meth:`tick`, not when the
+    result happens to arrive.
     """
 
     def __init__(self, steps: Step[T], clock_s: Callable[[], float], on_end: Callable[[T | None, BaseException | None], None],
@@ -115,6 +124,7 @@ class Flow(Generic[T]):
         self._check = check
         self._sleep_until: float | None = None
         self._waiting: Future | None = None
+        self._woken_s: float | None = None  # in lockstep, when the Sleep's wake came (sim s)
         self.ended = False
 
     def start(self) -> None:
@@ -124,7 +134,10 @@ class Flow(Generic[T]):
         """Resume a sleeping flow whose time has come; run the check on a waiting one."""
         if self.ended:
             return
-        if self._sleep_until is not None and self._clock_s() >= self._sleep_until:
+        now = self._clock_s()
+        woken = self._woken_s is not None and now > self._woken_s
+        if self._sleep_until is not None and (woken or now >= self._sleep_until):
+            self._woken_s = None
             self._sleep_until = None
             self._waiting = None
             self._resume(None, None)
@@ -139,9 +152,18 @@ class Flow(Generic[T]):
     def _on_wake(self, future: Future) -> None:
         if self.ended or future is not self._waiting or self._sleep_until is None:
             return
+        if in_lockstep():
+            self._woken_s = self._clock_s()  # resumed by the first tick after this time
+            return
         self._waiting = None
         self._sleep_until = None
         self._resume(None, None)
+
+    def _on_future_released(self, release: Callable[[], None], future: Future) -> None:
+        try:
+            self._on_future(future)
+        finally:
+            release()  # after the flow went on (it may be waiting for its next answer already)
 
     def _on_future(self, future: Future) -> None:
         if self.ended or future is not self._waiting:
@@ -171,7 +193,8 @@ class Flow(Generic[T]):
                 item.wake.add_done_callback(self._on_wake)
         elif isinstance(item, Future):
             self._waiting = item
-            item.add_done_callback(self._on_future)
+            release = hold()
+            item.add_done_callback(functools.partial(self._on_future_released, release))
         else:
             self._end(None, TypeError(f"a flow yields futures or Sleep, not {type(item).__name__}"))
 

@@ -22,9 +22,15 @@ What a participant does, on the protocol of :mod:`pppbot_common.lockstep`:
   rclpy's send methods, so any node composed into the process counts) and when its
   next timer is due.
 
-Messages from the simulator come before its step (one writer process, one reader process:
-delivered and executed in order by the EventsExecutor), so a scan published at a step's
-time is handled before the step is answered.
+DDS orders messages per writer only: a scan or a transform published before a step usually,
+not always, arrives before it (most often not on a busy machine). So every publish is
+counted per topic (:data:`COUNTERS`), answers carry the counts, each step the totals of the
+topics participants count (:func:`count_deliveries`, :func:`require_match`), and a
+participant handles a step only once its counted subscriptions have received that many
+(:class:`~pppbot_common.lockstep.Deliveries`; after :data:`DELIVERY_TIMEOUT_S` it goes on
+with a warning). Service and action requests are held for (:func:`hold_until`, flows of
+:mod:`pppbot_common.ros.goals`): the asking step waits for the prompt answer; a result that
+comes whenever the server is done is seen at the first tick after it came (:class:`Arrival`).
 """
 from __future__ import annotations
 
@@ -48,7 +54,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 
-from pppbot_common.lockstep import LockstepError, StepTimer, StepTimers
+from pppbot_common.lockstep import Counted, Deliveries, LockstepError, StepTimer, StepTimers
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_common.throttle import Throttle
 
@@ -63,6 +69,8 @@ STATUS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=Re
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: Wall seconds between JOINs until the simulator lists the participant.
 JOIN_RESEND_S = 0.5
+#: Wall seconds a step waits for the messages published before it (then goes on with a warning).
+DELIVERY_TIMEOUT_S = 2.0
 WARN_PERIOD_S = 5.0
 
 
@@ -75,10 +83,15 @@ class _Counters:
         self._tasks = itertools.count()
         self.sends = 0
         self.tasks = 0
+        #: Messages published per topic (the totals steps carry; see :class:`Publications`).
+        self.published: dict[str, int] = {}
         self.installed = False
 
     def sent(self) -> None:
         self.sends = next(self._sends) + 1
+
+    def published_on(self, topic: str) -> None:
+        self.published[topic] = self.published.get(topic, 0) + 1
 
     def task(self) -> None:
         self.tasks = next(self._tasks) + 1
@@ -109,7 +122,7 @@ def install_counting() -> None:
     if COUNTERS.installed:
         return
     for cls, name in SEND_METHODS:
-        setattr(cls, name, _counting(getattr(cls, name)))
+        setattr(cls, name, _counting_publish(getattr(cls, name)) if name == "publish" else _counting(getattr(cls, name)))
     task_init = rclpy.task.Task.__init__
 
     @functools.wraps(task_init)
@@ -138,6 +151,31 @@ def _counting(method: Callable[..., Any]) -> Callable[..., Any]:
     return counted
 
 
+def _counting_publish(method: Callable[..., Any]) -> Callable[..., Any]:
+    @functools.wraps(method)
+    def counted(self: Any, msg: Any) -> Any:
+        COUNTERS.sent()
+        COUNTERS.published_on(_topic_of(self))
+        return method(self, msg)
+    return counted
+
+
+def _topic_of(publisher: Any) -> str:
+    """The publisher's topic, cached on it (rclpy asks rcl each time)."""
+    try:
+        return str(publisher._pppbot_topic)
+    except AttributeError:
+        publisher._pppbot_topic = publisher.topic_name
+        return str(publisher._pppbot_topic)
+
+
+def publish_aside(publisher: Any, msg: Any) -> None:
+    """Publish a message nobody in lockstep reacts to at this time (a wheel's transform, for
+    RViz): counted for delivery, but it asks for no further round."""
+    COUNTERS.published_on(_topic_of(publisher))
+    _ORIGINAL_PUBLISH(publisher, msg)
+
+
 def stamp_ns(stamp: TimeMsg) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
@@ -145,6 +183,54 @@ def stamp_ns(stamp: TimeMsg) -> int:
 def time_msg(ns: int) -> TimeMsg:
     sec, nanosec = divmod(int(ns), 1_000_000_000)
     return TimeMsg(sec=sec, nanosec=nanosec)
+
+
+# -------------------------------------------------------------------------- receiving
+class Receiver:
+    """This process's count of what its data-path subscriptions receive (:func:`count_deliveries`):
+    a participant's, or the simulator's for the nodes in its process. ``on_delivery`` runs after
+    each counted message is handled."""
+
+    _current: ClassVar[Receiver | None] = None
+
+    def __init__(self, on_delivery: Callable[[], None]) -> None:
+        self.deliveries = Deliveries()
+        self.on_delivery = on_delivery
+
+    @classmethod
+    def start(cls, on_delivery: Callable[[], None]) -> Receiver:
+        cls._current = cls(on_delivery)
+        return cls._current
+
+    @classmethod
+    def current(cls) -> Receiver | None:
+        return cls._current
+
+    @classmethod
+    def clear_current(cls) -> None:
+        cls._current = None
+
+    def count(self, subscription: Any) -> None:
+        counted = self.deliveries.add(subscription.topic_name)
+        subscription.callback = functools.partial(self._counting, subscription.callback, counted)
+
+    def _counting(self, callback: Callable[[Any], None], counted: Counted, msg: Any) -> None:
+        try:
+            callback(msg)
+        finally:
+            counted.received += 1
+            self.on_delivery()
+
+
+def count_deliveries(node: Node, subscription: Any) -> None:
+    """In lockstep, count what ``subscription`` (on the data path) receives: the process handles a
+    step only once it has every message the lockstep processes published on the topic before the
+    step. Without lockstep it does nothing."""
+    receiver = Receiver.current()
+    participant = Participant.current()
+    if receiver is None or (participant is not None and node.context is not participant.node.context):
+        return
+    receiver.count(subscription)
 
 
 # ------------------------------------------------------------------------ participant
@@ -167,6 +253,12 @@ class Participant:
         self._lock = threading.Lock()
         self._holds = 0
         self._pending_seq: int | None = None
+        self._early_step: LockstepStep | None = None
+        self.deliveries = Receiver.start(self._on_delivery).deliveries
+        self._counted_topics: list[str] = []  # as last told to the simulator
+        self._waiting_step: LockstepStep | None = None  # until the messages published before it are here
+        self._waiting_since = 0.0
+        self._done_wires: dict[int, MessageTemplate] = {}
         self._task_mark = 0
         self._sends_at_answer = 0
         self._last_join = -1e9
@@ -176,10 +268,10 @@ class Participant:
         self._conditions: list[tuple[str, Callable[[], bool]]] = []
         self.steps = 0
         self._last_step_ns = 0
+        self._timers_ns = -1  # the time timers last ran at
         install_counting()
         self.ack_pub = node.create_publisher(LockstepAck, ACK_TOPIC, PROTOCOL_QOS)
-        self._done_wire = MessageTemplate(LockstepAck(kind=LockstepAck.DONE, participant=name),
-                                          ["seq", "sent", *stamp_fields("next_wakeup"), "settled", "graph_nodes"])
+        self._step_topics: tuple[str, ...] = ()
         node.create_subscription(LockstepStep, STEP_TOPIC, self._on_step, PROTOCOL_QOS)
         node.create_subscription(LockstepStatus, STATUS_TOPIC, self._on_status, STATUS_QOS)
 
@@ -218,6 +310,7 @@ class Participant:
     @classmethod
     def clear_current(cls) -> None:
         cls._current = None
+        Receiver.clear_current()
 
     def start(self, executor: Any, nodes: Sequence[Node]) -> None:
         """Spinning starts with ``executor``; ``nodes`` get their clocks set to each step's time."""
@@ -245,7 +338,10 @@ class Participant:
         return len(self.node.get_node_names_and_namespaces())
 
     def maintain(self) -> None:
-        """Called by the spin loop: (re)send JOIN until the simulator lists this participant."""
+        """Called by the spin loop: (re)send JOIN until the simulator lists this participant; give up
+        waiting for messages a step needs after :data:`DELIVERY_TIMEOUT_S`."""
+        if self._waiting_step is not None:
+            self._try_step()
         if self.joined or self.ack_pub.get_subscription_count() == 0:
             return
         now = time.monotonic()
@@ -256,14 +352,25 @@ class Participant:
         if unmet:
             self._warn("requirements", f"lockstep: '{self.name}' joins once it has {', '.join(unmet)}")
             return
+        self._counted_topics = self.deliveries.topics()
         self._send(LockstepAck(kind=LockstepAck.JOIN, participant=self.name, settled=True,
-                               graph_nodes=self._graph_nodes()))
+                               graph_nodes=self._graph_nodes(), counted_topics=self._counted_topics))
+
+    def _on_delivery(self) -> None:
+        if self._waiting_step is not None:
+            self._try_step()
 
     def _on_status(self, msg: LockstepStatus) -> None:
         listed = self.name in msg.participants
-        if listed and not self.joined:
+        joining = listed and not self.joined
+        if joining:
             self.node.get_logger().info(f"lockstep: joined as '{self.name}'")
         self.joined = listed
+        early, self._early_step = self._early_step, None
+        if joining and early is not None:
+            # The simulator lists a joiner just before its first step, on another topic: the step
+            # may come first. Answered now (an answer to a step from before the listing is ignored).
+            self._on_step(early)
 
     def leave(self) -> None:
         """Tell the simulator to stop waiting for this process (it is ending)."""
@@ -278,12 +385,42 @@ class Participant:
     # ------------------------------------------------------------------ steps
     def _on_step(self, msg: LockstepStep) -> None:
         if not self.joined:
-            return  # the simulator does not wait for us yet
+            self._early_step = msg  # the simulator may wait for us already (see _on_status)
+            return
+        self._step_topics = tuple(msg.topics)
+        self.deliveries.expect(msg.topics, msg.published)
+        if stamp_ns(msg.stamp) == 0:
+            self.deliveries.rebase()  # time holds at its start: discovery may have lost messages
+        self._waiting_step, self._waiting_since = msg, time.monotonic()
+        self._try_step()
+
+    def _try_step(self) -> None:
+        """Handle the waiting step once every message published before it is here (or after
+        :data:`DELIVERY_TIMEOUT_S`, with a warning naming the topics)."""
+        msg = self._waiting_step
+        if msg is None:
+            return
+        lacking = self.deliveries.lacking()
+        if lacking:
+            if time.monotonic() - self._waiting_since < DELIVERY_TIMEOUT_S:
+                return
+            self._warn("delivery", f"lockstep: step {msg.seq} (t = {stamp_ns(msg.stamp) * 1e-9:.3f} s) goes on "
+                                   f"without messages published before it: " + ", ".join(
+                                       f"{topic} ({expected - received} of {expected})"
+                                       for topic, received, expected in lacking))
+            self.deliveries.rebase()
+        self._waiting_step = None
+        self._handle_step(msg)
+
+    def _handle_step(self, msg: LockstepStep) -> None:
         self.steps += 1
         t_ns = self._last_step_ns = stamp_ns(msg.stamp)
         self._set_clocks(t_ns)
+        # The step's time for timers (re)started now, before the timers round (a goal's).
+        self.timers.now_ns = max(self.timers.now_ns, t_ns)
         self._run_deferred()
-        if msg.timers and t_ns > self.timers.now_ns:
+        if msg.timers and t_ns > self._timers_ns:
+            self._timers_ns = t_ns
             for timer in self.timers.advance(t_ns):
                 if not timer.canceled:
                     self._fire(timer)
@@ -354,9 +491,29 @@ class Participant:
             sent, self._sends_at_answer = sends > self._sends_at_answer, sends
         wakeup = self.timers.next_wakeup_ns()
         starting = self._last_step_ns == 0  # time holds at its start: the simulator asks whether all is set
-        _ORIGINAL_PUBLISH(self.ack_pub, self._done_wire.serialize({
-            "seq": seq, "sent": sent, **stamp_values(wakeup or 0, "next_wakeup"),
-            "settled": not starting or not self._unmet(), "graph_nodes": self._graph_nodes() if starting else 0}))
+        values: dict[str, Any] = {"seq": seq, "sent": sent, **stamp_values(wakeup or 0, "next_wakeup"),
+                                  "settled": not starting or not self._unmet(),
+                                  "graph_nodes": self._graph_nodes() if starting else 0}
+        published = [COUNTERS.published.get(topic, 0) for topic in self._step_topics]
+        counted_topics = self.deliveries.topics()
+        if counted_topics != self._counted_topics:  # a subscription made since: told once
+            self._counted_topics = counted_topics
+            self._send(LockstepAck(kind=LockstepAck.DONE, participant=self.name, published=published,
+                                   counted_topics=counted_topics, **_message_values(values)))
+            return
+        if published:
+            values["published"] = published
+        _ORIGINAL_PUBLISH(self.ack_pub, self._done_wire(len(published)).serialize(values))
+
+    def _done_wire(self, topics: int) -> MessageTemplate:
+        """DONE's template for a step with ``topics`` counted topics."""
+        wire = self._done_wires.get(topics)
+        if wire is None:
+            fields = ["seq", "sent", *stamp_fields("next_wakeup"), "settled", "graph_nodes"]
+            wire = self._done_wires[topics] = MessageTemplate(
+                LockstepAck(kind=LockstepAck.DONE, participant=self.name, published=[0] * topics),
+                fields + (["published"] if topics else []))
+        return wire
 
     def _send(self, msg: LockstepAck) -> None:
         _ORIGINAL_PUBLISH(self.ack_pub, msg)  # the protocol's own messages are not "sent" work
@@ -364,6 +521,13 @@ class Participant:
     def _warn(self, key: str, text: str) -> None:
         if self._throttle.allow(key, time.monotonic()):
             self.node.get_logger().warning(text)
+
+
+def _message_values(values: dict[str, Any]) -> dict[str, Any]:
+    """Template values (:func:`stamp_values` fields) as message constructor arguments."""
+    out = {k: v for k, v in values.items() if "." not in k}
+    out["next_wakeup"] = TimeMsg(sec=values["next_wakeup.sec"], nanosec=values["next_wakeup.nanosec"])
+    return out
 
 
 def _node_safe(name: str) -> str:
@@ -420,6 +584,7 @@ def require_match(node: Node, endpoint: Any, what: str = "") -> None:
     else:
         participant.require_when(what or f"the publishers of {topic}",
                                  lambda: endpoint.get_publisher_count() >= max(1, node.count_publishers(topic)))
+        count_deliveries(node, endpoint)
 
 
 def in_step(node: Node, work: Callable[[], None]) -> None:
@@ -440,6 +605,48 @@ def at_step(node: Node, callback: Callable[[Any], None]) -> Callable[[Any], None
     def handle(msg: Any) -> None:
         in_step(node, functools.partial(callback, msg))
     return handle
+
+
+def in_lockstep() -> bool:
+    """Whether this process takes part in lockstep (and has joined)."""
+    participant = Participant.current()
+    return participant is not None and participant.joined
+
+
+def hold_until(future: Any) -> Any:
+    """In lockstep, the current step waits until ``future`` is done: for a server's prompt answer
+    (a goal accepted or refused, a cancel, a service's reply), so that the server handles the
+    request within the round that sent it. Returns ``future``."""
+    release = hold()
+    future.add_done_callback(lambda _: release())
+    return future
+
+
+class Arrival:
+    """A future that a server completes whenever it is done (an action's result), as periodic
+    ticks should see it: in lockstep, done from the first tick after the sim time it arrived at.
+    A result sent at a step thus reaches the client's logic at the same tick on every machine,
+    whether it arrived before or after the client's own timer of that step. ``clock_s`` reads
+    the node's sim time."""
+
+    def __init__(self, future: Any, clock_s: Callable[[], float | None]) -> None:
+        self.future = future
+        self._clock_s = clock_s
+        self._lockstep = in_lockstep()
+        self.arrived_s: float | None = None
+        future.add_done_callback(self._arrived)
+
+    def _arrived(self, future: Any) -> None:
+        self.arrived_s = self._clock_s() or 0.0
+
+    def done(self) -> bool:
+        if not self._lockstep:
+            return bool(self.future.done())
+        now = self._clock_s()
+        return self.arrived_s is not None and now is not None and now > self.arrived_s
+
+    def result(self) -> Any:
+        return self.future.result()
 
 
 def hold() -> Callable[[], None]:

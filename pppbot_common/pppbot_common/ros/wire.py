@@ -137,6 +137,8 @@ class _Layout:
         if kind in FORMATS:
             if len(values):
                 self._primitive(kind, path, len(values))
+            else:  # CDR aligns for the elements even when there are none
+                self.offset = _align(self.offset, struct.calcsize(FORMATS[kind]))
         elif kind.startswith("string"):
             for text in values:
                 self._string(text)

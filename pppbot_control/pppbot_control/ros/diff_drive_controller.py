@@ -33,7 +33,7 @@ from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.lockstep import create_timer, destroy_timer
+from pppbot_common.ros.lockstep import count_deliveries, create_timer, destroy_timer
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
@@ -164,9 +164,11 @@ class DiffDriveController(Node):
                                                 guarded(self, self.on_cmd_vel, "TwistStamped"), 10)
         self.cmd_unstamped_sub = self.create_subscription(Twist, "~/cmd_vel_unstamped",
                                                           guarded(self, self.on_cmd_vel_unstamped, "Twist"), 10)
+        count_deliveries(self, self.cmd_sub)  # in lockstep a step waits for the commands sent before it
+        count_deliveries(self, self.cmd_unstamped_sub)
         if hosted is None:
-            self.create_subscription(JointState, "/joint_states", guarded(self, self.on_joint_states, "JointState"),
-                                     10)
+            count_deliveries(self, self.create_subscription(JointState, "/joint_states",
+                                                            guarded(self, self.on_joint_states, "JointState"), 10))
             self.command_pub = self.create_publisher(JointState, "/joint_commands", 10)
         self.odom_pub = self.create_publisher(OdometryMsg, "odom", 10)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)

@@ -14,7 +14,7 @@ from rclpy.node import Node
 from std_msgs.msg import Bool
 
 from pppbot_common.params import ParameterError
-from pppbot_common.ros.lockstep import create_timer, require_match
+from pppbot_common.ros.lockstep import count_deliveries, create_timer, require_match
 from pppbot_common.ros.node_main import guarded, run_node
 from pppbot_control.mux import MuxConfigError, TwistMux, parse_config
 
@@ -50,9 +50,10 @@ class TwistMuxNode(Node):
         self.output = self.create_publisher(self.msg_type, "cmd_vel_out", 10)
         require_match(self, self.output)
         for spec in inputs:
-            self.create_subscription(self.msg_type, spec.topic, self._input_callback(spec.name), 10)
+            count_deliveries(self, self.create_subscription(self.msg_type, spec.topic,
+                                                            self._input_callback(spec.name), 10))
         for lock in locks:
-            self.create_subscription(Bool, lock.topic, self._lock_callback(lock.name), 10)
+            count_deliveries(self, self.create_subscription(Bool, lock.topic, self._lock_callback(lock.name), 10))
         create_timer(self, 1.0 / CHECK_RATE_HZ, self.check)
         summary = ", ".join(f"{s.name} ({s.topic}, priority {s.priority}, {s.timeout_s:g} s)" for s in inputs)
         self.get_logger().info(f"inputs: {summary}" + (f"; locks: {', '.join(l.name for l in locks)}" if locks else ""))

@@ -24,6 +24,7 @@ from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.ros.lockstep import count_deliveries, publish_aside
 from pppbot_common.ros.node_main import guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.qos import LATCHED
@@ -101,7 +102,9 @@ class RobotStatePublisher(Node):
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
         self._last_published: Time | None = None
         self._load(self.params)
-        self.create_subscription(JointState, "joint_states", guarded(self, self.on_joint_states, "JointState"), 10)
+        # In lockstep (launch_sim lockstep:=true) its wheel transforms are part of each step's /tf.
+        count_deliveries(self, self.create_subscription(JointState, "joint_states",
+                                                        guarded(self, self.on_joint_states, "JointState"), 10))
         on_valid_update(self, lambda: self.params, self._load)
 
     def _load(self, params: RspParameters) -> None:
@@ -141,7 +144,8 @@ class RobotStatePublisher(Node):
             return
         transforms = self.tree.moving_transforms(positions)
         if transforms:
-            self.tf_pub.publish(TFMessage(transforms=[to_msg(t, stamp) for t in transforms]))
+            # Wheel transforms: for RViz, nobody in lockstep reacts to them (no extra round).
+            publish_aside(self.tf_pub, TFMessage(transforms=[to_msg(t, stamp) for t in transforms]))
             self._last_published = stamp
 
     def _due(self, stamp: Time) -> bool:

@@ -15,19 +15,21 @@ The bookkeeping is :class:`pppbot_common.lockstep.Barrier`; this is its ROS adap
 from __future__ import annotations
 
 import time
-from typing import Callable
+from typing import Any, Callable
 
 from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
 from rclpy.node import Node
 
-from pppbot_common.lockstep import AckOutcome, Barrier, LockstepError
+from pppbot_common.lockstep import AckOutcome, Barrier, LockstepError, Publications
 from pppbot_common.ros.lockstep import (
     ACK_TOPIC,
     COUNTERS,
+    DELIVERY_TIMEOUT_S,
     PROTOCOL_QOS,
     STATUS_QOS,
     STATUS_TOPIC,
     STEP_TOPIC,
+    Receiver,
     install_counting,
     stamp_ns,
     time_msg,
@@ -61,7 +63,11 @@ class Coordinator:
         self.extra_rounds = 0
         install_counting()  # a reply by one of this process's nodes may need another round too
         self.step_pub = node.create_publisher(LockstepStep, STEP_TOPIC, PROTOCOL_QOS)
-        self._step_wire = MessageTemplate(LockstepStep(), ["seq", *stamp_fields("stamp"), "round", "timers"])
+        self.publications = Publications()
+        #: What this process's nodes (hosted controllers) receive from participants (count_deliveries)
+        self.deliveries = Receiver.start(lambda: None).deliveries
+        self.late_deliveries = 0
+        self._step_wires: dict[tuple[str, ...], MessageTemplate] = {}
         self.status_pub = node.create_publisher(LockstepStatus, STATUS_TOPIC, STATUS_QOS)
         node.create_subscription(LockstepAck, ACK_TOPIC, self._on_ack, PROTOCOL_QOS)
         self._members_published: tuple[list[str], list[str]] | None = None
@@ -76,6 +82,7 @@ class Coordinator:
             if name not in self.barrier.members and name not in self.barrier.joining:
                 self.log(f"lockstep: '{name}' joins")
             self.barrier.join(name)
+            self.publications.joined(name, msg.counted_topics)
             # Listed at once (waited for from the next step on); asked again, it missed the status.
             self.publish_status(self.barrier.stamp_ns, force=True)
         elif msg.kind == LockstepAck.LEAVE:
@@ -89,6 +96,8 @@ class Coordinator:
                 self.log(f"lockstep: '{name}' answered step {msg.seq} twice")
             elif outcome is AckOutcome.COUNTED:
                 self._readiness[name] = (bool(msg.settled), int(msg.graph_nodes))
+                self.publications.report(name, msg.published)
+                self.publications.want(msg.counted_topics)
 
     def publish_status(self, t_ns: int, force: bool = False) -> None:
         """Who is waited for: members, and joiners (waited for from the next step on; an answer of
@@ -171,15 +180,20 @@ class Coordinator:
                 self.publish_status(t_ns)  # a joiner learns it is waited for before its first step
             if not self.barrier.members:
                 return True
-            self.step_pub.publish(self._step_wire.serialize({"seq": seq, **stamp_values(t_ns, "stamp"),
-                                                             "round": self._round_index,
-                                                             "timers": timers and index == 0}))
+            self.publications.want(self.deliveries.topics())
+            topics = self.publications.next_topics()
+            values: dict[str, Any] = {"seq": seq, **stamp_values(t_ns, "stamp"), "round": self._round_index,
+                      "timers": timers and index == 0}
+            if topics:
+                values["published"] = self.publications.totals(COUNTERS.published)
+            self.step_pub.publish(self._step_wire(topics).serialize(values))
             self._round_index += 1
             sends = COUNTERS.sends
             self.rounds += 1
             self._wait_for_answers(process, seq, t_ns)
             if not process.running():
                 return False
+            self._wait_for_deliveries(process, t_ns)
             # Every message a participant sent before its answer has been handled here by now.
             if not self.barrier.another_round() and COUNTERS.sends == sends:
                 return True
@@ -187,6 +201,15 @@ class Coordinator:
         self.log(f"lockstep: still sending after {MAX_ROUNDS} rounds at t = {t_ns * 1e-9:.3f} s "
                  f"({', '.join(self.barrier.senders()) or 'the simulator'}); time moves on")
         return True
+
+    def _step_wire(self, topics: tuple[str, ...]) -> MessageTemplate:
+        """The step's template for these counted topics (they change only as participants join)."""
+        wire = self._step_wires.get(topics)
+        if wire is None:
+            fields = ["seq", *stamp_fields("stamp"), "round", "timers"] + (["published"] if topics else [])
+            wire = self._step_wires[topics] = MessageTemplate(
+                LockstepStep(topics=list(topics), published=[0] * len(topics)), fields)
+        return wire
 
     def _wait_for_answers(self, process: Process, seq: int, t_ns: int) -> None:
         deadline = time.monotonic() + self.timeout_s
@@ -200,6 +223,31 @@ class Coordinator:
             if not process.running():
                 return
             process.spin_once(min(remaining, 0.2))
+
+    def _wait_for_deliveries(self, process: Process, t_ns: int) -> None:
+        """Until this process has the messages participants published on its counted topics before
+        their answers (such as a command for a hosted controller), at most DELIVERY_TIMEOUT_S."""
+        deliveries = self.deliveries
+        if not deliveries.subscriptions:
+            return
+        deliveries.expect(self.publications.topics, self.publications.totals(COUNTERS.published))
+        if t_ns == 0:
+            deliveries.rebase()  # time holds at its start: discovery may have lost messages
+            return
+        deadline = time.monotonic() + DELIVERY_TIMEOUT_S
+        lacking = deliveries.lacking()
+        if lacking:
+            self.late_deliveries += 1
+        while lacking and process.running():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                self.log("lockstep: going on at t = {:.3f} s without messages published before the answers: {}".format(
+                    t_ns * 1e-9, ", ".join(f"{topic} ({expected - received} of {expected})"
+                                           for topic, received, expected in lacking)))
+                deliveries.rebase()
+                return
+            process.spin_once(min(remaining, 0.05))
+            lacking = deliveries.lacking()
 
     def next_wakeup_ns(self) -> int | None:
         return self.barrier.next_wakeup_ns()

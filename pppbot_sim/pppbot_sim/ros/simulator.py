@@ -33,6 +33,7 @@ from std_srvs.srv import Empty, Trigger
 
 from pppbot_common.lockstep import LockstepError
 from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.ros.lockstep import count_deliveries
 from pppbot_common.ros.node_main import Process, Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values, vector
@@ -145,7 +146,8 @@ class Simulator(Node):
         self.collision_pub = self.create_publisher(PointStamped, "ground_truth/collisions", 100)
         self.scan_pubs = [self.create_publisher(LaserScan, lidar.spec.topic, 10) for lidar in self.sim.lidars]
         self.imu_pubs = [self.create_publisher(Imu, imu.spec.topic, 10) for imu in self.sim.imus]
-        self.create_subscription(JointState, "joint_commands", guarded(self, self.on_joint_commands, "JointState"), 10)
+        self._commands_sub = self.create_subscription(JointState, "joint_commands",
+                                                      guarded(self, self.on_joint_commands, "JointState"), 10)
         self.create_service(Empty, "pause_physics", self._pause)
         self.create_service(Empty, "unpause_physics", self._unpause)
         self.create_service(Empty, "reset_world", self._reset)
@@ -160,7 +162,7 @@ class Simulator(Node):
         self._viewer_synced = 0.0
         self.published_s = 0.0
         self._clock_ns = -1  # the time of the last /clock
-        self._scans_since_sync = False
+        self._published_since_sync = False  # a reading or a controller's odometry, since the last sync
         self._warn = Warnings(self, WARN_PERIOD_S)
         self.runner = PhysicsRunner(self.sim, p.command_timeout, p.paused,
                                     log=lambda text: self.get_logger().error(text))
@@ -172,6 +174,8 @@ class Simulator(Node):
             EventKind.LIDAR: self.scan_pubs, EventKind.IMU: self.imu_pubs}
         self.coordinator = (Coordinator(self, p.expected_participants(), p.lockstep_timeout,
                                         lambda text: self.get_logger().info(text)) if p.lockstep else None)
+        if self.coordinator is not None:
+            count_deliveries(self, self._commands_sub)  # an external controller's wheel commands
         self.controllers = self._host_controllers(robot)
         self.composed_nodes = list(self.controllers)
         on_valid_update(self, lambda: self.params, self._apply)
@@ -327,6 +331,8 @@ class Simulator(Node):
     # ------------------------------------------------------------ publishing
     def _handle(self, readings: Sequence[Reading]) -> None:
         for r in readings:
+            if not isinstance(r, ClockTick):
+                self._published_since_sync = True
             if isinstance(r, ControlTick):
                 self._update_controllers()
             elif isinstance(r, ClockTick):
@@ -378,7 +384,6 @@ class Simulator(Node):
             "twist.twist.angular.z": wz}))
 
     def _publish_scan(self, reading: LidarReading) -> None:
-        self._scans_since_sync = True
         self.scan_pubs[reading.index].publish(self._scan_wires[reading.index].serialize(
             {**stamp_values(_ns(reading.scan.stamp_s)), "ranges": reading.scan.ranges}))
 
@@ -415,11 +420,11 @@ class Simulator(Node):
 
     def _sync(self, process: Process) -> None:
         """Lockstep at the current time: /clock, then steps until the participants are done (first for
-        the scans published since the last sync, if any, then for the timers)."""
+        what was published since the last sync, if anything, then for the timers)."""
         assert self.coordinator is not None
         self._publish_clock()
-        self.coordinator.sync(process, self.sim.time_ns, readings=self._scans_since_sync)
-        self._scans_since_sync = False
+        self.coordinator.sync(process, self.sim.time_ns, readings=self._published_since_sync)
+        self._published_since_sync = False
 
     def run(self, process: Process, until_s: float = math.inf) -> None:
         """Step, publish and serve callbacks until stopped (or until published time reaches ``until_s``)."""
