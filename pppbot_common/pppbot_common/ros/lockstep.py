@@ -17,15 +17,15 @@ What a participant does, on the protocol of :mod:`pppbot_common.lockstep`:
   step that says so fires the timers due (timers made with :func:`create_timer`: they
   run on steps, in a fixed order, instead of on the clock), then answers DONE once
   nothing is left to run: no executor task created since (a future's callbacks, an
-  action's goal), and no work held by a thread (:meth:`Participant.hold`). The answer says whether the process sent
-  anything since its previous answer (topics, services, actions: counted by wrapping
-  rclpy's send methods, so any node composed into the process counts) and when its
-  next timer is due.
+  action's goal), and no work held by a thread (:meth:`Participant.hold`). The answer
+  says whether the process sent anything since its previous answer (topics, services,
+  actions: counted by wrapping rclpy's send methods, so any node composed into the
+  process counts) and when its next timer is due.
 
 DDS orders messages per writer only: a scan or a transform published before a step usually,
 not always, arrives before it (most often not on a busy machine). So every publish is
-counted per topic (:data:`COUNTERS`), answers carry the counts, each step the totals of the
-topics participants count (:func:`count_deliveries`, :func:`require_match`), and a
+counted per topic (:mod:`pppbot_common.ros.lockstep_counting`), answers carry the counts,
+each step the totals of the topics participants count (:func:`count_deliveries`, :func:`require_match`), and a
 participant handles a step only once its counted subscriptions have received that many
 (:class:`~pppbot_common.lockstep.Deliveries`; after :data:`DELIVERY_TIMEOUT_S` it goes on
 with a warning). Service and action requests are held for (:func:`hold_until`, flows of
@@ -35,17 +35,10 @@ comes whenever the server is done is seen at the first tick after it came (:clas
 from __future__ import annotations
 
 import functools
-import itertools
 import threading
 import time
 from typing import Any, Callable, ClassVar, Sequence
 
-import rclpy.action.client
-import rclpy.action.server
-import rclpy.client
-import rclpy.publisher
-import rclpy.service
-import rclpy.task
 from builtin_interfaces.msg import Time as TimeMsg
 from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
 from rclpy.clock import ClockType, ROSClock
@@ -54,7 +47,8 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 
-from pppbot_common.lockstep import Counted, Deliveries, LockstepError, StepTimer, StepTimers
+from pppbot_common.lockstep import LockstepError, StepTimer, StepTimers
+from pppbot_common.ros.lockstep_counting import _ORIGINAL_PUBLISH, COUNTERS, Receiver, install_counting
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_common.throttle import Throttle
 
@@ -74,108 +68,6 @@ DELIVERY_TIMEOUT_S = 2.0
 WARN_PERIOD_S = 5.0
 
 
-# --------------------------------------------------------------------------- counting
-class _Counters:
-    """Process-wide counts of what was sent and of executor tasks created (both only grow)."""
-
-    def __init__(self) -> None:
-        self._sends = itertools.count()
-        self._tasks = itertools.count()
-        self.sends = 0
-        self.tasks = 0
-        #: Messages published per topic (the totals steps carry; see :class:`Publications`).
-        self.published: dict[str, int] = {}
-        self.installed = False
-
-    def sent(self) -> None:
-        self.sends = next(self._sends) + 1
-
-    def published_on(self, topic: str) -> None:
-        self.published[topic] = self.published.get(topic, 0) + 1
-
-    def task(self) -> None:
-        self.tasks = next(self._tasks) + 1
-
-
-COUNTERS = _Counters()
-_ORIGINAL_PUBLISH = rclpy.publisher.Publisher.publish
-
-#: rclpy's methods that put a message on the wire (rclpy 7.1, pinned): (class, method name).
-SEND_METHODS: tuple[tuple[type, str], ...] = (
-    (rclpy.publisher.Publisher, "publish"),
-    (rclpy.client.Client, "call_async"),
-    (rclpy.service.Service, "send_response"),
-    (rclpy.action.client.ActionClient, "send_goal_async"),
-    (rclpy.action.client.ActionClient, "_cancel_goal_async"),
-    (rclpy.action.client.ActionClient, "_get_result_async"),
-    (rclpy.action.server.ActionServer, "_execute_goal_request"),
-    (rclpy.action.server.ActionServer, "_execute_cancel_request"),
-    (rclpy.action.server.ActionServer, "_execute_get_result_request"),
-    (rclpy.action.server.ActionServer, "_send_result_response"),
-    (rclpy.action.server.ServerGoalHandle, "publish_feedback"),
-    (rclpy.action.server.ServerGoalHandle, "_update_state"),
-)
-
-
-def install_counting() -> None:
-    """Count every send and every executor task of this process (once; idempotent)."""
-    if COUNTERS.installed:
-        return
-    for cls, name in SEND_METHODS:
-        setattr(cls, name, _counting_publish(getattr(cls, name)) if name == "publish" else _counting(getattr(cls, name)))
-    task_init = rclpy.task.Task.__init__
-
-    @functools.wraps(task_init)
-    def counting_init(self: Any, *args: Any, **kwargs: Any) -> None:
-        COUNTERS.task()
-        task_init(self, *args, **kwargs)
-
-    rclpy.task.Task.__init__ = counting_init  # type: ignore[method-assign]
-    COUNTERS.installed = True
-
-
-def _counting(method: Callable[..., Any]) -> Callable[..., Any]:
-    import inspect
-
-    if inspect.iscoroutinefunction(method):
-        @functools.wraps(method)
-        async def counted_async(self: Any, *args: Any, **kwargs: Any) -> Any:
-            COUNTERS.sent()
-            return await method(self, *args, **kwargs)
-        return counted_async
-
-    @functools.wraps(method)
-    def counted(self: Any, *args: Any, **kwargs: Any) -> Any:
-        COUNTERS.sent()
-        return method(self, *args, **kwargs)
-    return counted
-
-
-def _counting_publish(method: Callable[..., Any]) -> Callable[..., Any]:
-    @functools.wraps(method)
-    def counted(self: Any, msg: Any) -> Any:
-        COUNTERS.sent()
-        COUNTERS.published_on(_topic_of(self))
-        return method(self, msg)
-    return counted
-
-
-def _topic_of(publisher: Any) -> str:
-    """The publisher's topic, cached on it (rclpy asks rcl each time)."""
-    try:
-        return str(publisher._pppbot_topic)
-    except AttributeError:
-        publisher._pppbot_topic = publisher.topic_name
-        return str(publisher._pppbot_topic)
-
-
-def publish_aside(publisher: Any, msg: Any) -> None:
-    """Publish a message nobody in lockstep reacts to at this time (a wheel's transform, for
-    RViz): counted for delivery, but it asks for no further round."""
-    COUNTERS.published_on(_topic_of(publisher))
-    _ORIGINAL_PUBLISH(publisher, msg)
-
-
 def stamp_ns(stamp: TimeMsg) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
@@ -183,43 +75,6 @@ def stamp_ns(stamp: TimeMsg) -> int:
 def time_msg(ns: int) -> TimeMsg:
     sec, nanosec = divmod(int(ns), 1_000_000_000)
     return TimeMsg(sec=sec, nanosec=nanosec)
-
-
-# -------------------------------------------------------------------------- receiving
-class Receiver:
-    """This process's count of what its data-path subscriptions receive (:func:`count_deliveries`):
-    a participant's, or the simulator's for the nodes in its process. ``on_delivery`` runs after
-    each counted message is handled."""
-
-    _current: ClassVar[Receiver | None] = None
-
-    def __init__(self, on_delivery: Callable[[], None]) -> None:
-        self.deliveries = Deliveries()
-        self.on_delivery = on_delivery
-
-    @classmethod
-    def start(cls, on_delivery: Callable[[], None]) -> Receiver:
-        cls._current = cls(on_delivery)
-        return cls._current
-
-    @classmethod
-    def current(cls) -> Receiver | None:
-        return cls._current
-
-    @classmethod
-    def clear_current(cls) -> None:
-        cls._current = None
-
-    def count(self, subscription: Any) -> None:
-        counted = self.deliveries.add(subscription.topic_name)
-        subscription.callback = functools.partial(self._counting, subscription.callback, counted)
-
-    def _counting(self, callback: Callable[[Any], None], counted: Counted, msg: Any) -> None:
-        try:
-            callback(msg)
-        finally:
-            counted.received += 1
-            self.on_delivery()
 
 
 def count_deliveries(node: Node, subscription: Any) -> None:

@@ -24,7 +24,8 @@ from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.lockstep import count_deliveries, publish_aside
+from pppbot_common.ros.lockstep import count_deliveries
+from pppbot_common.ros.lockstep_counting import publish_aside
 from pppbot_common.ros.node_main import guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.qos import LATCHED

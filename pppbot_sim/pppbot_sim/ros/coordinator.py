@@ -23,17 +23,15 @@ from rclpy.node import Node
 from pppbot_common.lockstep import AckOutcome, Barrier, LockstepError, Publications
 from pppbot_common.ros.lockstep import (
     ACK_TOPIC,
-    COUNTERS,
     DELIVERY_TIMEOUT_S,
     PROTOCOL_QOS,
     STATUS_QOS,
     STATUS_TOPIC,
     STEP_TOPIC,
-    Receiver,
-    install_counting,
     stamp_ns,
     time_msg,
 )
+from pppbot_common.ros.lockstep_counting import COUNTERS, Receiver, install_counting
 from pppbot_common.ros.node_main import Process
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 
