@@ -117,11 +117,11 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
     nodes = [
         NodeSpec("robot_state_publisher", [resolve("pppbot_description", "robot_state_publisher"),
                                            *ros_args(level, {"robot_description": urdf_file, **rsp_params})],
-                 after=("simulator",), required=True, ready=rsp_ready),
+                 after=("simulator",), required=True, pppbot_node=True, ready=rsp_ready),
         NodeSpec("twist_mux", [resolve("pppbot_control", "twist_mux"), *ros_args(
             level, mux_params, params_file=config / "twist_mux.yaml",
             remaps={"cmd_vel_out": "/diff_drive_base_controller/cmd_vel_unstamped"})],
-            after=("simulator",), required=True, ready=mux_ready),
+            after=("simulator",), required=True, pppbot_node=True, ready=mux_ready),
     ]
     if values["record"]:
         bag = Path(values["bag_path"] or time.strftime("rosbag2_%Y_%m_%d-%H_%M_%S"))
@@ -141,7 +141,7 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
         nav2_params = config / "nav2_params.yaml"
         nodes.append(NodeSpec("map_server", [resolve("pppbot_nav", "map_server"), *ros_args(
             level, {"yaml_filename": map_file.resolve()}, params_file=nav2_params)],
-            after=("simulator",), required=True,
+            after=("simulator",), required=True, pppbot_node=True,
             ready=ReadyCheck("/map", probes.first_message("/map", "nav_msgs/msg/OccupancyGrid", True))))
         # AMCL starts where the robot was spawned (the shipped maps' frame is the world's, the
         # spawn pose of a map made with the default spawn); RViz's 2D Pose Estimate moves it.
@@ -151,7 +151,7 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
         nodes.append(NodeSpec("amcl", [resolve("pppbot_nav", "amcl"), *ros_args(level, {
             "set_initial_pose": True, "initial_pose.x": values["x"], "initial_pose.y": values["y"],
             "initial_pose.yaw": values["yaw"], "seed": values["seed"], **amcl_params}, params_file=nav2_params)],
-            after=("map_server", "robot_state_publisher"), required=True, ready=amcl_ready))
+            after=("map_server", "robot_state_publisher"), required=True, pppbot_node=True, ready=amcl_ready))
         notes.append(f"localizing on {map_file}")
     elif values["use_slam"]:
         slam_params = Path(values["slam_params_file"] or config / "mapper_params_online_async.yaml")
@@ -165,7 +165,7 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
             ReadyCheck("a first /map", probes.first_message("/map", "nav_msgs/msg/OccupancyGrid", True)))
         nodes.append(NodeSpec("slam_toolbox", [resolve("pppbot_slam", "slam"), *ros_args(
             level, slam_params_lockstep, params_file=slam_params)],
-            after=("robot_state_publisher",), required=True, ready=slam_ready))
+            after=("robot_state_publisher",), required=True, pppbot_node=True, ready=slam_ready))
     localizer = "amcl" if values["localization"] else "slam_toolbox" if values["use_slam"] else None
     if values["navigation"] == "true" or (values["navigation"] == "auto" and values["localization"]):
         if localizer is None:
@@ -176,7 +176,7 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
                             ("navigator", r"navigator ready")):
             extra, check = participant(name, name, ReadyCheck(name, output_pattern=ready))
             nodes.append(NodeSpec(name, [resolve("pppbot_nav", name), *ros_args(level, extra, params_file=nav2_params)],
-                                  after=(localizer,), required=True, ready=check))
+                                  after=(localizer,), required=True, pppbot_node=True, ready=check))
         notes.append("navigating: send goals with RViz's 2D Goal Pose, ./pppbot nav goto X Y YAW, "
                      "or the navigate_to_pose action")
     simulator_params: dict[str, Any] = {
@@ -189,7 +189,7 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
                                            *ros_args(level, simulator_params, sim_time=False)],
                              ready=ReadyCheck("a first /clock",
                                               probes.first_message("/clock", "rosgraph_msgs/msg/Clock", False)),
-                             required=True))
+                             required=True, pppbot_node=True))
     if values["use_rviz"]:
         if rviz is None:
             notes.append("rviz2 is not on PATH: no RViz (use_rviz:=false silences this); "

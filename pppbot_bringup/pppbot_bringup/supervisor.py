@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Callable, Mapping, Protocol, Sequence
 
-from pppbot_common.process import die_with_parent
+from pppbot_common.process import block_stop_signals, die_with_parent
 
 POLL_S = 0.05
 _LEVEL = re.compile(r"\[(WARN|WARNING|ERROR|FATAL)\]|Traceback|error:", re.IGNORECASE)
@@ -61,6 +61,14 @@ class NodeSpec:
     #: the node reads and writes this terminal (a keyboard teleop); it stays in our process group
     terminal: bool = False
     env: Mapping[str, str] | None = None
+    #: one of pppbot's nodes (pppbot_common.ros.node_main): it is started with SIGINT and SIGTERM
+    #: blocked and takes a stop sent while it was starting once it can end cleanly
+    pppbot_node: bool = False
+
+
+def _pppbot_node_preexec() -> None:
+    die_with_parent()
+    block_stop_signals()
 
 
 class TextSink(Protocol):
@@ -216,13 +224,14 @@ class Supervisor:
         self._counts[spec.name] = self._counts.get(spec.name, 0) + 1
         label = f"{spec.name}-{self._counts[spec.name]}"
         env = None if spec.env is None else {**os.environ, **spec.env}
+        preexec = _pppbot_node_preexec if spec.pppbot_node else die_with_parent
         try:
             if spec.terminal:
-                proc = subprocess.Popen(list(spec.cmd), env=env, preexec_fn=die_with_parent)
+                proc = subprocess.Popen(list(spec.cmd), env=env, preexec_fn=preexec)
             else:
                 proc = subprocess.Popen(list(spec.cmd), env=env, stdin=subprocess.DEVNULL,
                                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                        start_new_session=True, preexec_fn=die_with_parent)
+                                        start_new_session=True, preexec_fn=preexec)
         except OSError as exc:
             self.output.event("ERROR", label, f"cannot start {' '.join(spec.cmd)}: {exc.strerror}")
             self.request_shutdown(f"'{spec.name}' could not start", 1)

@@ -1,6 +1,9 @@
 """run_node: how a node's main() ends."""
 from __future__ import annotations
 
+import signal
+import subprocess
+import sys
 import threading
 
 import pytest
@@ -8,6 +11,7 @@ import rclpy
 from rclpy.node import Node
 
 from pppbot_common.errors import PppbotError
+from pppbot_common.process import block_stop_signals
 from pppbot_common.ros.node_main import run_node
 
 pytestmark = pytest.mark.ros
@@ -38,3 +42,24 @@ def test_a_fatal_error_at_start_is_one_line_and_exit_1(capsys):
 
     assert run_node(factory, "bad_start", [], signal_handlers=False) == 1
     assert capsys.readouterr().err == "[bad_start] error: parameter 'x' = -1: must be positive\n"
+
+
+_STARTING_NODE = """
+import sys, time
+print("importing", flush=True)
+time.sleep(1.0)  # a node's imports: the launch may stop it meanwhile
+from pppbot_common.ros.node_main import take_stop_signals
+stop = take_stop_signals()
+sys.exit(0 if stop.is_set() else 3)
+"""
+
+
+@pytest.mark.parametrize("blocked, expected", [(True, 0), (False, -signal.SIGINT)])
+def test_a_stop_while_a_node_imports_is_taken_by_its_runner_when_the_launch_blocks_it(blocked, expected):
+    """A launch starts pppbot's nodes with the stop signals blocked: a SIGINT during the imports
+    waits for the runner, which then ends cleanly (without it, Python dies of the signal)."""
+    proc = subprocess.Popen([sys.executable, "-c", _STARTING_NODE], stdout=subprocess.PIPE, text=True,
+                            preexec_fn=block_stop_signals if blocked else None)
+    assert proc.stdout is not None and proc.stdout.readline().strip() == "importing"
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(30) == expected

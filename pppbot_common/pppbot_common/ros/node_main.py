@@ -35,6 +35,9 @@ from pppbot_common.throttle import Throttle
 
 N = TypeVar("N", bound=Node)
 
+#: The signals that ask a process to stop.
+STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
 #: Longest wait of the spin loop (wall s): how soon a signal is acted on.
 SPIN_TIMEOUT_S = 0.2
 
@@ -42,10 +45,11 @@ SPIN_TIMEOUT_S = 0.2
 class Process:
     """The running process as a custom loop sees it: its executor, its participant, its stop request."""
 
-    def __init__(self, executor: Any, participant: Participant | None) -> None:
+    def __init__(self, executor: Any, participant: Participant | None,
+                 stop_requested: threading.Event | None = None) -> None:
         self.executor = executor
         self.participant = participant
-        self.stop_requested = threading.Event()
+        self.stop_requested = stop_requested or threading.Event()
 
     def running(self) -> bool:
         return not self.stop_requested.is_set() and rclpy.ok()
@@ -60,8 +64,24 @@ class Process:
         self.stop_requested.set()
 
     def install_signal_handlers(self) -> None:
-        for sig in (signal.SIGINT, signal.SIGTERM):
+        for sig in STOP_SIGNALS:
             signal.signal(sig, self.request_stop)
+
+
+def take_stop_signals() -> threading.Event:
+    """From now on SIGINT and SIGTERM set the returned event (a stop request). A launch starts
+    pppbot's nodes with both signals blocked (:func:`pppbot_common.process.block_stop_signals`):
+    one sent while the process was still importing, which would have killed it, is pending and
+    taken here, and the process ends as cleanly as if it had come later."""
+    requested = threading.Event()
+
+    def request(signum: int, frame: FrameType | None) -> None:
+        requested.set()
+
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, request)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
+    return requested
 
 
 def spin_until_stopped(nodes: Sequence[Node], process: Process) -> int | None:
@@ -78,6 +98,7 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str, args: list[str
     """Create the nodes (in order) in one process and run ``loop`` until stopped; the exit code
     (the loop's, or 0). ``lockstep=False``: the process never takes part in lockstep (the
     simulator, which runs it)."""
+    stop_requested = take_stop_signals()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     nodes: list[Node] = []
     participant: Participant | None = None
@@ -97,7 +118,7 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str, args: list[str
         executor.add_node(node)
     if participant is not None:
         executor.add_node(participant.node)
-    process = Process(executor, participant)
+    process = Process(executor, participant, stop_requested)
     process.install_signal_handlers()  # after the executor: it installs handlers of its own
     if participant is not None:
         participant.start(executor, _with_composed(nodes))
@@ -147,6 +168,7 @@ def run_node(factory: Callable[[], N], name: str, args: list[str] | None = None,
     down under it)."""
     if spin is None:
         return run_nodes([factory], name, args, fatal=fatal)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)  # rclpy's handlers take them from here
     rclpy.init(args=args, signal_handler_options=None if signal_handlers else SignalHandlerOptions.NO)
     try:
         node = factory()

@@ -1,0 +1,62 @@
+"""Ctrl-C ends the whole navigation bringup cleanly, every time.
+
+One SIGINT of four once left planner_server dead with SIGSEGV on the way down (a signal
+thread triggering a guard condition of an executor being destroyed). The nodes now own
+their signals (pppbot_common.ros.node_main); this starts the full localization and
+navigation bringup again and again and stops it at different moments — while nodes are
+still starting, right when it is up, and after it has run a while — and requires every
+started process to finish with exit code 0.
+"""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+PPPBOT = str(ROOT / "pppbot")
+RUNS = 20
+#: Nodes of a localization + navigation bringup without teleop and RViz.
+NODES = ("simulator", "robot_state_publisher", "twist_mux", "map_server", "amcl", "planner_server",
+         "controller_server", "navigator")
+
+
+def _stop_moment(run: int) -> str:
+    """When run ``run`` is interrupted: while starting, as soon as it is up, or a while after."""
+    return ("starting", "up", "running")[run % 3]
+
+
+@pytest.mark.ros
+def test_sigint_ends_every_node_of_the_navigation_bringup_with_exit_code_0(spawn: Any) -> None:
+    failures: list[str] = []
+    stopped_while_starting = 0
+    for run in range(RUNS):
+        moment = _stop_moment(run)
+        launch = spawn([PPPBOT, "launch_sim", "world:=room", "localization:=true", "use_teleop:=false",
+                        "use_rviz:=false"], name=f"launch_sim run {run}")
+        if moment == "starting":
+            launch.wait_for_output(r"\[amcl-1\]: process started", 60)
+        else:
+            launch.wait_for_output(r"ppp_bot is up in 'room'", 90)
+            if moment == "running":
+                time.sleep(2.0)
+        up = "ppp_bot is up" in launch.output
+        os.kill(launch.pid, signal.SIGINT)
+        code = launch.wait(30)
+        started = re.findall(r"\[([\w-]+)-\d+\]: process started", launch.output)
+        clean = re.findall(r"\[([\w-]+)-\d+\]: process has finished cleanly", launch.output)
+        died = [line for line in launch.output.splitlines() if "process has died" in line]
+        if not up:
+            stopped_while_starting += 1
+        if code != 0 or sorted(started) != sorted(clean) or died:
+            failures.append(f"run {run} ({moment}): launch exit {code}, started {started}, finished cleanly "
+                            f"{clean}; " + " | ".join(died))
+        if moment != "starting":
+            assert sorted(started) == sorted(NODES), started
+    assert not failures, "\n".join(failures)
+    assert stopped_while_starting > 0  # some runs were interrupted before every node was up
