@@ -1,0 +1,209 @@
+"""How fast the whole stack runs, and what each node costs: issue 20's figures.
+
+Runs, in ``--world`` (default maze), each with its own DDS domain:
+
+* ``mapping``: ``pppbot eval slam`` in lockstep (simulator with the controller,
+  robot_state_publisher, twist_mux, slam, the eval driver) — achieved real-time factor;
+* ``navigation``: ``pppbot eval navigation`` in lockstep (simulator, robot_state_publisher,
+  twist_mux, map_server, amcl, planner_server, controller_server, navigator, the eval) —
+  achieved real-time factor and the bringup's peak resident memory;
+* ``navigation_1x``: the same without lockstep at 1× real time — the navigation nodes'
+  CPU while they drive;
+* ``idle_1x``: ``launch_sim localization:=true`` at 1× with no goal — every node's CPU.
+
+Each node's CPU share (% of one core, from /proc) is printed per run; one JSON object with
+every figure and its target is the last line.
+
+    ./pppbot env python benchmarks/stack_speed.py [--world maze] [--mapping-seconds 120] [--goals 3]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from pppbot_common.dds_isolation import isolate_dds
+
+ROOT = Path(__file__).resolve().parent.parent
+PPPBOT = str(ROOT / "pppbot")
+TICKS = os.sysconf("SC_CLK_TCK")
+NAV_NODES = ("planner_server", "controller_server", "navigator")
+TARGETS = {"mapping_rtf": 10.0, "navigation_rtf": 5.0, "nav_nodes_driving_1x_pct": 25.0,
+           "nav_nodes_idle_1x_pct": 5.0, "bringup_idle_1x_pct": 30.0, "navigation_rss_mb": 600.0}
+
+
+def _children(root: int) -> list[int]:
+    """``root``'s descendants (pids), from /proc."""
+    parents: dict[int, int] = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                stat = Path(f"/proc/{entry}/stat").read_text()
+            except OSError:
+                continue
+            parents[int(entry)] = int(stat.rsplit(")", 1)[1].split()[1])
+    found, frontier = [], [root]
+    while frontier:
+        pid = frontier.pop()
+        kids = [p for p, pp in parents.items() if pp == pid]
+        found += kids
+        frontier += kids
+    return found
+
+
+def _name(pid: int) -> str:
+    try:
+        argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+    except OSError:
+        return "?"
+    words = [a.decode(errors="replace") for a in argv if a]
+    for word in words:
+        if word.startswith("/") and "/lib/pppbot_" in word:
+            return Path(word).name
+    if any("pppbot_bringup.cli" in w for w in words):
+        return "eval" if "eval" in words else "launch_sim"
+    return Path(words[0]).name if words else "?"
+
+
+def _cpu_ticks(pid: int) -> int:
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0
+    return int(fields[11]) + int(fields[12])
+
+
+def _rss_mb(pid: int) -> float:
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return 0.0
+
+
+class Sampler:
+    """CPU per process name over a window, and the peak total RSS, of ``root``'s process tree."""
+
+    def __init__(self, root: int) -> None:
+        self.root = root
+        self.peak_rss_mb = 0.0
+        self._start: dict[int, tuple[str, int]] = {}
+        self._last: dict[int, int] = {}
+        self._t0 = 0.0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._watch_memory, daemon=True)
+        self._thread.start()
+
+    def _watch_memory(self) -> None:
+        while not self._stop.wait(0.5):
+            pids = [self.root, *_children(self.root)]
+            self.peak_rss_mb = max(self.peak_rss_mb, sum(_rss_mb(p) for p in pids))
+            for pid in pids:  # the last CPU seen: a process may be gone when the window ends
+                self._last[pid] = max(self._last.get(pid, 0), _cpu_ticks(pid))
+
+    def begin(self) -> None:
+        self._start = {p: (_name(p), _cpu_ticks(p)) for p in [self.root, *_children(self.root)]}
+        self._t0 = time.monotonic()
+
+    def end(self) -> dict[str, float]:
+        """% of one core per process name since :meth:`begin`."""
+        wall = time.monotonic() - self._t0
+        shares: dict[str, float] = {}
+        for pid, (name, ticks) in self._start.items():
+            used = max(_cpu_ticks(pid), self._last.get(pid, 0)) - ticks
+            if used >= 0:
+                shares[name] = shares.get(name, 0.0) + round(100.0 * used / TICKS / wall, 1)
+        return dict(sorted(shares.items(), key=lambda kv: -kv[1]))
+
+    def close(self) -> None:
+        self._stop.set()
+
+
+def run_eval(scenario: str, args: list[str], domain: int) -> dict[str, Any]:
+    """One ``pppbot eval`` run: its report and the CPU shares over the whole run."""
+    out = Path(tempfile.mkdtemp(prefix=f"stack_speed_{scenario}_"))
+    env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
+    proc = subprocess.Popen([PPPBOT, "eval", scenario, *args, "--out", str(out)], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    sampler = Sampler(proc.pid)
+    time.sleep(8.0)  # the stack starts: its CPU is not the run's
+    sampler.begin()
+    _, err = proc.communicate()
+    shares = sampler.end()
+    sampler.close()
+    report_file = out / "report.json"
+    if not report_file.is_file():
+        raise SystemExit(f"stack_speed: eval {scenario} wrote no report:\n{err[-2000:]}")
+    report = json.loads(report_file.read_text())
+    return {"real_time_factor": round(float(report["real_time_factor"]), 2),
+            "sim_seconds": round(float(report["sim_seconds"]), 1), "cpu_pct": shares,
+            "peak_rss_mb": round(sampler.peak_rss_mb), "out": str(out)}
+
+
+def run_idle(world: str, seconds: float, domain: int) -> dict[str, Any]:
+    """launch_sim with localization and navigation at 1×, no goal: CPU per node over ``seconds``."""
+    env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
+    proc = subprocess.Popen([PPPBOT, "launch_sim", f"world:={world}", "localization:=true", "use_teleop:=false",
+                             "use_rviz:=false", "real_time_factor:=1.0"], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    assert proc.stdout is not None
+    deadline = time.monotonic() + 120
+    for line in proc.stdout:
+        if "is up in" in line or time.monotonic() > deadline:
+            break
+    threading.Thread(target=lambda: [None for _ in proc.stdout], daemon=True).start()  # type: ignore[union-attr]
+    sampler = Sampler(proc.pid)
+    time.sleep(5.0)
+    sampler.begin()
+    time.sleep(seconds)
+    shares = sampler.end()
+    rss = sum(_rss_mb(p) for p in _children(proc.pid)) + _rss_mb(proc.pid)
+    sampler.close()
+    proc.send_signal(signal.SIGINT)
+    proc.wait(60)
+    return {"cpu_pct": shares, "rss_mb": round(rss)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--world", default="maze")
+    parser.add_argument("--mapping-seconds", type=float, default=120.0, help="sim seconds of mapping (timeout)")
+    parser.add_argument("--goals", type=int, default=3)
+    parser.add_argument("--idle-seconds", type=float, default=20.0)
+    args = parser.parse_args()
+    base = isolate_dds()
+    figures: dict[str, Any] = {"world": args.world, "cores": os.cpu_count()}
+    mapping = run_eval("slam", ["--world", args.world, "--timeout", str(args.mapping_seconds)], base)
+    print(f"mapping (lockstep): {mapping}", file=sys.stderr)
+    navigation = run_eval("navigation", ["--world", args.world, "--goals", str(args.goals)], base)
+    print(f"navigation (lockstep): {navigation}", file=sys.stderr)
+    driving = run_eval("navigation", ["--world", args.world, "--goals", str(args.goals), "--no-lockstep",
+                                      "--real-time-factor", "1"], base)
+    print(f"navigation at 1x: {driving}", file=sys.stderr)
+    idle = run_idle(args.world, args.idle_seconds, base)
+    print(f"idle at 1x: {idle}", file=sys.stderr)
+    figures.update(
+        mapping_rtf=mapping["real_time_factor"], navigation_rtf=navigation["real_time_factor"],
+        nav_nodes_driving_1x_pct=round(sum(driving["cpu_pct"].get(n, 0.0) for n in NAV_NODES), 1),
+        nav_nodes_idle_1x_pct=round(sum(idle["cpu_pct"].get(n, 0.0) for n in NAV_NODES), 1),
+        bringup_idle_1x_pct=round(sum(v for k, v in idle["cpu_pct"].items() if k != "launch_sim"), 1),
+        navigation_rss_mb=navigation["peak_rss_mb"],
+        cpu_pct={"mapping": mapping["cpu_pct"], "navigation": navigation["cpu_pct"],
+                 "navigation_1x": driving["cpu_pct"], "idle_1x": idle["cpu_pct"]})
+    figures["targets"] = TARGETS
+    figures["met"] = {k: (figures[k] >= t if k.endswith("_rtf") else figures[k] <= t) for k, t in TARGETS.items()}
+    print(json.dumps(figures))
+
+
+if __name__ == "__main__":
+    main()
