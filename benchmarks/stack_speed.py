@@ -1,6 +1,6 @@
 """How fast the whole stack runs, and what each node costs: issue 20's figures.
 
-Runs, in ``--world`` (default maze), each with its own DDS domain:
+Runs, one after the other in ``--world`` (default maze), on a DDS domain of its own:
 
 * ``mapping``: ``pppbot eval slam`` in lockstep (simulator with the controller,
   robot_state_publisher, twist_mux, slam, the eval driver) — achieved real-time factor;
@@ -130,7 +130,8 @@ class Sampler:
 
 
 def run_eval(scenario: str, args: list[str], domain: int) -> dict[str, Any]:
-    """One ``pppbot eval`` run: its report and the CPU shares over the whole run."""
+    """One ``pppbot eval`` run: its report, the CPU shares from 8 s after its start (the stack's
+    start-up left out) to its end, and the peak memory of its process tree."""
     out = Path(tempfile.mkdtemp(prefix=f"stack_speed_{scenario}_"))
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
     proc = subprocess.Popen([PPPBOT, "eval", scenario, *args, "--out", str(out)], env=env,

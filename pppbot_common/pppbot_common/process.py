@@ -42,12 +42,16 @@ def die_with_parent(sig: int = signal.SIGTERM) -> None:
         pass
 
 
+#: The signals that ask a process to stop.
+STOP_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM})
+
+
 def block_stop_signals() -> None:
     """In a child (``preexec_fn``) that runs pppbot's node runner: SIGINT and SIGTERM stay pending
     until the runner has its handlers (:func:`pppbot_common.ros.node_main.take_stop_signals`), so
     a stop while the child is still importing ends it cleanly instead of killing it. The mask
     survives ``exec``; only for children that unblock them (a stop signal is never lost)."""
-    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
 
 
 def _signal_group(proc: subprocess.Popen[bytes] | subprocess.Popen[str], sig: int) -> None:

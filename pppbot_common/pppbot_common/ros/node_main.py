@@ -30,13 +30,11 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from pppbot_common.errors import PppbotError
+from pppbot_common.process import STOP_SIGNALS
 from pppbot_common.ros.lockstep import Participant
 from pppbot_common.throttle import Throttle
 
 N = TypeVar("N", bound=Node)
-
-#: The signals that ask a process to stop.
-STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
 
 #: Longest wait of the spin loop (wall s): how soon a signal is acted on.
 SPIN_TIMEOUT_S = 0.2
@@ -74,12 +72,8 @@ def take_stop_signals() -> threading.Event:
     one sent while the process was still importing, which would have killed it, is pending and
     taken here, and the process ends as cleanly as if it had come later."""
     requested = threading.Event()
-
-    def request(signum: int, frame: FrameType | None) -> None:
-        requested.set()
-
     for sig in STOP_SIGNALS:
-        signal.signal(sig, request)
+        signal.signal(sig, lambda signum, frame: requested.set())
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
     return requested
 
@@ -110,9 +104,6 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str, args: list[str
         print(f"[{name}] error: {exc}", file=sys.stderr)
         _teardown(None, nodes, participant)
         return 1
-    except KeyboardInterrupt:
-        _teardown(None, nodes, participant)
-        return 0
     executor = EventsExecutor()
     for node in _with_composed(nodes):
         executor.add_node(node)
