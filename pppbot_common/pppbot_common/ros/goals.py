@@ -26,7 +26,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.task import Future
 
-from pppbot_common.ros.lockstep import hold, in_lockstep
+from pppbot_common.ros.lockstep import hold_for, in_lockstep
 
 T = TypeVar("T")
 
@@ -193,7 +193,7 @@ class Flow(Generic[T]):
                 item.wake.add_done_callback(self._on_wake)
         elif isinstance(item, Future):
             self._waiting = item
-            release = hold()
+            release = hold_for(item)
             item.add_done_callback(functools.partial(self._on_future_released, release))
         else:
             self._end(None, TypeError(f"a flow yields futures or Sleep, not {type(item).__name__}"))

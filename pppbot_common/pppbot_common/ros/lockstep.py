@@ -48,7 +48,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.time import Time
 
 from pppbot_common.lockstep import LockstepError, StepTimer, StepTimers
-from pppbot_common.ros.lockstep_counting import _ORIGINAL_PUBLISH, COUNTERS, Receiver, install_counting
+from pppbot_common.ros.lockstep_counting import (_ORIGINAL_PUBLISH, COUNTERS, OUTBOX, HeldFuture, Receiver,
+                                                 install_counting)
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_common.throttle import Throttle
 
@@ -231,6 +232,7 @@ class Participant:
         """Tell the simulator to stop waiting for this process (it is ending)."""
         if self.joined:
             self.joined = False
+            OUTBOX.send_all()
             try:
                 self._send(LockstepAck(kind=LockstepAck.LEAVE, participant=self.name))
                 self.ack_pub.wait_for_all_acked(Duration(seconds=1.0))
@@ -242,6 +244,7 @@ class Participant:
         if not self.joined:
             self._early_step = msg  # the simulator may wait for us already (see _on_status)
             return
+        OUTBOX.send_sealed()  # what this process sent in the last round (see Outbox)
         self._step_topics = tuple(msg.topics)
         self.deliveries.expect(msg.topics, msg.published)
         if stamp_ns(msg.stamp) == 0:
@@ -273,6 +276,8 @@ class Participant:
         self._set_clocks(t_ns)
         # The step's time for timers (re)started now, before the timers round (a goal's).
         self.timers.now_ns = max(self.timers.now_ns, t_ns)
+        if t_ns > 0:
+            OUTBOX.holding = True  # from now on sends go out at the next step (at time 0 they need no order)
         self._run_deferred()
         if msg.timers and t_ns > self._timers_ns:
             self._timers_ns = t_ns
@@ -328,6 +333,21 @@ class Participant:
         with self._lock:
             self._holds += 1
 
+    def await_reply(self, future: Any) -> Callable[[], None]:
+        """See :func:`hold_for`."""
+        if isinstance(future, HeldFuture) and not future.sent:
+            future.when_sent(self.hold)
+        else:
+            self.hold()
+        return self._replied
+
+    def _replied(self) -> None:
+        # The server may have handled the request after answering this round: what it sent then
+        # is held for its next answer. Another round at this time lets that answer come, so the
+        # request's consequences are handled at this time whichever came first.
+        COUNTERS.sent()
+        self.release()
+
     def release(self) -> None:
         """That work is done (any thread); answers a step that waited for it."""
         with self._lock:
@@ -342,14 +362,16 @@ class Participant:
             if self._pending_seq is None or self._holds > 0:
                 return
             seq, self._pending_seq = self._pending_seq, None
+        with OUTBOX.lock:  # the counts answered are those of the sends held so far
+            OUTBOX.seal()
             sends = COUNTERS.sends
-            sent, self._sends_at_answer = sends > self._sends_at_answer, sends
+            published = [COUNTERS.published.get(topic, 0) for topic in self._step_topics]
+        sent, self._sends_at_answer = sends > self._sends_at_answer, sends
         wakeup = self.timers.next_wakeup_ns()
         starting = self._last_step_ns == 0  # time holds at its start: the simulator asks whether all is set
         values: dict[str, Any] = {"seq": seq, "sent": sent, **stamp_values(wakeup or 0, "next_wakeup"),
                                   "settled": not starting or not self._unmet(),
                                   "graph_nodes": self._graph_nodes() if starting else 0}
-        published = [COUNTERS.published.get(topic, 0) for topic in self._step_topics]
         counted_topics = self.deliveries.topics()
         if counted_topics != self._counted_topics:  # a subscription made since: told once
             self._counted_topics = counted_topics
@@ -469,10 +491,9 @@ def in_lockstep() -> bool:
 
 
 def hold_until(future: Any) -> Any:
-    """In lockstep, the current step waits until ``future`` is done: for a server's prompt answer
-    (a goal accepted or refused, a cancel, a service's reply), so that the server handles the
-    request within the round that sent it. Returns ``future``."""
-    release = hold()
+    """:func:`hold_for` ``future`` (a server's prompt answer), released when it is done. Returns
+    ``future``."""
+    release = hold_for(future)
     future.add_done_callback(lambda _: release())
     return future
 
@@ -512,6 +533,19 @@ def hold() -> Callable[[], None]:
         return _nothing
     participant.hold()
     return participant.release
+
+
+def hold_for(future: Any) -> Callable[[], None]:
+    """In lockstep, the step at which the request behind ``future`` goes out (requests are held
+    until the next step: :class:`~pppbot_common.ros.lockstep_counting.Outbox`) waits for its
+    reply (a goal accepted or refused, a cancel, a service's answer, a planner's path); call the
+    returned function once the reply has been handled. Servers send replies at once, so the
+    server handles the request, and the client its reply, within that round on every
+    machine. Without lockstep both are no-ops."""
+    participant = Participant.current()
+    if participant is None:
+        return _nothing
+    return participant.await_reply(future)
 
 
 def _nothing() -> None:

@@ -15,7 +15,7 @@ The bookkeeping is :class:`pppbot_common.lockstep.Barrier`; this is its ROS adap
 from __future__ import annotations
 
 import time
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
 from rclpy.node import Node
@@ -182,8 +182,11 @@ class Coordinator:
             topics = self.publications.next_topics()
             values: dict[str, Any] = {"seq": seq, **stamp_values(t_ns, "stamp"), "round": self._round_index,
                       "timers": timers and index == 0}
+            # What was published before this step, participants' held sends included: they go out
+            # as the participants get the step (see pppbot_common.ros.lockstep_counting.Outbox).
+            totals = self.publications.totals(COUNTERS.published)
             if topics:
-                values["published"] = self.publications.totals(COUNTERS.published)
+                values["published"] = totals
             self.step_pub.publish(self._step_wire(topics).serialize(values))
             self._round_index += 1
             sends = COUNTERS.sends
@@ -191,7 +194,7 @@ class Coordinator:
             self._wait_for_answers(process, seq, t_ns)
             if not process.running():
                 return False
-            self._wait_for_deliveries(process, t_ns)
+            self._wait_for_deliveries(process, t_ns, totals)
             # Every message a participant sent before its answer has been handled here by now.
             if not self.barrier.another_round() and COUNTERS.sends == sends:
                 return True
@@ -222,13 +225,14 @@ class Coordinator:
                 return
             process.spin_once(min(remaining, 0.2))
 
-    def _wait_for_deliveries(self, process: Process, t_ns: int) -> None:
-        """Until this process has the messages participants published on its counted topics before
-        their answers (such as a command for a hosted controller), at most DELIVERY_TIMEOUT_S."""
+    def _wait_for_deliveries(self, process: Process, t_ns: int, totals: Sequence[int]) -> None:
+        """Until this process has the messages published on its counted topics before the step
+        (``totals``; such as a command for a hosted controller), at most DELIVERY_TIMEOUT_S. What
+        participants sent in this step's round is handled in the next."""
         deliveries = self.deliveries
         if not deliveries.subscriptions:
             return
-        deliveries.expect(self.publications.topics, self.publications.totals(COUNTERS.published))
+        deliveries.expect(self.publications.topics, totals)
         if t_ns == 0:
             deliveries.rebase()  # time holds at its start: discovery may have lost messages
             return
