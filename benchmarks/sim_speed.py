@@ -2,9 +2,10 @@
 
 For each world (maze, office): the simulation core alone (MuJoCo stepping, the
 640-beam lidar at 10 Hz, IMU at 100 Hz, wheel and ground-truth readings, no ROS);
-the simulator node publishing everything over DDS with nobody listening; and the
-same while a second process subscribes to /scan and /clock (which also takes CPU
-on this 2-core machine). Prints one JSON object on its last line.
+the simulator node publishing everything over DDS with nobody listening; the same
+while a plain second process subscribes to /scan and /clock (it is not waited for, so
+it may miss scans); and in lockstep with a participant that subscribes to /scan (time
+waits for it: it receives every scan). Prints one JSON object on its last line.
 
     ./pppbot env python benchmarks/sim_speed.py [--sim-seconds 60] [--worlds maze office]
 """
@@ -35,6 +36,30 @@ try:
 except BaseException:
     pass
 print('scans', count[0], flush=True)
+"""
+#: A lockstep participant counting /scan; after ``target`` scans it prints the count, the sim
+#: seconds and the wall seconds from its first scan, and stops.
+PARTICIPANT = """
+import os, signal, sys, time
+from rclpy.node import Node
+from sensor_msgs.msg import LaserScan
+from pppbot_common.ros.lockstep import require_match
+from pppbot_common.ros.node_main import run_nodes
+target = int(sys.argv[1])
+class Counter(Node):
+    def __init__(self):
+        super().__init__('bench_scan_counter')
+        self.count, self.first = 0, None
+        require_match(self, self.create_subscription(LaserScan, '/scan', self.on_scan, 10))
+    def on_scan(self, msg):
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        if self.first is None:
+            self.first = (stamp, time.perf_counter())
+        self.count += 1
+        if self.count == target:
+            print('done', self.count, stamp - self.first[0], time.perf_counter() - self.first[1], flush=True)
+            os.kill(os.getpid(), signal.SIGINT)
+sys.exit(run_nodes([Counter], 'bench_scan_counter', sys.argv[2:]))
 """
 
 
@@ -67,6 +92,9 @@ def core_rtf(world: str, sim_seconds: float) -> float:
 def ros_rtf(world: str, sim_seconds: float, with_subscriber: bool) -> tuple[float, int]:
     import rclpy
 
+    from rclpy.executors import SingleThreadedExecutor
+
+    from pppbot_common.ros.node_main import Process
     from pppbot_sim.ros.simulator import Simulator
 
     subscriber = None
@@ -80,8 +108,10 @@ def ros_rtf(world: str, sim_seconds: float, with_subscriber: bool) -> tuple[floa
                          "-p", "command_timeout:=0.0", "--log-level", "warn"])
         node = Simulator()
         node.runner.command({"left_wheel_joint": 3.0, "right_wheel_joint": 2.5})
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
         start = time.perf_counter()
-        node.run(until_s=sim_seconds)
+        node.run(Process(executor, None), until_s=sim_seconds)
         rtf = node.published_s / (time.perf_counter() - start)
         node.destroy_node()
         rclpy.shutdown()
@@ -92,6 +122,32 @@ def ros_rtf(world: str, sim_seconds: float, with_subscriber: bool) -> tuple[floa
             out, _ = subscriber.communicate(timeout=10)
     scans = int(out.split()[-1]) if out.strip() else 0
     return rtf, scans
+
+
+def lockstep_rtf(world: str, sim_seconds: float) -> tuple[float, int, int]:
+    """The simulator in lockstep with a participant counting /scan (10 Hz): (real-time factor
+    over the participant's scans, scans received, scans expected)."""
+    target = int(round(sim_seconds * 10))
+    pppbot = str(ROOT / "pppbot")
+    sim = subprocess.Popen([pppbot, "run", "pppbot_sim", "simulator", "--ros-args", "-p", f"world:={world}",
+                            "-p", "lockstep:=true", "-p", "real_time_factor:=0.0",
+                            "-p", "lockstep_participants:=[bench_scan_counter]", "-p", "command_timeout:=0.0",
+                            "--log-level", "warn"], stdout=subprocess.DEVNULL, start_new_session=True)
+    counter = subprocess.Popen([pppbot, "env", "python", "-c", PARTICIPANT, str(target), "--ros-args",
+                                "-p", "use_sim_time:=true", "-p", "lockstep:=true", "--log-level", "warn"],
+                               stdout=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        out, _ = counter.communicate(timeout=600)
+    finally:
+        for process in (counter, sim):
+            if process.poll() is None:
+                os.killpg(process.pid, 2)
+                process.wait(timeout=30)
+    done = [line.split() for line in out.splitlines() if line.startswith("done")]
+    if not done:
+        raise RuntimeError(f"the lockstep scan counter did not finish: {out!r}")
+    _, count, sim_span, wall_span = done[-1]
+    return float(sim_span) / float(wall_span), int(count), target
 
 
 def main() -> None:
@@ -106,13 +162,18 @@ def main() -> None:
         core = core_rtf(world, args.sim_seconds)
         ros, _ = ros_rtf(world, args.sim_seconds, with_subscriber=False)
         ros_sub, scans = ros_rtf(world, args.sim_seconds, with_subscriber=True)
+        lockstep, received, expected = lockstep_rtf(world, args.sim_seconds)
+        results[f"{world}_lockstep_subscribed_real_time_factor"] = round(lockstep, 1)
+        results[f"{world}_lockstep_scans_received"] = f"{received} of {expected}"
         results[f"{world}_core_real_time_factor"] = round(core, 1)
         results[f"{world}_ros_real_time_factor"] = round(ros, 1)
         results[f"{world}_ros_subscribed_real_time_factor"] = round(ros_sub, 1)
         results[f"{world}_scans_received"] = scans
         print(f"{world}: core {core:.1f}x, publishing {ros:.1f}x, publishing to a subscriber {ros_sub:.1f}x "
-              f"({scans} scans received)", file=sys.stderr)
+              f"({scans} scans received), in lockstep with a participant {lockstep:.1f}x ({received} of {expected} "
+              "scans)", file=sys.stderr)
     results["real_time_factor"] = results.get("maze_ros_real_time_factor")
+    results["target_lockstep_subscribed_real_time_factor"] = 50.0
     print(json.dumps(results))
 
 
