@@ -66,25 +66,25 @@ sys.exit(run_nodes([Counter], 'bench_scan_counter', sys.argv[2:]))
 def core_rtf(world: str, sim_seconds: float) -> float:
     from pppbot_description.urdf_model import parse_urdf
     from pppbot_description.xacro_model import process_xacro
-    from pppbot_sim.simulation import Simulation, load_world
+    from pppbot_sim.simulation import Event, EventKind, Simulation, load_world
     from pppbot_sim.worlds import find_world, model_paths
 
     path = find_world(world)
     spec, _ = load_world(path, model_paths(path))
     sim = Simulation(spec, parse_urdf(process_xacro()))
-    for name, rate in (("clock", 100.0), ("joint_states", 100.0), ("ground_truth", 50.0)):
-        sim.schedule.add(name, rate)
+    for kind, rate in ((EventKind.CLOCK, 100.0), (EventKind.JOINT_STATES, 100.0), (EventKind.GROUND_TRUTH, 50.0)):
+        sim.schedule.add(Event(kind), rate)
     sim.set_wheel_velocities({"left_wheel_joint": 3.0, "right_wheel_joint": 2.5})
     start = time.perf_counter()
     while sim.time_s < sim_seconds:
         for event in sim.advance(1000):
-            if event.startswith("lidar"):
-                sim.lidar_scan(int(event[5:]))
-            elif event.startswith("imu"):
-                sim.imu_sample(int(event[3:]))
-            elif event == "joint_states":
+            if event.kind is EventKind.LIDAR:
+                sim.lidar_scan(event.index)
+            elif event.kind is EventKind.IMU:
+                sim.imu_sample(event.index)
+            elif event.kind is EventKind.JOINT_STATES:
                 sim.wheel_state()
-            elif event == "ground_truth":
+            elif event.kind is EventKind.GROUND_TRUTH:
                 sim.ground_truth()
     return sim_seconds / (time.perf_counter() - start)
 

@@ -130,16 +130,23 @@ class Sampler:
 
 
 def run_eval(scenario: str, args: list[str], domain: int) -> dict[str, Any]:
-    """One ``pppbot eval`` run: its report, the CPU shares from 8 s after its start (the stack's
+    """One ``pppbot eval`` run: its report, the CPU shares from its first progress line (the stack's
     start-up left out) to its end, and the peak memory of its process tree."""
     out = Path(tempfile.mkdtemp(prefix=f"stack_speed_{scenario}_"))
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
     proc = subprocess.Popen([PPPBOT, "eval", scenario, *args, "--out", str(out)], env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     sampler = Sampler(proc.pid)
-    time.sleep(8.0)  # the stack starts: its CPU is not the run's
+    lines: list[str] = []
+    assert proc.stderr is not None
+    for line in proc.stderr:  # the stack starts (its CPU is not the run's) until progress shows
+        lines.append(line)
+        if "%" in line:
+            break
     sampler.begin()
-    _, err = proc.communicate()
+    lines += proc.stderr.readlines()
+    proc.wait()
+    err = "".join(lines)
     shares = sampler.end()
     sampler.close()
     report_file = out / "report.json"
