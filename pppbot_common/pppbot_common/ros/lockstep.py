@@ -28,9 +28,12 @@ counted per topic (:mod:`pppbot_common.ros.lockstep_counting`), answers carry th
 each step the totals of the topics participants count (:func:`count_deliveries`, :func:`require_match`), and a
 participant handles a step only once its counted subscriptions have received that many
 (:class:`~pppbot_common.lockstep.Deliveries`; after :data:`DELIVERY_TIMEOUT_S` it goes on
-with a warning). Service and action requests are held for (:func:`hold_until`, flows of
-:mod:`pppbot_common.ros.goals`): the asking step waits for the prompt answer; a result that
-comes whenever the server is done is seen at the first tick after it came (:class:`Arrival`).
+with a warning). For the counts to name the right messages, what a participant sends while
+time runs is held until its next step (:class:`~pppbot_common.ros.lockstep_counting.Outbox`):
+everything sent in one round is handled in the next. Replies are not held; the step at which
+a request goes out waits for the prompt reply (:func:`hold_for`, :func:`hold_until`, flows of
+:mod:`pppbot_common.ros.goals`); a result that comes whenever the server is done is seen at
+the first tick after it came (:class:`Arrival`).
 """
 from __future__ import annotations
 

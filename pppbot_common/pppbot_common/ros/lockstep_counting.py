@@ -228,15 +228,23 @@ def _copied(value: Any) -> Any:
 
 def _counting_publish(method: Callable[..., Any]) -> Callable[..., Any]:
     @functools.wraps(method)
-    def counted(self: Any, msg: Any) -> Any:
-        if OUTBOX.holding:
-            wire = msg if isinstance(msg, bytes) else serialize_message(msg)
-            OUTBOX.hold(lambda: method(self, wire), _topic_of(self))
-            return None
-        COUNTERS.sent()
-        COUNTERS.published_on(_topic_of(self))
-        return method(self, msg)
+    def counted(self: Any, msg: Any) -> None:
+        _publish(self, msg, asks_round=True)
     return counted
+
+
+def _publish(publisher: Any, msg: Any, asks_round: bool) -> None:
+    """Count and publish ``msg`` (held while the :data:`OUTBOX` is holding: serialized now, so
+    the sender may reuse it)."""
+    topic = _topic_of(publisher)
+    if OUTBOX.holding:
+        wire = msg if isinstance(msg, bytes) else serialize_message(msg)
+        OUTBOX.hold(lambda: _ORIGINAL_PUBLISH(publisher, wire), topic, asks_round=asks_round)
+        return
+    if asks_round:
+        COUNTERS.sent()
+    COUNTERS.published_on(topic)
+    _ORIGINAL_PUBLISH(publisher, msg)
 
 
 def _topic_of(publisher: Any) -> str:
@@ -251,12 +259,7 @@ def _topic_of(publisher: Any) -> str:
 def publish_aside(publisher: Any, msg: Any) -> None:
     """Publish a message nobody in lockstep reacts to at this time (a wheel's transform, for
     RViz): counted for delivery (and held like any other), but it asks for no further round."""
-    if OUTBOX.holding:
-        wire = msg if isinstance(msg, bytes) else serialize_message(msg)
-        OUTBOX.hold(lambda: _ORIGINAL_PUBLISH(publisher, wire), _topic_of(publisher), asks_round=False)
-        return
-    COUNTERS.published_on(_topic_of(publisher))
-    _ORIGINAL_PUBLISH(publisher, msg)
+    _publish(publisher, msg, asks_round=False)
 
 
 # -------------------------------------------------------------------------- receiving
