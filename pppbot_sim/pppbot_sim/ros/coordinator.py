@@ -184,7 +184,7 @@ class Coordinator:
                       "timers": timers and index == 0}
             # What was published before this step, participants' held sends included: they go out
             # as the participants get the step (see pppbot_common.ros.lockstep_counting.Outbox).
-            totals = self.publications.totals(COUNTERS.published)
+            totals = self.publications.totals(COUNTERS.published) if topics else []
             if topics:
                 values["published"] = totals
             self.step_pub.publish(self._step_wire(topics).serialize(values))
@@ -195,7 +195,8 @@ class Coordinator:
             if not process.running():
                 return False
             self._wait_for_deliveries(process, t_ns, totals)
-            # Every message a participant sent before its answer has been handled here by now.
+            # Every message published before this step has been handled here by now; what was
+            # sent during it makes another round (the senders' answers say so).
             if not self.barrier.another_round() and COUNTERS.sends == sends:
                 return True
             self.extra_rounds += 1
