@@ -5,11 +5,13 @@ Runs, one after the other in ``--world`` (default maze), on a DDS domain of its 
 * ``mapping``: ``pppbot eval slam`` in lockstep (simulator with the controller,
   robot_state_publisher, twist_mux, slam, the eval driver) — achieved real-time factor;
 * ``navigation``: ``pppbot eval navigation`` in lockstep (simulator, robot_state_publisher,
-  twist_mux, map_server, amcl, planner_server, controller_server, navigator, the eval) —
-  achieved real-time factor and the bringup's peak resident memory;
+  twist_mux, map_server, amcl, planner_server, controller_server and navigator composed in
+  one process, the eval) — achieved real-time factor and the peak RSS of all of them;
 * ``navigation_1x``: the same without lockstep at 1× real time — the navigation nodes'
   CPU while they drive;
-* ``idle_1x``: ``launch_sim localization:=true`` at 1× with no goal — every node's CPU.
+* ``idle_1x``: ``launch_sim localization:=true`` at 1× with no goal — every node's CPU, and
+  the bringup's memory: the sum of its processes' RSS (the issue's measure, which counts the
+  libraries they share once per process) and of their PSS (each shared page counted once).
 
 Each node's CPU share (% of one core, from /proc) is printed per run; one JSON object with
 every figure and its target is the last line.
@@ -35,9 +37,11 @@ from pppbot_common.dds_isolation import isolate_dds
 ROOT = Path(__file__).resolve().parent.parent
 PPPBOT = str(ROOT / "pppbot")
 TICKS = os.sysconf("SC_CLK_TCK")
-NAV_NODES = ("planner_server", "controller_server", "navigator")
+#: The navigation nodes' processes: composed (launch_sim's default) or each its own.
+NAV_NODES = ("navigation", "planner_server", "controller_server", "navigator")
 TARGETS = {"mapping_rtf": 10.0, "navigation_rtf": 5.0, "nav_nodes_driving_1x_pct": 25.0,
-           "nav_nodes_idle_1x_pct": 5.0, "bringup_idle_1x_pct": 30.0, "navigation_rss_mb": 600.0}
+           "nav_nodes_idle_1x_pct": 5.0, "bringup_idle_1x_pct": 30.0, "navigation_rss_mb": 600.0,
+           "navigation_pss_mb": 600.0}
 
 
 def _children(root: int) -> list[int]:
@@ -81,14 +85,25 @@ def _cpu_ticks(pid: int) -> int:
     return int(fields[11]) + int(fields[12])
 
 
-def _rss_mb(pid: int) -> float:
+def _memory_mb(pid: int, file: str, key: str) -> float:
     try:
-        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
+        for line in Path(f"/proc/{pid}/{file}").read_text().splitlines():
+            if line.startswith(key):
                 return int(line.split()[1]) / 1024
     except OSError:
         pass
     return 0.0
+
+
+def _rss_mb(pid: int) -> float:
+    return _memory_mb(pid, "status", "VmRSS:")
+
+
+def _pss_mb(pid: int) -> float:
+    """Proportional set size: the process's own pages plus its share of those it shares (Python,
+    rclpy, Fast DDS, numpy are mapped once for all processes). Summed over processes, the
+    memory they take together; a sum of RSS counts every shared page once per process."""
+    return _memory_mb(pid, "smaps_rollup", "Pss:")
 
 
 class Sampler:
@@ -175,11 +190,12 @@ def run_idle(world: str, seconds: float, domain: int) -> dict[str, Any]:
     sampler.begin()
     time.sleep(seconds)
     shares = sampler.end()
-    rss = sum(_rss_mb(p) for p in _children(proc.pid)) + _rss_mb(proc.pid)
+    pids = [proc.pid, *_children(proc.pid)]
+    rss, pss = sum(_rss_mb(p) for p in pids), sum(_pss_mb(p) for p in pids)
     sampler.close()
     proc.send_signal(signal.SIGINT)
     proc.wait(60)
-    return {"cpu_pct": shares, "rss_mb": round(rss)}
+    return {"cpu_pct": shares, "rss_mb": round(rss), "pss_mb": round(pss)}
 
 
 def main() -> None:
@@ -205,7 +221,8 @@ def main() -> None:
         nav_nodes_driving_1x_pct=round(sum(driving["cpu_pct"].get(n, 0.0) for n in NAV_NODES), 1),
         nav_nodes_idle_1x_pct=round(sum(idle["cpu_pct"].get(n, 0.0) for n in NAV_NODES), 1),
         bringup_idle_1x_pct=round(sum(v for k, v in idle["cpu_pct"].items() if k != "launch_sim"), 1),
-        navigation_rss_mb=navigation["peak_rss_mb"],
+        navigation_rss_mb=idle["rss_mb"], navigation_pss_mb=idle["pss_mb"],
+        navigation_with_eval_peak_rss_mb=navigation["peak_rss_mb"],
         cpu_pct={"mapping": mapping["cpu_pct"], "navigation": navigation["cpu_pct"],
                  "navigation_1x": driving["cpu_pct"], "idle_1x": idle["cpu_pct"]})
     figures["targets"] = TARGETS

@@ -25,6 +25,7 @@ setup(
             'planner_server = pppbot_nav.ros.planner_server:main',
             'controller_server = pppbot_nav.ros.controller_server:main',
             'navigator = pppbot_nav.ros.navigator:main',
+            'navigation = pppbot_nav.ros.navigation:main',
         ],
     },
 )

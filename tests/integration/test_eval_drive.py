@@ -142,7 +142,7 @@ def test_navigation_scenario_reaches_random_goals_judged_on_ground_truth(spawn, 
     assert np.allclose(goals[:, 0], [r["start_s"] for r in results], atol=1e-3)
     assert report["ate_rms_m"] < 0.1  # AMCL along the way
     assert report["plots"] == ["trajectory.png"]
-    for log in ("planner_server-1.log", "controller_server-1.log", "navigator-1.log", "amcl-1.log"):
+    for log in ("navigation-1.log", "amcl-1.log"):  # navigation: the composed planner, controller, navigator
         assert (out / "logs" / log).is_file()
     assert "process has died" not in output
 
@@ -169,7 +169,7 @@ def test_lockstep_drive_is_the_same_run_twice(spawn, tmp_path: Path):
 
 
 def test_lockstep_navigation_is_the_same_run_on_a_busy_machine(spawn, tmp_path: Path):
-    """Navigation in lockstep (AMCL, planner, controller_server, navigator, each its own process):
+    """Navigation in lockstep (AMCL, and the planner, controller_server and navigator composed):
     the same seed gives the same ground-truth trajectory, goal outcomes and collisions, once
     beside the suite and once with a busy loop pinned to one of the cores."""
     map_file = box_room_map(spawn, tmp_path)

@@ -153,7 +153,8 @@ def test_lockstep_makes_the_data_path_participants_and_tells_the_simulator_whom_
                           extra_participants=("pppbot_eval",))
     by_name = {n.name: " ".join(n.cmd) for n in p.nodes}
     # robot_state_publisher too: its wheel transforms are on /tf, which lockstep counts.
-    participants = ["twist_mux", "robot_state_publisher", "amcl", "planner_server", "controller_server", "navigator"]
+    # The planner, controller_server and navigator composed in one process: one participant.
+    participants = ["twist_mux", "robot_state_publisher", "amcl", "navigation"]
     for name in participants:
         assert "lockstep:=true" in by_name[name] and f"lockstep_name:={name}" in by_name[name]
     assert "lockstep" not in by_name["map_server"]  # not on the data path: never waited for
@@ -163,6 +164,18 @@ def test_lockstep_makes_the_data_path_participants_and_tells_the_simulator_whom_
     # A participant is ready once the simulator lists it as joined (not at a first message).
     assert probes.joins == participants
     assert ("/clock", "rosgraph_msgs/msg/Clock", False) in probes
+
+
+def test_navigation_is_one_composed_process_unless_use_composition_is_false():
+    composed = {n.name: n for n in fake_plan("localization:=true", "lockstep:=true")[0].nodes}
+    nav = composed["navigation"]
+    assert nav.cmd[0] == "/bin/pppbot_nav/navigation" and nav.after == ("amcl",) and nav.required
+    assert "lockstep_name:=navigation" in nav.cmd and "nav2_params.yaml" in " ".join(nav.cmd)
+    assert not {"planner_server", "controller_server", "navigator"} & composed.keys()
+    separate = {n.name: n for n in fake_plan("localization:=true", "lockstep:=true", "use_composition:=false")[0].nodes}
+    assert "navigation" not in separate
+    for name in ("planner_server", "controller_server", "navigator"):
+        assert separate[name].cmd[0] == f"/bin/pppbot_nav/{name}" and f"lockstep_name:={name}" in separate[name].cmd
 
 
 def test_record_adds_a_recorder_right_after_the_simulator(tmp_path):

@@ -13,6 +13,11 @@ and clears from the LaserScan on ``obstacle_layer.scan.topic``) and ``inflation_
 rolling window (``rolling_window``) is ``width`` × ``height`` m centred on the robot
 (``global_frame`` → ``robot_base_frame`` from TF). The master is rebuilt at
 ``update_frequency`` and published at ``publish_frequency``.
+
+As Nav2's observation buffer, scans are kept (with the sensor's pose at their stamp) and
+applied when the layers update, not as they come: with ``observation_persistence`` 0 (Nav2's
+default) the newest scan only, else every scan of the last that many seconds. A global
+costmap updating at 1 Hz marks one scan a second, not the lidar's ten.
 """
 from __future__ import annotations
 
@@ -46,6 +51,14 @@ SCAN_QUEUE = 20
 LAYER_NAMES = ("static_layer", "obstacle_layer", "voxel_layer", "inflation_layer")
 
 
+@dataclass(frozen=True, eq=False)
+class _Observation:
+    """A scan and the sensor's (x, y, yaw) in the costmap's frame at its stamp."""
+    stamp_s: float
+    scan: LaserScan
+    sensor: tuple[float, float, float]
+
+
 @dataclass(frozen=True)
 class CostmapParameters:
     global_frame: str = param("map", "the costmap's frame")
@@ -72,6 +85,8 @@ class CostmapParameters:
                                       ros_name="obstacle_layer.scan.raytrace_max_range")
     raytrace_min_range: float = param(0.0, "obstacle layer: clear from this range (m)",
                                       ros_name="obstacle_layer.scan.raytrace_min_range")
+    observation_persistence: float = param(0.0, "obstacle layer: how long a scan is applied (s); 0: the newest only",
+                                           ros_name="obstacle_layer.scan.observation_persistence")
     inflation_radius: float = param(0.55, "inflation layer: radius (m)", ros_name="inflation_layer.inflation_radius")
     cost_scaling_factor: float = param(3.0, "inflation layer: exponential decay (1/m)",
                                        ros_name="inflation_layer.cost_scaling_factor")
@@ -82,6 +97,7 @@ class CostmapParameters:
         for name in ("update_frequency", "publish_frequency", "resolution"):
             check_finite_range(name, getattr(self, name), 0.0, 1000.0, low_open=True)
         check_finite_range("robot_radius", self.robot_radius, 0.0, 100.0)
+        check_finite_range("obstacle_layer.scan.observation_persistence", self.observation_persistence, 0.0, 3600.0)
         if self.rolling_window and not (self.width > 0 and self.height > 0):
             raise ParameterError("width", f"{self.width} × {self.height}", "a rolling window needs a positive size")
         if not 1 <= self.lethal_cost_threshold <= 100:
@@ -121,6 +137,8 @@ class CostmapNode(Node):
         self.params = p = declare_parameters(self, CostmapParameters)
         self._warn = Warnings(self)
         self._pending: deque[LaserScan] = deque()  # scans waiting for their transform
+        self._observations: deque[_Observation] = deque()  # scans with their sensor pose, oldest first
+        self._applied: tuple[tuple[_Observation, ...], tuple[float, float]] | None = None  # and where
         self.tf = TfListener(self, self._warn, on_tf=self._drain).buffer
         self.layers = p.layers()
         self.static = next((la for la in self.layers if isinstance(la, StaticLayer)), None)
@@ -203,15 +221,34 @@ class CostmapNode(Node):
                 self._warn("scan transform", f"dropping a scan: {exc}")
                 continue
             self._pending.popleft()
-            self._mark(self.layered, msg, sensor)
+            self._buffer(_Observation(stamp, msg, sensor))
 
-    def _mark(self, layered: LayeredCostmap, msg: LaserScan, sensor: tuple[float, float, float]) -> None:
-        ranges = np.asarray(msg.ranges, dtype=float)
-        bearings = sensor[2] + msg.angle_min + msg.angle_increment * np.arange(len(ranges))
-        valid = ~(ranges < msg.range_min)  # NaN stays: no return
-        ranges = np.where(np.isfinite(ranges) & (ranges < msg.range_max), ranges, np.inf)
-        for layer in self.obstacles:
-            layer.observe(layered.master, (sensor[0], sensor[1]), bearings[valid], ranges[valid])
+    def _buffer(self, observation: _Observation) -> None:
+        """Keep ``observation``, and of the older ones those within ``observation_persistence`` of it
+        (Nav2's ObservationBuffer: with 0, the newest only)."""
+        self._observations.append(observation)
+        keep_s = self.params.observation_persistence
+        while len(self._observations) > 1 and (
+                keep_s == 0.0 or self._observations[0].stamp_s < observation.stamp_s - keep_s):
+            self._observations.popleft()
+
+    def _mark(self, layered: LayeredCostmap) -> None:
+        """Apply the kept scans, oldest first; not again when neither they nor the grid moved
+        (clearing then marking the same scans gives the same cells)."""
+        observations = tuple(self._observations)
+        applied = (observations, layered.master.origin)
+        if not observations or (self._applied is not None and self._applied[0] == observations
+                                and self._applied[1] == applied[1]):
+            return
+        for obs in observations:
+            msg, sensor = obs.scan, obs.sensor
+            ranges = np.asarray(msg.ranges, dtype=float)
+            bearings = sensor[2] + msg.angle_min + msg.angle_increment * np.arange(len(ranges))
+            valid = ~(ranges < msg.range_min)  # NaN stays: no return
+            ranges = np.where(np.isfinite(ranges) & (ranges < msg.range_max), ranges, np.inf)
+            for layer in self.obstacles:
+                layer.observe(layered.master, (sensor[0], sensor[1]), bearings[valid], ranges[valid])
+        self._applied = applied
 
     # ---------------------------------------------------------------- outputs
     def update(self) -> Costmap | None:
@@ -224,6 +261,8 @@ class CostmapNode(Node):
             if pose is None:
                 return None
             robot = (pose[0], pose[1])
+            self.layered.master.recentre(robot[0], robot[1], self.layered.default_value)
+        self._mark(self.layered)
         master = self.layered.update(robot)
         self.costmap = Costmap(master.costs.copy(), master.resolution, master.origin, master.frame_id)
         return self.costmap
@@ -235,6 +274,8 @@ class CostmapNode(Node):
     def clear(self) -> None:
         for layer in self.obstacles:
             layer.clear()
+        self._observations.clear()
+        self._applied = None
         self.update()
 
     def _clear(self, request: ClearEntireCostmap.Request,

@@ -1,0 +1,89 @@
+"""The costmap node's observation buffer: scans are applied when the layers update, as Nav2's
+ObservationBuffer (``observation_persistence`` 0: the newest scan only)."""
+from __future__ import annotations
+
+import math
+from typing import Iterator
+
+import pytest
+import rclpy
+from rclpy.parameter import Parameter
+from rclpy.time import Time
+from sensor_msgs.msg import LaserScan
+
+from pppbot_nav.costmap.costs import FREE_SPACE, LETHAL_OBSTACLE, NO_INFORMATION
+from pppbot_nav.ros.costmap_node import CostmapNode
+
+pytestmark = pytest.mark.ros
+
+
+@pytest.fixture
+def context() -> Iterator[None]:
+    rclpy.init()
+    try:
+        yield
+    finally:
+        rclpy.shutdown()
+
+
+def local_costmap(persistence: float) -> CostmapNode:
+    """A 4 × 4 m rolling window of an obstacle layer alone, its robot at the origin of 'odom'."""
+    node = CostmapNode("local_costmap", parameter_overrides=[
+        Parameter("global_frame", value="odom"), Parameter("rolling_window", value=True),
+        Parameter("width", value=4), Parameter("height", value=4), Parameter("plugins", value=["obstacle_layer"]),
+        Parameter("obstacle_layer.scan.observation_persistence", value=persistence)])
+    for child in ("base_link", "lidar"):
+        node.tf.set_transform("odom", child, 0.0, (0.0, 0.0, 0.0), True)
+    return node
+
+
+def scan(stamp_s: float, wall_at_m: float | None) -> LaserScan:
+    """One beam straight ahead: a return at ``wall_at_m``, or none."""
+    msg = LaserScan()
+    msg.header.frame_id = "lidar"
+    msg.header.stamp = Time(seconds=stamp_s).to_msg()
+    msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max = 0.0, 0.01, 0.1, 10.0
+    msg.ranges = [math.inf if wall_at_m is None else wall_at_m]
+    return msg
+
+
+def cost(node: CostmapNode, x: float) -> int:
+    assert node.costmap is not None
+    return int(node.costmap.cost_at(x, 0.0, NO_INFORMATION)[()])
+
+
+def test_only_the_newest_scan_is_applied_at_an_update_by_default(context: None) -> None:
+    node = local_costmap(persistence=0.0)
+    try:
+        node._on_scan(scan(1.0, 1.0))  # a wall at 1 m, then gone before the layers update
+        node._on_scan(scan(1.1, 1.5))
+        node.update()
+        assert cost(node, 1.52) == LETHAL_OBSTACLE
+        assert cost(node, 1.02) == FREE_SPACE  # the older scan was never marked: the newer clears through
+        node.update()  # nothing new: the same costmap
+        assert cost(node, 1.52) == LETHAL_OBSTACLE
+        node._on_scan(scan(1.2, None))
+        node.update()
+        assert cost(node, 1.52) == FREE_SPACE  # the wall went away
+    finally:
+        node.destroy_node()
+
+
+def test_scans_within_observation_persistence_are_all_applied(context: None) -> None:
+    node = local_costmap(persistence=0.5)
+    try:
+        node._on_scan(scan(1.0, 1.5))
+        node._on_scan(scan(1.1, 1.0))  # nearer: it hides the first wall, which stays marked
+        node.update()
+        assert cost(node, 1.02) == LETHAL_OBSTACLE and cost(node, 1.52) == LETHAL_OBSTACLE
+        node._on_scan(scan(1.7, 1.0))  # the scan at 1.0 s is now older than 0.5 s: no longer applied
+        node._on_scan(scan(1.8, None))
+        node.update()
+        assert cost(node, 1.02) == FREE_SPACE
+    finally:
+        node.destroy_node()
+
+
+def test_a_bad_observation_persistence_is_refused_with_its_name(context: None) -> None:
+    with pytest.raises(Exception, match="observation_persistence"):
+        local_costmap(persistence=-1.0)
