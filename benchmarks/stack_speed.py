@@ -168,7 +168,7 @@ def run_eval(scenario: str, args: list[str], domain: int) -> dict[str, Any]:
     if not report_file.is_file():
         raise SystemExit(f"stack_speed: eval {scenario} wrote no report:\n{err[-2000:]}")
     report = json.loads(report_file.read_text())
-    return {"real_time_factor": round(float(report["real_time_factor"]), 2),
+    return {"real_time_factor": round(float(report["real_time_factor"]), 2), "ok": bool(report.get("ok")),
             "sim_seconds": round(float(report["sim_seconds"]), 1), "cpu_pct": shares,
             "peak_rss_mb": round(sampler.peak_rss_mb), "out": str(out)}
 
@@ -225,6 +225,10 @@ def main() -> None:
         navigation_with_eval_peak_rss_mb=navigation["peak_rss_mb"],
         cpu_pct={"mapping": mapping["cpu_pct"], "navigation": navigation["cpu_pct"],
                  "navigation_1x": driving["cpu_pct"], "idle_1x": idle["cpu_pct"]})
+    # A figure from a run that failed (a goal unanswered, the robot stuck) is no figure: say so.
+    # (Mapping stops at --mapping-seconds, before its route's end: it counts when it got there.)
+    figures["runs_ok"] = {"mapping": mapping["ok"] or mapping["sim_seconds"] >= 0.95 * args.mapping_seconds,
+                          "navigation": navigation["ok"], "navigation_1x": driving["ok"]}
     figures["targets"] = TARGETS
     figures["met"] = {k: (figures[k] >= t if k.endswith("_rtf") else figures[k] <= t) for k, t in TARGETS.items()}
     print(json.dumps(figures))

@@ -21,9 +21,9 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 PPPBOT = str(ROOT / "pppbot")
 RUNS = 20
-#: Processes of a localization + navigation bringup without teleop and RViz (``navigation``: the
-#: planner, controller_server and navigator composed).
-NODES = ("simulator", "robot_state_publisher", "twist_mux", "map_server", "amcl", "navigation")
+#: Processes of a localization + navigation bringup without teleop and RViz.
+NODES = ("simulator", "robot_state_publisher", "twist_mux", "map_server", "amcl", "planner_server",
+         "controller_server", "navigator")
 
 
 def _stop_moment(run: int) -> str:

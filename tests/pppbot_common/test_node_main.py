@@ -63,3 +63,42 @@ def test_a_stop_while_a_node_imports_is_taken_by_its_runner_when_the_launch_bloc
     assert proc.stdout is not None and proc.stdout.readline().strip() == "importing"
     proc.send_signal(signal.SIGINT)
     assert proc.wait(30) == expected
+
+
+def test_composed_nodes_share_one_clock_subscription_and_all_follow_clock():
+    """share_clock: of the nodes on sim time, only the first keeps its /clock subscription; every
+    node's clock still follows /clock."""
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from rosgraph_msgs.msg import Clock
+
+    from pppbot_common.ros.node_main import share_clock
+    from pppbot_common.ros.wait import wait_until
+
+    rclpy.init()
+    try:
+        sim_time = [Parameter("use_sim_time", value=True)]
+        nodes = [Node(f"composed_{i}", parameter_overrides=sim_time) for i in range(3)]
+        wall = Node("on_wall_time")
+        share_clock([*nodes, wall])
+        clock_subscribers = [n for n in nodes if any(s.topic_name == "/clock" for s in n.subscriptions)]
+        assert clock_subscribers == [nodes[0]]
+        publisher = wall.create_publisher(Clock, "/clock", 10)
+        executor = SingleThreadedExecutor()
+        for node in (*nodes, wall):
+            executor.add_node(node)
+        msg = Clock()
+        msg.clock.sec = 42
+
+        def all_at_42() -> bool:
+            publisher.publish(msg)
+            executor.spin_once(timeout_sec=0.05)
+            return all(n.get_clock().now().nanoseconds == 42 * 10**9 for n in nodes)
+
+        assert wait_until(all_at_42, 10.0, "every composed clock at 42 s")
+        assert wall.get_clock().now().nanoseconds > 10**18  # the wall-time node is left alone
+        executor.shutdown()
+        for node in (*nodes, wall):
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown()

@@ -192,7 +192,8 @@ class Run:
     def _wait_ready(self, supervisor: Supervisor, names: list[str], thread: threading.Thread,
                     node: EvalNode) -> bool:
         deadline = time.monotonic() + READY_TIMEOUT_S
-        while not all(supervisor.is_ready(n) for n in names) or node.sim_now_s is None:
+        while (not all(supervisor.is_ready(n) for n in names) or node.sim_now_s is None
+               or not all(ready() for ready in node.servers.values())):
             if self.interrupted:
                 self.recording.failure = "interrupted"
                 return False
@@ -200,7 +201,8 @@ class Run:
                 self.recording.failure = f"the stack stopped while starting (see {self.out / 'logs'})"
                 return False
             if time.monotonic() > deadline:
-                waiting = [n for n in names if not supervisor.is_ready(n)] or ["/ground_truth/odom"]
+                waiting = ([n for n in names if not supervisor.is_ready(n)]
+                           or [what for what, ready in node.servers.items() if not ready()] or ["/ground_truth/odom"])
                 self.recording.failure = f"not ready after {READY_TIMEOUT_S:.0f} s: {', '.join(waiting)}"
                 return False
             node.spin_pending(0.05)

@@ -151,7 +151,8 @@ class GoalLimits:
 class NavigateGoals:
     """Goals (world frame) to ``navigate_to_pose`` one after another, each sent in ``map`` (at
     ``map_to_world`` in the world), judged later on ground truth. A goal past its time limit
-    is canceled and recorded as ``timeout``."""
+    is canceled and recorded as ``timeout``; one the server never answers is recorded as
+    ``unanswered`` once past its limit (a lost request must not hang the run)."""
 
     def __init__(self, goals: Sequence[tuple[float, float, float]], truth_map: OccupancyGrid,
                  map_to_world: tuple[float, float, float], max_speed_mps: float,
@@ -186,8 +187,12 @@ class NavigateGoals:
                 return
             self._send(node, self.goals[self.index])
             return
+        elapsed = node.sim_now_s - self._start_s
         if self._handle is None:
             if not self._sent.done():
+                if elapsed > self._limit_s:  # the request or its answer is lost: say so, go on
+                    self._record(node, "unanswered", error_msg=f"navigate_to_pose did not answer the goal within "
+                                                               f"{self._limit_s:.0f} sim seconds")
                 return
             self._handle = self._sent.result()
             if self._handle is None or not self._handle.accepted:
@@ -201,9 +206,12 @@ class NavigateGoals:
                 self._record(node, "timeout", error_msg=f"no result within {self._limit_s:.0f} sim seconds")
             else:
                 self._record(node, status, int(response.result.error_code), str(response.result.error_msg))
-        elif not self._canceled and node.sim_now_s - self._start_s > self._limit_s:
+        elif not self._canceled and elapsed > self._limit_s:
             self._canceled = True
             hold_until(self._handle.cancel_goal_async())
+        elif self._canceled and elapsed > self._limit_s + self.limits.base_s:
+            self._record(node, "timeout", error_msg=f"no result within {self._limit_s:.0f} sim seconds, "
+                                                    f"nor {self.limits.base_s:.0f} s after the cancel")
 
     def _send(self, node: EvalActions, goal: tuple[float, float, float]) -> None:
         truth = node.truth_pose

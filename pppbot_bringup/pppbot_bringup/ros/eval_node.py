@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import signal
 import time
+from typing import Callable
 
 import rclpy
 from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped, Twist, Vector3
@@ -88,14 +89,18 @@ class EvalNode:
             require_match(node, node.create_subscription(PoseWithCovarianceStamped, "/amcl_pose", self._on_amcl_pose,
                                                          LATCHED))
             self.global_client = node.create_client(Empty, "/reinitialize_global_localization")
-            if self.participant is not None:
-                self.participant.require_when("the reinitialize_global_localization service",
-                                              self.global_client.service_is_ready)
         self._recoveries = 0  # of the current navigation goal, from its feedback
+        #: Servers the run needs before it starts, by name (a request sent before its server is
+        #: discovered is lost). In lockstep the node joins only once they are there.
+        self.servers: dict[str, Callable[[], bool]] = {}
+        if localizes:
+            self.servers["the reinitialize_global_localization service"] = self.global_client.service_is_ready
         if navigates:
             self.navigator = ActionClient(node, NavigateToPose, "navigate_to_pose")
-            if self.participant is not None:
-                self.participant.require_when("the navigate_to_pose server", self.navigator.server_is_ready)
+            self.servers["the navigate_to_pose server"] = self.navigator.server_is_ready
+        if self.participant is not None:
+            for what, ready in self.servers.items():
+                self.participant.require_when(what, ready)
         create_timer(node, TICK_S, self._tick)
 
     @property

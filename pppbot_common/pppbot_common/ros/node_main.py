@@ -95,10 +95,8 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str, args: list[str
     simulator, which runs it)."""
     stop_requested = take_stop_signals()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    from pppbot_common.ros.tf_listener import share_in_process  # it imports this module
     nodes: list[Node] = []
     participant: Participant | None = None
-    share_in_process(True)
     try:
         participant = Participant.from_parameters(name) if lockstep else None
         for factory in factories:
@@ -168,8 +166,6 @@ def _teardown(executor: Any, nodes: list[Node], participant: Participant | None,
     if participant is not None:
         participant.node.destroy_node()
     Participant.clear_current()
-    from pppbot_common.ros.tf_listener import share_in_process  # it imports this module
-    share_in_process(False)
     rclpy.try_shutdown()
 
 
