@@ -9,7 +9,8 @@ Runs, one after the other in ``--world`` (default maze), on a DDS domain of its 
   one process, the eval) — achieved real-time factor and the peak RSS of all of them;
 * ``navigation_1x``: the same without lockstep at 1× real time — the navigation nodes'
   CPU while they drive;
-* ``idle_1x``: ``launch_sim localization:=true`` at 1× with no goal — every node's CPU, and
+* ``idle_1x`` and ``idle_lockstep_1x``: ``launch_sim localization:=true`` at 1× with no goal,
+  free running and in lockstep paced at 1× (the navigation nodes composed) — every node's CPU, and
   the bringup's memory: the sum of its processes' RSS (the issue's measure, which counts the
   libraries they share once per process) and of their PSS (each shared page counted once).
 
@@ -41,7 +42,8 @@ TICKS = os.sysconf("SC_CLK_TCK")
 NAV_NODES = ("navigation", "planner_server", "controller_server", "navigator")
 TARGETS = {"mapping_rtf": 10.0, "navigation_rtf": 5.0, "nav_nodes_driving_1x_pct": 25.0,
            "nav_nodes_idle_1x_pct": 5.0, "bringup_idle_1x_pct": 30.0, "navigation_rss_mb": 600.0,
-           "navigation_pss_mb": 600.0}
+           "navigation_pss_mb": 600.0, "nav_nodes_idle_lockstep_1x_pct": 5.0, "bringup_idle_lockstep_1x_pct": 30.0,
+           "navigation_lockstep_rss_mb": 600.0, "navigation_lockstep_pss_mb": 600.0}
 
 
 def _children(root: int) -> list[int]:
@@ -173,11 +175,13 @@ def run_eval(scenario: str, args: list[str], domain: int) -> dict[str, Any]:
             "peak_rss_mb": round(sampler.peak_rss_mb), "out": str(out)}
 
 
-def run_idle(world: str, seconds: float, domain: int) -> dict[str, Any]:
-    """launch_sim with localization and navigation at 1×, no goal: CPU per node over ``seconds``."""
+def run_idle(world: str, seconds: float, domain: int, lockstep: bool = False) -> dict[str, Any]:
+    """launch_sim with localization and navigation at 1× (free running, or lockstep paced at 1×,
+    where the navigation nodes are one composed process), no goal: CPU per node over ``seconds``."""
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
     proc = subprocess.Popen([PPPBOT, "launch_sim", f"world:={world}", "localization:=true", "use_teleop:=false",
-                             "use_rviz:=false", "real_time_factor:=1.0"], env=env, stdout=subprocess.PIPE,
+                             "use_rviz:=false", "real_time_factor:=1.0", f"lockstep:={str(lockstep).lower()}"],
+                            env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True)
     assert proc.stdout is not None
     deadline = time.monotonic() + 120
@@ -216,15 +220,21 @@ def main() -> None:
     print(f"navigation at 1x: {driving}", file=sys.stderr)
     idle = run_idle(args.world, args.idle_seconds, base)
     print(f"idle at 1x: {idle}", file=sys.stderr)
+    idle_lockstep = run_idle(args.world, args.idle_seconds, base, lockstep=True)
+    print(f"idle in lockstep paced at 1x: {idle_lockstep}", file=sys.stderr)
     figures.update(
         mapping_rtf=mapping["real_time_factor"], navigation_rtf=navigation["real_time_factor"],
         nav_nodes_driving_1x_pct=round(sum(driving["cpu_pct"].get(n, 0.0) for n in NAV_NODES), 1),
         nav_nodes_idle_1x_pct=round(sum(idle["cpu_pct"].get(n, 0.0) for n in NAV_NODES), 1),
         bringup_idle_1x_pct=round(sum(v for k, v in idle["cpu_pct"].items() if k != "launch_sim"), 1),
         navigation_rss_mb=idle["rss_mb"], navigation_pss_mb=idle["pss_mb"],
+        nav_nodes_idle_lockstep_1x_pct=round(sum(idle_lockstep["cpu_pct"].get(n, 0.0) for n in NAV_NODES), 1),
+        bringup_idle_lockstep_1x_pct=round(sum(v for k, v in idle_lockstep["cpu_pct"].items() if k != "launch_sim"), 1),
+        navigation_lockstep_rss_mb=idle_lockstep["rss_mb"], navigation_lockstep_pss_mb=idle_lockstep["pss_mb"],
         navigation_with_eval_peak_rss_mb=navigation["peak_rss_mb"],
         cpu_pct={"mapping": mapping["cpu_pct"], "navigation": navigation["cpu_pct"],
-                 "navigation_1x": driving["cpu_pct"], "idle_1x": idle["cpu_pct"]})
+                 "navigation_1x": driving["cpu_pct"], "idle_1x": idle["cpu_pct"],
+                 "idle_lockstep_1x": idle_lockstep["cpu_pct"]})
     # A figure from a run that failed (a goal unanswered, the robot stuck) is no figure: say so.
     # (Mapping stops at --mapping-seconds, before its route's end: it counts when it got there.)
     figures["runs_ok"] = {"mapping": mapping["ok"] or mapping["sim_seconds"] >= 0.95 * args.mapping_seconds,
