@@ -174,8 +174,9 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
         if localizer is None:
             raise ArgumentError("navigation:=true needs a map frame: localization:=true or use_slam:=true")
         nav2_params = config / "nav2_params.yaml"
-        servers: tuple[tuple[str, str], ...] = (("planner_server", r"planner 'GridBased' ready"), ("controller_server", r"controller 'FollowPath'"),
-                   ("navigator", r"navigator ready"))
+        servers: tuple[tuple[str, str], ...] = (("planner_server", r"planner 'GridBased' ready"),
+                                                ("controller_server", r"controller 'FollowPath'"),
+                                                ("navigator", r"navigator ready"))
         # Composed only in lockstep, where time starts once every endpoint has matched: free running,
         # the composed process missed the first goal and commands of an evaluation started at once.
         if values["use_composition"] and lockstep:

@@ -139,8 +139,9 @@ def _with_composed(nodes: Sequence[Node]) -> list[Node]:
 
 def share_clock(nodes: Sequence[Node]) -> None:
     """One ``/clock`` subscription per process: the nodes on sim time after the first take their
-    time from the first one's time source instead of each taking every ``/clock`` message (a
-    subscription costs each node about 1 % of a core at 100 Hz). rclpy gives a node's time source
+    time from the first one's time source instead of each taking every ``/clock`` message (in
+    the composed navigation process, four subscriptions fewer took 1.2 % of a core off at 1×
+    real time). rclpy gives a node's time source
     no public name; ``_time_source`` is the one rclpy's Node makes for itself."""
     source = None
     for node in nodes:

@@ -236,9 +236,8 @@ class CostmapNode(Node):
         """Apply the kept scans, oldest first; not again when neither they nor the grid moved
         (clearing then marking the same scans gives the same cells)."""
         observations = tuple(self._observations)
-        applied = (observations, layered.master.origin)
-        if not observations or (self._applied is not None and self._applied[0] == observations
-                                and self._applied[1] == applied[1]):
+        applied = (observations, layered.master.origin)  # scans compare by identity
+        if not observations or applied == self._applied:
             return
         for obs in observations:
             msg, sensor = obs.scan, obs.sensor
@@ -261,6 +260,8 @@ class CostmapNode(Node):
             if pose is None:
                 return None
             robot = (pose[0], pose[1])
+            # Before marking, so the scans land in the window the layers are rebuilt in (the
+            # layered update's own recentre then finds nothing to move).
             self.layered.master.recentre(robot[0], robot[1], self.layered.default_value)
         self._mark(self.layered)
         master = self.layered.update(robot)
