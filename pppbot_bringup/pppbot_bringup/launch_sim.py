@@ -48,7 +48,25 @@ ARGUMENTS = [
     Argument("log_level", "info", "log level of every node", choices=LOG_LEVELS),
     Argument("record", False, "record every topic (pppbot bag record -a, sim time) while the launch runs"),
     Argument("bag_path", "", "the bag directory for record:=true; default rosbag2_YYYY_MM_DD-HH_MM_SS here"),
+    Argument("sigterm_timeout", 5.0, "on shutdown, seconds from SIGINT to SIGTERM for a node still running "
+                                     "(ros2 launch's sigterm_timeout)"),
+    Argument("sigkill_timeout", 5.0, "seconds from SIGTERM to SIGKILL (ros2 launch's sigkill_timeout)"),
 ]
+
+
+def stop_timeouts(values: dict[str, Any]) -> tuple[float, float]:
+    """(seconds after SIGINT, seconds after SIGTERM) before the launch escalates.
+
+    Raises:
+        ArgumentError: a timeout that is not a positive finite number.
+    """
+    timeouts = []
+    for name in ("sigterm_timeout", "sigkill_timeout"):
+        value = float(values[name])
+        if not 0.0 < value < float("inf"):
+            raise ArgumentError(f"{name}:={value:g}: must be a positive number of seconds")
+        timeouts.append(value)
+    return timeouts[0], timeouts[1]
 
 Resolver = Callable[[str, str], str]
 

@@ -21,6 +21,10 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 PPPBOT = str(ROOT / "pppbot")
 RUNS = 20
+#: The launch's escalation (SIGINT → SIGTERM → SIGKILL) waits longer than its 5 s defaults: on a
+#: loaded machine a node still importing when the stop comes can need more, and any escalation
+#: fails the test anyway; a node that hangs is still named.
+ESCALATION = ("sigterm_timeout:=20", "sigkill_timeout:=10")
 #: Processes of a localization + navigation bringup without teleop and RViz.
 NODES = ("simulator", "robot_state_publisher", "twist_mux", "map_server", "amcl", "planner_server",
          "controller_server", "navigator")
@@ -38,7 +42,7 @@ def test_sigint_ends_every_node_of_the_navigation_bringup_with_exit_code_0(spawn
     for run in range(RUNS):
         moment = _stop_moment(run)
         launch = spawn([PPPBOT, "launch_sim", "world:=room", "localization:=true", "use_teleop:=false",
-                        "use_rviz:=false"], name=f"launch_sim run {run}")
+                        "use_rviz:=false", *ESCALATION], name=f"launch_sim run {run}")
         if moment == "starting":
             launch.wait_for_output(r"\[amcl-1\]: process started", 60)
         else:
@@ -47,10 +51,11 @@ def test_sigint_ends_every_node_of_the_navigation_bringup_with_exit_code_0(spawn
                 time.sleep(2.0)
         up = "ppp_bot is up" in launch.output
         os.kill(launch.pid, signal.SIGINT)
-        code = launch.wait(30)
+        code = launch.wait(60)
         started = re.findall(r"\[([\w-]+)-\d+\]: process started", launch.output)
         clean = re.findall(r"\[([\w-]+)-\d+\]: process has finished cleanly", launch.output)
-        died = [line for line in launch.output.splitlines() if "process has died" in line]
+        died = [line for line in launch.output.splitlines()
+                if "process has died" in line or re.search(r"sending SIG(TERM|KILL)", line)]
         if not up:
             stopped_while_starting += 1
         if code != 0 or sorted(started) != sorted(clean) or died:

@@ -14,7 +14,7 @@ from rosbags.rosbag2 import Reader
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 
-from pppbot_bringup.launch_sim import ARGUMENTS, plan
+from pppbot_bringup.launch_sim import ARGUMENTS, plan, stop_timeouts
 from pppbot_common.launch_args import ArgumentError, describe, parse_assignments
 from pppbot_common.ros.wait import wait_until
 
@@ -60,6 +60,7 @@ def test_show_args_lists_every_argument_with_its_default():
     (["world:=mars"], "unknown world 'mars'; known worlds: cones, empty, maze, maze_boxes, office, room, room_boxes"),
     (["wrld:=maze"], "unknown argument 'wrld'"),
     (["localization:=true", "map:=/nowhere/map.yaml"], "localization:=true needs a map; /nowhere/map.yaml does not exist"),
+    (["sigkill_timeout:=-1"], "sigkill_timeout:=-1: must be a positive number of seconds"),
 ])
 def test_launch_refuses_bad_input_before_starting_anything(argv, message):
     result = subprocess.run([PPPBOT, "launch_sim", *argv], capture_output=True, text=True, timeout=60,
@@ -67,6 +68,13 @@ def test_launch_refuses_bad_input_before_starting_anything(argv, message):
     assert result.returncode == 2
     assert message in result.stderr
     assert "process started" not in result.stdout
+
+
+def test_stop_timeouts_are_ros2_launchs_and_default_to_5_s():
+    assert stop_timeouts(values()) == (5.0, 5.0)
+    assert stop_timeouts(values("sigterm_timeout:=20", "sigkill_timeout:=2.5")) == (20.0, 2.5)
+    with pytest.raises(ArgumentError, match="sigterm_timeout:=nan: must be a positive number"):
+        stop_timeouts(values("sigterm_timeout:=nan"))
 
 
 class FakeProbes:

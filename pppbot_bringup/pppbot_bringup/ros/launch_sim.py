@@ -16,7 +16,7 @@ import sys
 import time
 from typing import Any, Sequence
 
-from pppbot_bringup.launch_sim import ARGUMENTS, controllers_file, plan
+from pppbot_bringup.launch_sim import ARGUMENTS, controllers_file, plan, stop_timeouts
 from pppbot_bringup.paths import log_root
 from pppbot_bringup.ros.graph_probe import GraphProbe
 from pppbot_bringup.run import RunError, find_executable
@@ -35,6 +35,7 @@ def run(argv: Sequence[str]) -> int:
     terminal = sys.stdin.isatty() and sys.stdout.isatty()
     try:
         values = parse_assignments(argv, ARGUMENTS)
+        sigint_timeout_s, sigterm_timeout_s = stop_timeouts(values)
         world_file = find_world(values["world"])
         urdf = process_xacro(mappings={"controllers_file": str(controllers_file())})
         run_dir = log_root() / time.strftime("%Y-%m-%d-%H-%M-%S")
@@ -62,7 +63,8 @@ def run(argv: Sequence[str]) -> int:
             output.event("INFO", "launch", "node output goes to the log directory; warnings and errors show here")
         for note in the_plan.notes:
             output.event("WARNING", "launch", note)
-        supervisor = Supervisor(the_plan.nodes, output)
+        supervisor = Supervisor(the_plan.nodes, output, sigint_timeout_s=sigint_timeout_s,
+                                sigterm_timeout_s=sigterm_timeout_s)
         supervisor.install_signal_handlers()
         announced = False
 
