@@ -14,7 +14,8 @@ ROS graph) or a regular expression on the node's output.
 * Respawn: ``respawn`` with ``respawn_delay_s`` and at most ``max_respawns``
   restarts. A ``required`` node that dies ends the launch with a non-zero code.
 * Shutdown (Ctrl-C, SIGTERM, SIGHUP, a required node's death): SIGINT to every
-  node, SIGTERM to the ones left after ``sigint_timeout_s``, SIGKILL after
+  node, SIGTERM to the ones left after ``sigint_timeout_s`` (pppbot's nodes first
+  print their threads' stacks, on SIGUSR1, so a hang shows where), SIGKILL after
   ``sigterm_timeout_s`` more; a second Ctrl-C does not cut this short. Every
   node runs in its own process group (killed whole) and gets SIGTERM from the
   kernel if the supervisor itself is killed (PR_SET_PDEATHSIG).
@@ -32,9 +33,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Callable, Mapping, Protocol, Sequence
 
-from pppbot_common.process import block_stop_signals, die_with_parent
+from pppbot_common.process import STACK_DUMP_SIGNAL, block_stop_signals, die_with_parent
 
 POLL_S = 0.05
+#: Wall seconds a hung node has to print its stacks before SIGTERM.
+STACK_DUMP_WAIT_S = 1.0
 _LEVEL = re.compile(r"\[(WARN|WARNING|ERROR|FATAL)\]|Traceback|error:", re.IGNORECASE)
 
 
@@ -324,6 +327,23 @@ class Supervisor:
         except ProcessLookupError:
             pass
 
+    def _dump_stacks(self, hung: list[_Running]) -> None:
+        """Ask pppbot nodes still running after SIGINT for their threads' stacks (SIGUSR1: see
+        pppbot_common.ros.node_main), so that the log shows where they hang."""
+        if not hung:
+            return
+        self.output.event("WARNING", "launch", f"{', '.join(r.label for r in hung)} still running "
+                                               f"{self.sigint_timeout_s:g} s after SIGINT; their stacks follow")
+        for running in hung:
+            try:
+                os.kill(running.proc.pid, STACK_DUMP_SIGNAL)
+            except ProcessLookupError:
+                pass
+        deadline = time.monotonic() + STACK_DUMP_WAIT_S
+        while time.monotonic() < deadline:
+            self._report_repeats()
+            time.sleep(POLL_S)
+
     def _stop_all(self) -> None:
         if self._shutdown_reason:
             self.output.event("INFO", "launch", f"shutting down ({self._shutdown_reason})")
@@ -334,6 +354,8 @@ class Supervisor:
             alive = [r for r in self._running.values() if r.proc.poll() is None]
             if not alive:
                 break
+            if sig == signal.SIGTERM:
+                self._dump_stacks([r for r in alive if r.spec.pppbot_node])
             if sig != signal.SIGINT:
                 names = ", ".join(r.label for r in alive)
                 self.output.event("WARNING", "launch", f"sending {signal.Signals(sig).name} to {names}")

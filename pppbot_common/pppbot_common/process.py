@@ -6,10 +6,12 @@ then SIGTERM after a timeout, then SIGKILL.
 """
 from __future__ import annotations
 
+import faulthandler
 import os
 import re
 import signal
 import subprocess
+import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -44,6 +46,21 @@ def die_with_parent(sig: int = signal.SIGTERM) -> None:
 
 #: The signals that ask a process to stop.
 STOP_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM})
+#: Makes one of pppbot's nodes print every thread's stack (pppbot_common.ros.node_main).
+STACK_DUMP_SIGNAL = signal.SIGUSR1
+
+
+def dump_stacks_on_signal() -> None:
+    """From now on :data:`STACK_DUMP_SIGNAL` prints every thread's stack to stderr (from C: it
+    works while the main thread is stuck in a binding call)."""
+    for stream in (sys.stderr, sys.__stderr__):
+        if stream is None:
+            continue
+        try:
+            faulthandler.register(STACK_DUMP_SIGNAL, file=stream, all_threads=True)
+            return
+        except (AttributeError, ValueError, OSError):  # no file descriptor (captured, closed)
+            continue
 
 
 def block_stop_signals() -> None:

@@ -61,6 +61,7 @@ def test_sigint_ends_every_node_of_the_navigation_bringup_with_exit_code_0(spawn
         if code != 0 or sorted(started) != sorted(clean) or died:
             failures.append(f"run {run} ({moment}): launch exit {code}, started {started}, finished cleanly "
                             f"{clean}; " + " | ".join(died))
+            print(f"---- run {run} ({moment}): the launch's output (a hung node's stacks included)\n{launch.output}")
         if moment != "starting":
             assert sorted(started) == sorted(NODES), started
     assert not failures, "\n".join(failures)

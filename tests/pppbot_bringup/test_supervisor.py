@@ -109,6 +109,33 @@ def test_sigterm_escalates_for_a_child_that_ignores_sigint(supervise):
     assert wait_dead(started_pids(out)) == []
 
 
+HANGS_ON_THE_WAY_DOWN = """
+from pppbot_common.process import STOP_SIGNALS, dump_stacks_on_signal
+dump_stacks_on_signal()
+signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
+def stuck_in_teardown():
+    while True: time.sleep(0.1)
+print('up', flush=True)
+stuck_in_teardown()
+"""
+
+
+def test_a_pppbot_node_still_running_after_sigint_prints_its_stacks_before_sigterm(supervise):
+    sup = supervise([{"name": "hung", "code": HANGS_ON_THE_WAY_DOWN, "ignore": ["INT"], "pppbot_node": True},
+                     {"name": "plain", "code": SLEEPER, "ignore": ["INT"]}],
+                    sigint_timeout=0.5, sigterm_timeout=2.0)
+    sup.wait_for_output(r"\[hung-1\] up", 20)
+    sup.wait_for_output(r"\[plain-1\] up", 20)
+    os.kill(sup.pid, signal.SIGINT)
+    assert sup.wait(20) == 0
+    out = sup.output
+    # only pppbot's nodes are asked (SIGUSR1 would end a plain program)
+    assert "[WARNING] [launch]: hung-1 still running 0.5 s after SIGINT; their stacks follow" in out
+    assert re.search(r"\[hung-1\] .*line \d+ in stuck_in_teardown", out)
+    assert out.index("their stacks follow") < out.index("sending SIGTERM to hung-1, plain-1")
+    assert wait_dead(started_pids(out)) == []
+
+
 def test_sigkill_for_a_child_that_ignores_everything_and_a_second_ctrl_c_waits(supervise):
     sup = supervise([{"name": "deaf", "code": SLEEPER, "ignore": ["INT", "TERM"]}],
                     sigint_timeout=0.5, sigterm_timeout=0.5)

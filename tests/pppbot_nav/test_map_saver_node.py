@@ -11,6 +11,7 @@ import pytest
 from nav2_msgs.srv import LoadMap, SaveMap
 
 from pppbot_bringup.run import find_executable
+from pppbot_common.errors import TimeoutExpired
 from pppbot_common.ros.wait import wait_until
 
 pytestmark = pytest.mark.ros
@@ -33,12 +34,21 @@ def start_saver(spawn, tmp_path: Path):
     return start
 
 
-def save(node: Any, timeout_s: float = 30, **fields: Any) -> bool:
+def save(node: Any, timeout_s: float = 10, attempts: int = 3, **fields: Any) -> bool:
+    """Call save_map; the request again when no reply came within ``timeout_s``. A client is
+    "ready" once DDS matched its requests to the server; on a loaded machine the replies' side
+    can match later, and a reply sent before it is lost (a request is safe to repeat)."""
     client = node.create_client(SaveMap, SERVICE)
     try:
         wait_until(lambda: client.service_is_ready(), 20, f"service {SERVICE}", node=node)
-        future = client.call_async(SaveMap.Request(**fields))
-        return wait_until(lambda: future.result(), timeout_s, f"a reply from {SERVICE}", node=node).result
+        for attempt in range(attempts):
+            future = client.call_async(SaveMap.Request(**fields))
+            try:
+                return wait_until(lambda: future.result(), timeout_s, f"a reply from {SERVICE}", node=node).result
+            except TimeoutExpired:
+                if attempt == attempts - 1:
+                    raise
+        raise AssertionError("unreachable")
     finally:
         node.destroy_client(client)
 

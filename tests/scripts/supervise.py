@@ -1,7 +1,8 @@
 """Run pppbot's Supervisor on plain Python children described in JSON (argv[1]).
 
 Each child: {"name", "code" (Python source), "after" [...], "ready" (regex) or null,
-"ready_timeout", "required", "respawn", "max_respawns", "ignore": ["INT", "TERM"]}.
+"ready_timeout", "required", "respawn", "max_respawns", "ignore": ["INT", "TERM"],
+"pppbot_node" (started as one of pppbot's nodes: stop signals blocked until the code unblocks them)}.
 Prints the supervisor's lines; "PIDS <pid> ..." at the end; exits with its code.
 """
 from __future__ import annotations
@@ -29,7 +30,8 @@ def main() -> int:
                                timeout_s=c.get("ready_timeout", 10.0))
         specs.append(NodeSpec(c["name"], [sys.executable, "-u", "-c", code], after=tuple(c.get("after", [])),
                               ready=ready, required=c.get("required", False), respawn=c.get("respawn", False),
-                              max_respawns=c.get("max_respawns", 3), respawn_delay_s=c.get("respawn_delay", 0.0)))
+                              max_respawns=c.get("max_respawns", 3), respawn_delay_s=c.get("respawn_delay", 0.0),
+                              pppbot_node=c.get("pppbot_node", False)))
     supervisor = Supervisor(specs, Output(sys.stdout), sigint_timeout_s=config.get("sigint_timeout", 1.0),
                             sigterm_timeout_s=config.get("sigterm_timeout", 1.0))
     supervisor.install_signal_handlers()

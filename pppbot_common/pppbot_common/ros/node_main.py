@@ -13,6 +13,11 @@ shuts the context down under a running callback, so no node dies on its way down
 
 A bad parameter (or any of ``fatal`` errors) at start prints one line naming it and
 exits 1; a stop by signal or shutdown exits 0.
+
+SIGUSR1 prints the stack of every thread to stderr (:mod:`faulthandler`, from C, so it
+works while the main thread is stuck in a binding call): the launch sends it to a node
+that has not stopped within ``sigterm_timeout`` of a SIGINT, before it escalates, so a
+hang on the way down leaves its place in the log.
 """
 from __future__ import annotations
 
@@ -31,7 +36,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from pppbot_common.errors import PppbotError
-from pppbot_common.process import STOP_SIGNALS
+from pppbot_common.process import STOP_SIGNALS, dump_stacks_on_signal
 from pppbot_common.ros.lockstep import Participant
 from pppbot_common.throttle import Throttle
 
@@ -73,6 +78,7 @@ def take_stop_signals() -> threading.Event:
     one sent while the process was still importing, which would have killed it, is pending and
     taken here, and the process ends as cleanly as if it had come later."""
     requested = threading.Event()
+    dump_stacks_on_signal()
     for sig in STOP_SIGNALS:
         signal.signal(sig, lambda signum, frame: requested.set())
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
@@ -180,6 +186,7 @@ def run_node(factory: Callable[[], N], name: str, args: list[str] | None = None,
     down under it)."""
     if spin is None:
         return run_nodes([factory], name, args, fatal=fatal)
+    dump_stacks_on_signal()
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)  # rclpy's handlers take them from here
     rclpy.init(args=args, signal_handler_options=None if signal_handlers else SignalHandlerOptions.NO)
     try:
