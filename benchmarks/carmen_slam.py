@@ -1,0 +1,292 @@
+"""SLAM on real laser logs: the CARMEN logs of the Intel Research Lab, ACES and MIT CSAIL, replayed through the mapper core.
+
+Input: ``../shared/datasets/carmen/<name>.log.gz`` (``--datasets`` to point elsewhere).
+The logs are the "corrected" versions from Radish, the Robotics Data Set Repository
+(also distributed with the Freiburg SLAM benchmark of Kümmerle et al.): each ``FLASER``
+line is a 180° scan (1° or ½° beams from −90°, metres; 80 m and more is "no return") with the
+robot pose a reference SLAM solution estimated for it, which is the ground truth here.
+
+The logs have no raw odometry, so this makes it: the motion between consecutive scan
+poses, as (rotate, translate, rotate), is corrupted with seeded Gaussian noise whose
+deviations grow with the motion, AMCL's odometry model (``--alphas``, default 0.05 each:
+5 % of a translation, 5 % of a turn, plus cross terms). The scans and this odometry go
+into :class:`pppbot_slam.mapper.Mapper` (loop closing included) with the ``slam`` node's
+parameters: the defaults of ``config/mapper_params_online_async.yaml`` with the changes
+in ``--params`` (default ``benchmarks/carmen_slam_params.yaml``), which is how a different
+laser (180°, its own range) is described — by parameters, not code.
+
+Figures per log, against the corrected poses:
+
+* relation error as Kümmerle et al. ("On measuring the accuracy of SLAM algorithms",
+  Autonomous Robots 2009) define it: for pose pairs (i, j) the relative motion of the
+  estimate against that of the reference, mean ± standard deviation of its translation
+  (m) and rotation (deg); relations between consecutive scans (``relation_*``) and
+  between every pair of scans closer than 3 m whose headings differ by less than 90°
+  (``overlap_relation_*``: places seen twice, which the loop closures must agree on);
+* ATE: the estimated trajectory aligned to the reference by the best rotation and
+  translation (Umeyama), RMS and maximum position error (m).
+
+The published relation errors are Kümmerle et al.'s, on their manually verified
+relations; these relations come from the corrected poses, so the figures compare in
+kind, not digit for digit. Published on Intel: graph SLAM about 0.031 m / 1.3°,
+Cartographer (Hess et al., ICRA 2016) 0.0229 ± 0.0239 m. Target (issue 21): mean
+relation error ≤ 0.05 m on Intel.
+
+    ./pppbot env python benchmarks/carmen_slam.py [--logs intel aces csail] [--seed 0] [--alphas 0.05 0.05 0.05 0.05]
+
+Prints a line per log and one JSON object on its last line.
+"""
+from __future__ import annotations
+
+import argparse
+import gzip
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from pppbot_common.params import ParameterError, from_values
+from pppbot_common.se2 import se2_compose, se2_inverse, wrap_angles
+from pppbot_slam.mapper import Mapper
+from pppbot_slam.occupancy import ScanRays
+from pppbot_slam.ros.slam import SlamParameters
+
+HERE = Path(__file__).resolve().parent
+DEFAULT_DATASETS = HERE.parent.parent / "shared" / "datasets" / "carmen"
+DEFAULT_PARAMS = HERE / "carmen_slam_params.yaml"
+ORIGINALS = ("the public originals: Radish (radish.sourceforge.net) and the Freiburg SLAM benchmark "
+             "(ais.informatik.uni-freiburg.de/slamevaluation), the 'corrected' CARMEN logs")
+#: A reading at or beyond this (m) is the laser's "no return".
+NO_RETURN_M = 80.0
+PUBLISHED = {"intel": {"graph_slam_relation_mean_m": 0.031, "graph_slam_relation_mean_deg": 1.3,
+                       "cartographer_relation_mean_m": 0.0229, "cartographer_relation_std_m": 0.0239}}
+TARGET_INTEL_RELATION_MEAN_M = 0.05
+OVERLAP_DISTANCE_M = 3.0
+OVERLAP_HEADING_RAD = math.pi / 2
+
+
+class CarmenError(ValueError):
+    """A missing or malformed log; the message names the file and line."""
+
+
+@dataclass(frozen=True)
+class CarmenLog:
+    name: str
+    stamps_s: np.ndarray  # (N,)
+    ranges_m: np.ndarray  # (N, B); +inf where the laser got no return
+    poses: np.ndarray  # (N, 3) corrected (x, y, yaw)
+    angle_min_rad: float
+    angle_increment_rad: float
+
+
+def read_carmen(path: Path) -> CarmenLog:
+    """The ``FLASER`` records of a (gzipped) CARMEN log.
+
+    Raises:
+        CarmenError: the file is missing or a ``FLASER`` line is malformed (file and line named).
+    """
+    if not path.is_file():
+        raise CarmenError(f"{path}: no such log; {ORIGINALS}")
+    stamps, scans, poses = [], [], []
+    opener = gzip.open if path.suffix == ".gz" else open
+    with opener(path, "rt") as lines:
+        for number, line in enumerate(lines, 1):
+            fields = line.split()
+            if not fields or fields[0] != "FLASER":
+                continue
+            try:
+                count = int(fields[1])
+                ranges = [float(v) for v in fields[2:2 + count]]
+                x, y, yaw = (float(v) for v in fields[2 + count:5 + count])
+                stamp = float(fields[8 + count])
+            except (ValueError, IndexError) as exc:
+                raise CarmenError(f"{path}:{number}: malformed FLASER record ({exc})") from None
+            if len(ranges) != count or (scans and count != len(scans[0])):
+                raise CarmenError(f"{path}:{number}: FLASER has {len(ranges)} of {count} readings "
+                                  f"(earlier scans had {len(scans[0]) if scans else count})")
+            stamps.append(stamp)
+            scans.append(ranges)
+            poses.append((x, y, yaw))
+    if not scans:
+        raise CarmenError(f"{path}: no FLASER records")
+    ranges_m = np.array(scans)
+    ranges_m[ranges_m >= NO_RETURN_M] = np.inf
+    beams = ranges_m.shape[1]
+    # 181 or 361 beams span −90°..+90° inclusive; 180 or 360 stop one beam short of +90°
+    increment = math.pi / (beams - 1) if beams % 2 else math.pi / beams
+    return CarmenLog(path.name.split(".")[0], np.array(stamps), ranges_m, np.array(poses), -math.pi / 2, increment)
+
+
+def synthesize_odometry(poses: np.ndarray, alphas: tuple[float, float, float, float],
+                        rng: np.random.Generator) -> np.ndarray:
+    """Odometry poses (N, 3) from reference poses: each step's (rot1, trans, rot2) with noise of
+    AMCL's odometry model (α1 rot from rot, α2 rot from trans, α3 trans from trans, α4 trans from rot),
+    starting at the first reference pose."""
+    a1, a2, a3, a4 = alphas
+    odom = [poses[0].copy()]
+    for previous, current in zip(poses[:-1], poses[1:]):
+        dx, dy = current[0] - previous[0], current[1] - previous[1]
+        trans = math.hypot(dx, dy)
+        rot1 = float(wrap_angles(math.atan2(dy, dx) - previous[2])) if trans > 1e-4 else 0.0
+        rot2 = float(wrap_angles(current[2] - previous[2] - rot1))
+        # driving backwards is a small turn, not a half turn
+        if abs(rot1) > math.pi / 2:
+            rot1, trans, rot2 = float(wrap_angles(rot1 + math.pi)), -trans, float(wrap_angles(rot2 + math.pi))
+        n_rot1 = rng.normal(0.0, a1 * abs(rot1) + a2 * abs(trans))
+        n_trans = rng.normal(0.0, a3 * abs(trans) + a4 * (abs(rot1) + abs(rot2)))
+        n_rot2 = rng.normal(0.0, a1 * abs(rot2) + a2 * abs(trans))
+        x, y, yaw = odom[-1]
+        heading = yaw + rot1 + n_rot1
+        step = trans + n_trans
+        odom.append(np.array([x + step * math.cos(heading), y + step * math.sin(heading),
+                              float(wrap_angles(heading + rot2 + n_rot2))]))
+    return np.array(odom)
+
+
+def slam_parameters(path: Path) -> SlamParameters:
+    """The slam node's parameters with the values of a ROS parameter file (``slam_toolbox:`` or
+    ``slam:`` → ``ros__parameters``) or a flat mapping.
+
+    Raises:
+        ParameterError: an unknown parameter or a bad value (named).
+        CarmenError: the file is not such a YAML mapping.
+    """
+    try:
+        document = yaml.safe_load(path.read_text()) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        raise CarmenError(f"{path}: {exc}") from exc
+    if not isinstance(document, dict):
+        raise CarmenError(f"{path}: must be a YAML mapping of parameters")
+    for node in ("slam_toolbox", "slam"):
+        if isinstance(document.get(node), dict) and isinstance(document[node].get("ros__parameters"), dict):
+            document = document[node]["ros__parameters"]
+            break
+    document = {k: v for k, v in document.items() if k != "use_sim_time"}
+    return from_values(SlamParameters, document)
+
+
+def run_slam(log: CarmenLog, odom: np.ndarray, params: SlamParameters) -> tuple[np.ndarray, Mapper, float]:
+    """Every scan through the mapper; returns each scan's final map pose (N, 3) — the keyframe's
+    optimised pose, or for a scan between keyframes the last keyframe's with the odometry since —
+    the mapper, and the processing time (s)."""
+    mapper = Mapper(params.mapper_settings())
+    range_max = NO_RETURN_M
+    keyframe_of_scan = np.zeros(len(odom), dtype=int)
+    start = time.perf_counter()
+    for i in range(len(odom)):
+        rays = ScanRays.from_laser(log.angle_min_rad, log.angle_increment_rad, log.ranges_m[i], 0.0, range_max)
+        mapper.process(float(log.stamps_s[i]), odom[i], rays)
+        keyframe_of_scan[i] = len(mapper.keyframes) - 1
+    elapsed = time.perf_counter() - start
+    estimate = np.empty_like(odom)
+    for i, k in enumerate(keyframe_of_scan):
+        keyframe = mapper.keyframes[k]
+        since = se2_compose(se2_inverse(keyframe.odom_pose), odom[i])
+        estimate[i] = se2_compose(mapper.map_pose(k), since)
+    return estimate, mapper, elapsed
+
+
+def relation_errors(estimate: np.ndarray, truth: np.ndarray, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Translation (m) and |rotation| (rad) of (truth_i⁻¹ truth_j)⁻¹ (estimate_i⁻¹ estimate_j) for pairs (P, 2)."""
+    def relative(poses: np.ndarray) -> np.ndarray:
+        a, b = poses[pairs[:, 0]], poses[pairs[:, 1]]
+        c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+        dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+        return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap_angles(b[:, 2] - a[:, 2])], axis=1)
+    est, ref = relative(estimate), relative(truth)
+    c, s = np.cos(ref[:, 2]), np.sin(ref[:, 2])
+    dx, dy = est[:, 0] - ref[:, 0], est[:, 1] - ref[:, 1]
+    trans = np.hypot(c * dx + s * dy, -s * dx + c * dy)
+    return trans, np.abs(wrap_angles(est[:, 2] - ref[:, 2]))
+
+
+def overlap_pairs(truth: np.ndarray) -> np.ndarray:
+    """(i, j), i < j − 1: scans within :data:`OVERLAP_DISTANCE_M` whose headings differ by less than 90°."""
+    pairs = []
+    for i in range(len(truth)):
+        d = np.hypot(truth[i + 2:, 0] - truth[i, 0], truth[i + 2:, 1] - truth[i, 1])
+        turn = np.abs(wrap_angles(truth[i + 2:, 2] - truth[i, 2]))
+        for j in np.flatnonzero((d < OVERLAP_DISTANCE_M) & (turn < OVERLAP_HEADING_RAD)):
+            pairs.append((i, i + 2 + int(j)))
+    return np.array(pairs, dtype=int).reshape(-1, 2)
+
+
+def aligned_ate(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """Position errors (m) after the rotation and translation that best align the estimate (Umeyama, no scale)."""
+    p, q = estimate[:, :2], truth[:, :2]
+    mp, mq = p.mean(axis=0), q.mean(axis=0)
+    u, _, vt = np.linalg.svd((q - mq).T @ (p - mp))
+    d = np.diag([1.0, np.sign(np.linalg.det(u @ vt))])
+    rotation = u @ d @ vt
+    return np.linalg.norm((p - mp) @ rotation.T + mq - q, axis=1)
+
+
+def evaluate(log: CarmenLog, params: SlamParameters, alphas: tuple[float, float, float, float],
+             seed: int) -> dict[str, Any]:
+    odom = synthesize_odometry(log.poses, alphas, np.random.default_rng(seed))
+    estimate, mapper, elapsed = run_slam(log, odom, params)
+    consecutive = np.stack([np.arange(len(odom) - 1), np.arange(1, len(odom))], axis=1)
+    trans, rot = relation_errors(estimate, log.poses, consecutive)
+    overlap = overlap_pairs(log.poses)
+    o_trans, o_rot = relation_errors(estimate, log.poses, overlap)
+    ate = aligned_ate(estimate, log.poses)
+    odom_ate = aligned_ate(odom, log.poses)
+    path_m = float(np.hypot(*np.diff(log.poses[:, :2], axis=0).T).sum())
+    return {
+        "log": log.name, "scans": len(odom), "path_m": round(path_m, 1),
+        "duration_s": round(float(log.stamps_s[-1] - log.stamps_s[0]), 1),
+        "keyframes": len(mapper.keyframes), "loop_closures": len(mapper.loop_closures),
+        "rejected_closures": mapper.rejected_closures,
+        "relation_mean_m": round(float(trans.mean()), 4), "relation_std_m": round(float(trans.std()), 4),
+        "relation_mean_deg": round(math.degrees(float(rot.mean())), 3),
+        "relation_std_deg": round(math.degrees(float(rot.std())), 3), "relations": len(trans),
+        "overlap_relation_mean_m": round(float(o_trans.mean()), 4) if len(o_trans) else None,
+        "overlap_relation_std_m": round(float(o_trans.std()), 4) if len(o_trans) else None,
+        "overlap_relation_mean_deg": round(math.degrees(float(o_rot.mean())), 3) if len(o_rot) else None,
+        "overlap_relations": len(o_trans),
+        "ate_rms_m": round(float(np.sqrt(np.mean(ate ** 2))), 4), "ate_max_m": round(float(ate.max()), 4),
+        "odometry_ate_rms_m": round(float(np.sqrt(np.mean(odom_ate ** 2))), 3),
+        "processing_s": round(elapsed, 1), "published": PUBLISHED.get(log.name, {}),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--datasets", type=Path, default=DEFAULT_DATASETS, help="folder of <log>.log.gz")
+    parser.add_argument("--logs", nargs="+", default=["intel", "aces", "csail"])
+    parser.add_argument("--params", type=Path, default=DEFAULT_PARAMS, help="slam parameters for this laser")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the odometry noise")
+    parser.add_argument("--alphas", type=float, nargs=4, default=[0.05, 0.05, 0.05, 0.05],
+                        help="odometry noise as AMCL's alpha1..alpha4")
+    args = parser.parse_args(argv)
+    try:
+        params = slam_parameters(args.params)
+        if any(a < 0 or not math.isfinite(a) for a in args.alphas):
+            raise CarmenError(f"--alphas must be finite numbers >= 0, not {args.alphas}")
+        results = []
+        for name in args.logs:
+            result = evaluate(read_carmen(args.datasets / f"{name}.log.gz"), params, tuple(args.alphas), args.seed)
+            print(f"{name}: relation {result['relation_mean_m']:.4f} ± {result['relation_std_m']:.4f} m, "
+                  f"{result['relation_mean_deg']:.2f}°; overlap {result['overlap_relation_mean_m']} m; "
+                  f"ATE RMS {result['ate_rms_m']:.3f} m (odometry {result['odometry_ate_rms_m']:.2f} m); "
+                  f"{result['loop_closures']} loop closures; {result['processing_s']} s")
+            results.append(result)
+    except (CarmenError, ParameterError) as exc:
+        print(f"carmen_slam: {exc}", file=sys.stderr)
+        return 2
+    intel = next((r for r in results if r["log"] == "intel"), None)
+    summary = {"logs": results, "params": str(args.params), "seed": args.seed, "alphas": args.alphas,
+               "target_intel_relation_mean_m": TARGET_INTEL_RELATION_MEAN_M,
+               "intel_target_met": None if intel is None else intel["relation_mean_m"] <= TARGET_INTEL_RELATION_MEAN_M}
+    print(json.dumps(summary))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
