@@ -6,12 +6,15 @@
 - ``spawn`` starts children in their own process groups and stops every one of them
   after the test (SIGINT → SIGTERM → SIGKILL); the session fails if one survives.
 - ``ros_node`` gives a test an rclpy node in a context of its own.
+- ``load_benchmark`` imports a ``benchmarks/`` script for tests of its pieces.
 """
 from __future__ import annotations
 
+import importlib.util
 import os
 import sys
 from pathlib import Path
+from types import ModuleType
 from typing import Any, Callable, Iterator
 
 import pytest
@@ -50,6 +53,22 @@ def spawn() -> Iterator[Callable[..., ChildProcess]]:
     yield start
     for child in reversed(mine):
         child.stop()
+
+
+@pytest.fixture(scope="session")
+def load_benchmark() -> Callable[[str], ModuleType]:
+    """``load_benchmark("name")``: ``benchmarks/<name>.py`` as a module (the benchmarks are
+    scripts, not a package)."""
+    def load(name: str) -> ModuleType:
+        if name in sys.modules:
+            return sys.modules[name]
+        spec = importlib.util.spec_from_file_location(name, REPO_ROOT / "benchmarks" / f"{name}.py")
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # before running it: its dataclasses look their module up
+        spec.loader.exec_module(module)
+        return module
+    return load
 
 
 @pytest.fixture

@@ -2,24 +2,15 @@
 from __future__ import annotations
 
 import gzip
-import importlib.util
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-
-
 @pytest.fixture(scope="module")
-def carmen():
-    spec = importlib.util.spec_from_file_location("carmen_slam", ROOT / "benchmarks" / "carmen_slam.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["carmen_slam"] = module
-    spec.loader.exec_module(module)
-    return module
+def carmen(load_benchmark):
+    return load_benchmark("carmen_slam")
 
 
 def _write_log(path: Path, scans: list[tuple[list[float], tuple[float, float, float], float]]) -> None:

@@ -7,10 +7,7 @@ corridor widths (twice the distance to the nearest wall on a corridor's centre l
 """
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,16 +19,7 @@ from pppbot_sim.worldgen import mazes
 from pppbot_sim.worldgen.families import Family, WorldGenError, generate
 from pppbot_sim.worlds import find_world
 
-ROOT = Path(__file__).resolve().parents[2]
 RESOLUTION_M = 0.05
-
-
-def _worldgen():
-    spec = importlib.util.spec_from_file_location("worldgen", ROOT / "benchmarks" / "worldgen.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["worldgen"] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 def _truth(layout, tmp_path):
@@ -135,8 +123,8 @@ def test_longest_corridor_counts_cells_with_no_wall_across():
     assert mazes.longest_corridor_cells(walls - {mazes.between(1, 0, 2, 0)}, 4, 1) == 4
 
 
-def test_the_cli_writes_a_world_and_route_the_evaluation_finds(tmp_path):
-    worldgen = _worldgen()
+def test_the_cli_writes_a_world_and_route_the_evaluation_finds(tmp_path, load_benchmark):
+    worldgen = load_benchmark("worldgen")
     assert worldgen.main(["--family", "corridor", "--seed", "0", "--small", "--out", str(tmp_path)]) == 0
     world_file = find_world(str(tmp_path / "corridor_small_000.sdf"))
     (route,) = load_routes(routes_file(world_file))
@@ -152,8 +140,8 @@ def test_the_cli_writes_a_world_and_route_the_evaluation_finds(tmp_path):
     assert worldgen.main(["--family", "castle", "--out", str(tmp_path)]) == 2
 
 
-def test_every_set_world_is_named_once():
-    worldgen = _worldgen()
+def test_every_set_world_is_named_once(load_benchmark):
+    worldgen = load_benchmark("worldgen")
     names = [generate(s.family, s.seed, small=s.small).name for specs in worldgen.SETS.values() for s in specs]
     assert len(names) == len(set(names)) >= 44
     assert not {s.seed for s in worldgen.SETS["tune"]} & {s.seed for s in worldgen.SETS["held_out"]}
