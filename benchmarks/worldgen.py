@@ -69,21 +69,6 @@ def write_world(layout: Layout, out: Path) -> tuple[Path, dict[str, Any]]:
     return world_file, summary
 
 
-def ensure_world(spec: WorldSpec, out: Path = DEFAULT_OUT) -> Path:
-    """The world file of ``spec`` in ``out``, written if missing (with its route)."""
-    layout = generate(spec.family, spec.seed, small=spec.small)
-    world_file = out / f"{layout.name}.sdf"
-    expected = layout.sdf("")
-    if world_file.is_file() and routes_file(world_file).is_file() and _same_world(world_file.read_text(), expected):
-        return world_file
-    return write_world(layout, out)[0]
-
-
-def _same_world(text: str, expected: str) -> bool:
-    """The same SDF but for the header comment naming the generator."""
-    return text.split("\n", 2)[2:] == expected.split("\n", 2)[2:]
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     group = parser.add_mutually_exclusive_group(required=True)
