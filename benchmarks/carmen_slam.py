@@ -176,11 +176,10 @@ def run_slam(log: CarmenLog, odom: np.ndarray, params: SlamParameters) -> tuple[
     optimised pose, or for a scan between keyframes the last keyframe's with the odometry since —
     the mapper, and the processing time (s)."""
     mapper = Mapper(params.mapper_settings())
-    range_max = NO_RETURN_M
     keyframe_of_scan = np.zeros(len(odom), dtype=int)
     start = time.perf_counter()
     for i in range(len(odom)):
-        rays = ScanRays.from_laser(log.angle_min_rad, log.angle_increment_rad, log.ranges_m[i], 0.0, range_max)
+        rays = ScanRays.from_laser(log.angle_min_rad, log.angle_increment_rad, log.ranges_m[i], 0.0, NO_RETURN_M)
         mapper.process(float(log.stamps_s[i]), odom[i], rays)
         keyframe_of_scan[i] = len(mapper.keyframes) - 1
     elapsed = time.perf_counter() - start

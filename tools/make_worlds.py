@@ -28,7 +28,9 @@ import trimesh
 ROOT = Path(__file__).resolve().parent.parent
 sys.path[:0] = [str(ROOT / "pppbot_sim")]
 
-from pppbot_sim.worldgen.sdf import FOOTER, WALL_H, box, cylinder, include, model, wall_segments, world  # noqa: E402
+from pppbot_sim.worldgen.sdf import (  # noqa: E402
+    FOOTER, WALL_H, WALL_T, Segment, box, cylinder, include, model, wall_segments, world)
+from pppbot_sim.worldgen.sdf import door_wall as sdf_door_wall  # noqa: E402
 from pppbot_sim.worldgen.mazes import maze_edges, merge_collinear  # noqa: E402
 
 WORLDS = ROOT / "worlds"
@@ -44,15 +46,10 @@ def make_maze() -> str:
 
 
 # ---------------------------------------------------------------------- room
-def door_wall(x0: float, y0: float, x1: float, y1: float, doors: list[float], width: float = 0.9) -> list[tuple]:
-    """A wall from (x0, y0) to (x1, y1) with door gaps centred at the given distances along it."""
-    length = math.hypot(x1 - x0, y1 - y0)
-    ux, uy = (x1 - x0) / length, (y1 - y0) / length
-    cuts = [0.0]
-    for d in sorted(doors):
-        cuts += [d - width / 2, d + width / 2]
-    cuts.append(length)
-    return [(x0 + ux * a, y0 + uy * a, x0 + ux * b, y0 + uy * b) for a, b in zip(cuts[::2], cuts[1::2]) if b - a > 0.05]
+def door_wall(x0: float, y0: float, x1: float, y1: float, doors: list[float], width: float = 0.9) -> list[Segment]:
+    """A wall with door gaps of ``width`` between the wall pieces' centre-line ends (so
+    ``width`` − WALL_T between the jambs' faces) centred at the given distances along it."""
+    return sdf_door_wall(x0, y0, x1, y1, [(d, width - WALL_T) for d in doors])
 
 
 def table(name: str, x: float, y: float, sx: float, sy: float) -> list[str]:

@@ -7,7 +7,6 @@ corridor widths (twice the distance to the nearest wall on a corridor's centre l
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
@@ -37,11 +36,10 @@ def _free_islands(grid) -> int:
     return count - 1 if sizes.max() > 200 else count
 
 
-def _width_at(grid, x: float, y: float) -> float:
-    """Twice the distance from (x, y) to the nearest occupied cell (m)."""
+def _widths(grid):
+    """``width(x, y)``: twice the distance from (x, y) to the nearest occupied cell (m)."""
     distance = ndimage.distance_transform_edt(grid.data <= 50) * grid.resolution
-    row, col = grid.cell_of(x, y)
-    return 2 * float(distance[row, col])
+    return lambda x, y: 2 * float(distance[grid.cell_of(x, y)])
 
 
 def test_a_family_and_seed_give_the_same_world_and_other_seeds_other_worlds():
@@ -63,7 +61,7 @@ def test_every_family_loads_in_the_simulator_with_the_loops_it_says_and_a_free_s
     layout = generate(family, 1, small=small)
     grid = _truth(layout, tmp_path)
     assert _free_islands(grid) == layout.loops
-    assert _width_at(grid, 0.0, 0.0) >= 2 * 0.45 - 2 * RESOLUTION_M  # the spawn is free around the robot
+    assert _widths(grid)(0.0, 0.0) >= 2 * 0.45 - 2 * RESOLUTION_M  # the spawn is free around the robot
 
 
 @pytest.mark.parametrize("family", [Family.CORRIDOR, Family.OFFICE, Family.SYMMETRIC])
@@ -71,9 +69,9 @@ def test_a_corridor_is_as_wide_as_the_family_made_it(family, tmp_path):
     for seed in (0, 1):
         layout = generate(family, seed)
         (width, _) = layout.corridor_width_m
-        grid = _truth(layout, tmp_path)
+        width_at = _widths(_truth(layout, tmp_path))
         # along the corridor the robot starts in, where walls stand on both sides (not at a door)
-        measured = min(_width_at(grid, x, 0.0) for x in np.arange(-3.0, 3.0, 0.1))
+        measured = min(width_at(x, 0.0) for x in np.arange(-3.0, 3.0, 0.1))
         assert measured == pytest.approx(width, abs=3 * RESOLUTION_M)
 
 
@@ -85,7 +83,8 @@ def test_maze_corridors_are_as_wide_as_asked_and_perfect_mazes_have_no_loops_loo
         pitch = layout.route.spacing_m
         nx, ny = int(layout.parameters["cells_x"]), int(layout.parameters["cells_y"])
         centres = [((i - nx // 2) * pitch, (j - ny // 2) * pitch) for i in range(nx) for j in range(ny)]
-        measured = min(_width_at(grid, x, y) for x, y in centres)  # a cell with walls on both sides
+        width_at = _widths(grid)
+        measured = min(width_at(x, y) for x, y in centres)  # a cell with walls on both sides
         assert measured == pytest.approx(layout.corridor_width_m[0], abs=3 * RESOLUTION_M)
         widths.append(layout.corridor_width_m[0])
         assert (_free_islands(grid) > 0) == (family is Family.LOOPED_MAZE)
@@ -145,4 +144,4 @@ def test_every_set_world_is_named_once(load_benchmark):
     names = [generate(s.family, s.seed, small=s.small).name for specs in worldgen.SETS.values() for s in specs]
     assert len(names) == len(set(names)) >= 44
     assert not {s.seed for s in worldgen.SETS["tune"]} & {s.seed for s in worldgen.SETS["held_out"]}
-    assert math.isclose(len(worldgen.SETS["tune"]), len(Family) * 3)
+    assert len(worldgen.SETS["tune"]) == len(Family) * 3

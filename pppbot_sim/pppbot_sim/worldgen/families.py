@@ -32,7 +32,7 @@ from shapely.geometry import Point, Polygon, box as shapely_box
 from shapely.ops import unary_union
 
 from pppbot_sim.worldgen import mazes, sdf
-from pppbot_sim.worldgen.sdf import WALL_T, Segment
+from pppbot_sim.worldgen.sdf import WALL_T, Segment, door_wall
 
 #: Free radius around the spawn pose (m).
 SPAWN_CLEARANCE_M = 0.45
@@ -116,7 +116,7 @@ class Layout:
         (pillars, cones and inner wall islands count; a world without outer walls counts each)."""
         parts = unary_union(self.obstacles())
         pieces = list(getattr(parts, "geoms", [parts]))
-        if not self.walls or self.family is Family.CONES:
+        if not self.walls:
             return len(pieces)
         outer = max(pieces, key=lambda p: p.convex_hull.area)
         return len(pieces) - 1 if outer.convex_hull.contains(Point(0.0, 0.0)) else len(pieces)
@@ -144,17 +144,6 @@ def _wall_polygon(segment: Segment) -> Polygon:
 
 def _rectangle(x0: float, y0: float, x1: float, y1: float) -> list[Segment]:
     return [(x0, y0, x1, y0), (x1, y0, x1, y1), (x1, y1, x0, y1), (x0, y1, x0, y0)]
-
-
-def door_wall(x0: float, y0: float, x1: float, y1: float, doors: list[tuple[float, float]]) -> list[Segment]:
-    """An axis-aligned wall from (x0, y0) to (x1, y1) with gaps (centre along the wall, width) m."""
-    length = math.hypot(x1 - x0, y1 - y0)
-    ux, uy = (x1 - x0) / length, (y1 - y0) / length
-    cuts = [0.0]
-    for centre, width in sorted(doors):
-        cuts += [centre - width / 2 - WALL_T / 2, centre + width / 2 + WALL_T / 2]
-    cuts.append(length)
-    return [(x0 + ux * a, y0 + uy * a, x0 + ux * b, y0 + uy * b) for a, b in zip(cuts[::2], cuts[1::2]) if b - a > 0.05]
 
 
 def _r(value: float) -> float:

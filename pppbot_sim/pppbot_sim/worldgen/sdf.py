@@ -87,6 +87,19 @@ def wall_segments(segments: list[Segment], prefix: str, thickness: float = WALL_
     return links
 
 
+def door_wall(x0: float, y0: float, x1: float, y1: float, doors: list[tuple[float, float]],
+              thickness: float = WALL_T) -> list[Segment]:
+    """The centre lines of a wall from (x0, y0) to (x1, y1) with door gaps: (centre along the wall,
+    clear width between the jambs' faces) m, for :func:`wall_segments` with the same ``thickness``."""
+    length = math.hypot(x1 - x0, y1 - y0)
+    ux, uy = (x1 - x0) / length, (y1 - y0) / length
+    cuts = [0.0]
+    for centre, width in sorted(doors):
+        cuts += [centre - width / 2 - thickness / 2, centre + width / 2 + thickness / 2]
+    cuts.append(length)
+    return [(x0 + ux * a, y0 + uy * a, x0 + ux * b, y0 + uy * b) for a, b in zip(cuts[::2], cuts[1::2]) if b - a > 0.05]
+
+
 def world(name: str, body: str, generator: str) -> str:
     """A whole SDF world named ``name``: ground plane and sun, then ``body`` (models and includes)."""
     return HEADER.format(name=name, generator=generator) + body + FOOTER
