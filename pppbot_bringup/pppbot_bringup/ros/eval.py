@@ -13,7 +13,8 @@ base_link for mapping and localization) and ``/ground_truth/collisions``. The
 navigation scenario has no route: it starts the navigation nodes too, and sends
 random reachable goals (``--goals``, drawn with ``--seed``) to ``navigate_to_pose``
 one after another. Then the stack stops and the report is written: ``report.json``
-and PNG plots in ``--out``; with ``--json`` the last line of stdout is the report as
+and PNG plots in ``--out`` (``slam`` also saves its final map there as ``map.yaml`` + ``map.pgm``,
+ready for ``--map``); with ``--json`` the last line of stdout is the report as
 one JSON object. Exit code 0 when the scenario succeeded, 1 when not, 2 for bad arguments.
 """
 from __future__ import annotations
@@ -61,7 +62,7 @@ from pppbot_bringup.run import RunError, find_executable
 from pppbot_bringup.supervisor import Output, Supervisor
 from pppbot_common.errors import PppbotError
 from pppbot_common.launch_args import ArgumentError
-from pppbot_common.maps import MapFileError, OccupancyGrid
+from pppbot_common.maps import MapFileError, OccupancyGrid, save_map
 from pppbot_description.errors import DescriptionError
 from pppbot_description.xacro_model import process_xacro
 from pppbot_sim.errors import WorldError
@@ -281,6 +282,8 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
             metrics, problem = route_metrics(run.scenario, rec, run.route, truth_map, run.out, title, map_pose,
                                              amcl_transform_tolerance() if localizing else 0.0)
             if run.scenario is Scenario.SLAM and rec.final_map is not None:
+                # The map as map_saver would save it: the localization and navigation scenarios take it.
+                metrics["map"] = str(save_map(rec.final_map, run.out / "map.yaml"))
                 map_truth = world_truth(run.world_file, run.route, rec.final_map.resolution)
                 metrics.update(map_metrics(rec.final_map, map_truth, run.route.start, run.out, title + " — map"))
         except (PppbotError, ValueError, OSError) as exc:
