@@ -36,7 +36,7 @@ from pppbot_common.maps import OccupancyGrid
 from pppbot_common.se2 import PoseLike, se2_apply, se2_compose, se2_inverse, wrap_angles
 from pppbot_slam.matcher import MatcherSettings, MatchResult, ScanMatcher, rotate, scan_normals
 from pppbot_slam.occupancy import LogOddsGrid, OccupancySettings, ScanRays
-from pppbot_slam.pose_graph import PoseGraph
+from pppbot_slam.pose_graph import Edge, PoseGraph
 
 #: Covariance of an edge whose scan could not be matched: odometry alone (m², m², rad²).
 ODOMETRY_ONLY_COVARIANCE = np.diag([0.1 ** 2, 0.1 ** 2, 0.05 ** 2])
@@ -45,6 +45,18 @@ MIN_MATCH_POINTS = 10
 #: A loop edge whose residual after optimisation exceeds this (χ² with 3 degrees of freedom;
 #: 16.3 is the 99.9 % quantile) disagrees with the rest of the graph and is dropped.
 LOOP_CHI2_MAX = 16.3
+#: A loop match must agree with what the graph knows of its two keyframes' relative pose: the
+#: difference, in their relative covariance (through the chain and earlier closures) plus the
+#: match's, within this χ² (3 degrees of freedom) ...
+LOOP_CONSISTENCY_CHI2 = 25.0
+#: The covariances that check weighs by, scaled: the matcher's (Karto's spread of good
+#: candidates) are wider than its errors — in the generated maze worlds a keyframe's yaw
+#: variance says 0.018 rad where the matches are off by about 0.002 — and the relative
+#: covariance over a long chain adds them all up.
+LOOP_COVARIANCE_SCALE = 0.25
+#: ... or be smaller than this (m, rad) whatever the covariances say (they are optimistic).
+LOOP_AGREE_M = 0.3
+LOOP_AGREE_RAD = 0.15
 #: A loop candidate chain searched without a match is searched again only this many keyframes later.
 LOOP_RETRY_KEYFRAMES = 3
 #: A running match below this response is searched again over every heading in a wider
@@ -53,6 +65,20 @@ LOOP_RETRY_KEYFRAMES = 3
 #: the scan rotated into the map. The wider match is taken when it is this much better.
 RECOVERY_RESPONSE = 0.5
 RECOVERY_MARGIN = 0.1
+#: A direction the scan does not pin (a corridor's length): the match's position variance along
+#: it is this many times that across it, and at least DEGENERATE_MIN_STD_M². Along such a
+#: direction the keyframe keeps odometry's prediction and its edge odometry's uncertainty.
+DEGENERATE_RATIO = 10.0
+DEGENERATE_MIN_STD_M = 0.08
+#: Odometry's standard deviation along such a direction, per metre travelled (wheel slip is
+#: about 1 %; this allows for five times that).
+ODOMETRY_STD_PER_M = 0.05
+#: This many keyframes in a row whose scans had something to match but did not match (response
+#: below ``link_match_minimum_response_fine``) and the mapper is lost: it says so, and the
+#: keyframes it places by odometry alone are left out of the map until a scan matches again.
+LOST_KEYFRAMES = 5
+#: Keyframes whose match responses the health report averages.
+HEALTH_WINDOW = 20
 
 
 class MapperError(PppbotError, ValueError):
@@ -112,6 +138,7 @@ class Keyframe:
     points: np.ndarray  # (K, 2) hits in the base frame
     normals: np.ndarray  # (K, 2) their unit surface normals, facing the sensor
     session: int = 0  # odometry session: a continued map's new run starts a new one
+    drawn: bool = True  # in the map (False: placed while the mapper was lost)
 
 
 @dataclass
@@ -132,19 +159,46 @@ class Mapper:
     session: int = 0  # the current odometry session
     tried: dict[int, int] = field(default_factory=dict)  # loop chain (its first keyframe) → keyframe that last tried it
     rejected_closures: int = 0  # loop matches the graph could not agree with
+    undone_closures: int = 0  # accepted loop closures that later closures showed to be wrong
+    largest_correction: np.ndarray = field(default_factory=lambda: np.zeros(2))  # m, rad: the most a solve moved
+    unmatched: int = 0  # keyframes in a row with something to match that did not match (see LOST_KEYFRAMES)
+    responses: list[float] = field(default_factory=list)  # the last HEALTH_WINDOW keyframes' match responses
     recoveries: int = 0  # running matches replaced by the wider search (see RECOVERY_RESPONSE)
+    degenerate_matches: int = 0  # running matches that pinned only one direction (see observable_only)
     start_pose: np.ndarray | None = None  # where the current session's first keyframe is (continued maps)
     #: With True, :meth:`process` leaves loop closing to the caller (a loop-closing thread:
     #: :meth:`loop_search`, :meth:`LoopSearch.run`, :func:`solve_loops`, :meth:`merge_loops`).
     defer_loops: bool = False
 
     def snapshot(self) -> Mapper:
-        """A copy to read (save, draw) while this one maps on; keyframes are shared, never changed."""
+        """A copy to read (save, draw) while this one maps on; keyframes are shared (only their
+        ``drawn`` flag ever changes)."""
         return Mapper(self.settings, self.sensor_offset.copy(), list(self.keyframes), self.graph.copy(),
                       list(self.loop_closures), self.last_response, session=self.session, tried=dict(self.tried),
                       rejected_closures=self.rejected_closures, recoveries=self.recoveries,
+                      degenerate_matches=self.degenerate_matches, undone_closures=self.undone_closures,
+                      largest_correction=self.largest_correction.copy(), unmatched=self.unmatched,
+                      responses=list(self.responses),
                       start_pose=None if self.start_pose is None else self.start_pose.copy(),
                       defer_loops=self.defer_loops)
+
+    @property
+    def lost(self) -> bool:
+        """Whether the last :data:`LOST_KEYFRAMES` keyframes found nothing they matched."""
+        return self.unmatched >= LOST_KEYFRAMES
+
+    def health(self) -> dict[str, float | int | bool]:
+        """How mapping goes: match responses, closures accepted, rejected and undone, the largest
+        correction a closure made, whether the mapper is lost (the node's diagnostics)."""
+        return {"keyframes": len(self.keyframes), "lost": self.lost, "unmatched_keyframes": self.unmatched,
+                "keyframes_left_out": sum(not k.drawn for k in self.keyframes),
+                "last_response": round(self.last_response, 3),
+                "mean_response": round(float(np.mean(self.responses)), 3) if self.responses else 0.0,
+                "recoveries": self.recoveries, "degenerate_matches": self.degenerate_matches,
+                "loop_closures": len(self.loop_closures), "rejected_closures": self.rejected_closures,
+                "undone_closures": self.undone_closures,
+                "largest_correction_m": round(float(self.largest_correction[0]), 3),
+                "largest_correction_rad": round(float(self.largest_correction[1]), 4)}
 
     # ------------------------------------------------------------------ poses
     def map_pose(self, index: int) -> np.ndarray:
@@ -221,12 +275,21 @@ class Mapper:
         continuing = self._last_of_session() is None  # the first keyframe of a continued map's new run
         result = self._match_running(points, normals, predicted)
         accepted = result is not None and result.response >= self.settings.link_match_minimum_response_fine
-        pose = result.pose if accepted and result is not None else predicted
-        covariance = result.covariance if accepted and result is not None else ODOMETRY_ONLY_COVARIANCE
+        pose, covariance = predicted, ODOMETRY_ONLY_COVARIANCE
+        if accepted and result is not None:
+            travel = float(np.hypot(*(predicted[:2] - self.map_pose(index - 1)[:2])))
+            pose, covariance, degenerate = observable_only(result.pose, result.covariance, predicted, travel)
+            self.degenerate_matches += degenerate
         self.last_response = result.response if result is not None else 0.0
+        if result is not None:  # there was something to match
+            self.responses = (self.responses + [self.last_response])[-HEALTH_WINDOW:]
+            self.unmatched = 0 if accepted else self.unmatched + 1
         previous = self._nearest(pose, range(index)) if continuing else index - 1
         self.graph.add_node(pose)
         self.keyframes.append(Keyframe(index, stamp_s, odom, rays, points, normals, self.session))
+        if self.lost:  # the unmatched keyframes so far, this one among them, stay out of the map
+            for keyframe in self.keyframes[-min(self.unmatched, len(self.keyframes)):]:
+                keyframe.drawn = False
         self.graph.add_edge(previous, index, self.graph.relative(previous, index),
                             _in_frame_of(covariance, self.map_pose(previous)[2]))
         if self.settings.do_loop_closing and not self.defer_loops:
@@ -245,11 +308,14 @@ class Mapper:
         return min(indices, key=lambda i: self._distance(i, pose))
 
     def _running_buffer(self, pose: np.ndarray) -> list[int]:
-        """The session's last ``scan_buffer_size`` keyframes within reach; early in a continued
-        map's run, topped up with the nearest keyframes of earlier runs."""
+        """The session's last ``scan_buffer_size`` keyframes within reach that matched the map; early
+        in a continued map's run, topped up with the nearest keyframes of earlier runs."""
         s = self.settings
-        recent = [i for i in range(max(0, len(self.keyframes) - s.scan_buffer_size), len(self.keyframes))
-                  if self.keyframes[i].session == self.session]
+        # Not the keyframes of an unmatched streak (they would match each other: see LOST_KEYFRAMES)
+        # nor those left out of the map.
+        confirmed = len(self.keyframes) - self.unmatched
+        recent = [i for i in range(confirmed - 1, -1, -1)
+                  if self.keyframes[i].session == self.session and self.keyframes[i].drawn][:s.scan_buffer_size][::-1]
         if len(recent) < s.scan_buffer_size:
             older = sorted((i for i in range(len(self.keyframes)) if self.keyframes[i].session != self.session),
                            key=lambda i: self._distance(i, pose))
@@ -319,15 +385,16 @@ class Mapper:
         search = self.loop_search(index)
         matches = search.run(self.settings) if search is not None else []
         if matches:
-            self.merge_loops(*solve_loops(self.graph.copy(), matches))
+            self.merge_loops(solve_loops(self.graph.copy(), matches))
 
-    def merge_loops(self, solved: PoseGraph, accepted: list[LoopMatch], rejected: int) -> np.ndarray:
+    def merge_loops(self, solution: LoopSolution) -> np.ndarray:
         """Take a graph that :func:`solve_loops` solved from a copy of this one. Keyframes
         added since the copy keep their poses relative to the copy's last keyframe, which
         moves as the solution moved it (and their edges are kept). Returns how the newest
-        keyframe moved (x, y, yaw in the map; zeros when nothing was accepted)."""
-        self.rejected_closures += rejected
-        if not accepted:
+        keyframe moved (x, y, yaw in the map; zeros when the graph did not change)."""
+        solved = solution.graph
+        self.rejected_closures += solution.rejected
+        if not solution.accepted and not solution.undone:
             return np.zeros(3)
         known = len(solved.poses)
         if known > len(self.graph.poses):
@@ -338,21 +405,27 @@ class Mapper:
         correction = se2_compose(solved.poses[last], se2_inverse(self.graph.poses[last]))
         self.graph.poses = [p.copy() for p in solved.poses] + [
             np.asarray(se2_compose(correction, p)) for p in self.graph.poses[known:]]
-        self.graph.edges += [e for e in solved.edges[len(solved.edges) - len(accepted):]]
-        self.loop_closures += [LoopClosure(m.source, m.target, m.response) for m in accepted]
+        copied = {id(e) for e in solution.copied_edges}  # the rest came since the copy: kept
+        self.graph.edges = list(solved.edges) + [e for e in self.graph.edges if id(e) not in copied]
+        self.loop_closures = [c for c in self.loop_closures if (c.source, c.target) not in solution.undone]
+        self.loop_closures += [LoopClosure(m.source, m.target, m.response) for m in solution.accepted]
+        self.undone_closures += len(solution.undone)
         moved = self.graph.poses[-1] - newest_before
         moved[2] = float(wrap_angles(moved[2]))
+        self.largest_correction = np.maximum(self.largest_correction,
+                                             [float(np.hypot(moved[0], moved[1])), abs(float(moved[2]))])
         return moved
 
     # -------------------------------------------------------------------- map
     def grid_inputs(self) -> tuple[OccupancySettings, list[np.ndarray], list[ScanRays]]:
         """What :meth:`LogOddsGrid.build` needs: settings, sensor poses in the map, scans (a snapshot)."""
         settings = OccupancySettings(resolution_m=self.settings.resolution, max_range_m=self.settings.max_laser_range)
-        sensor_poses = [np.asarray(se2_compose(self.map_pose(k.index), self.sensor_offset)) for k in self.keyframes]
-        return settings, sensor_poses, [k.rays for k in self.keyframes]
+        drawn = [k for k in self.keyframes if k.drawn]
+        sensor_poses = [np.asarray(se2_compose(self.map_pose(k.index), self.sensor_offset)) for k in drawn]
+        return settings, sensor_poses, [k.rays for k in drawn]
 
     def occupancy(self) -> LogOddsGrid:
-        """The log-odds grid rebuilt from every keyframe at its optimised pose."""
+        """The log-odds grid rebuilt from every keyframe (but those placed while lost) at its optimised pose."""
         return LogOddsGrid.build(*self.grid_inputs())
 
     def grid(self, frame_id: str = "map") -> OccupancyGrid:
@@ -409,25 +482,128 @@ class LoopSearch:
         return matches
 
 
-def solve_loops(graph: PoseGraph, matches: list[LoopMatch]) -> tuple[PoseGraph, list[LoopMatch], int]:
-    """Add the matches to ``graph`` (a copy of the mapper's) as loop edges and optimise it.
+@dataclass(frozen=True)
+class LoopSolution:
+    """What :func:`solve_loops` made of a copy of the mapper's graph and some loop matches."""
 
-    A closure the rest of the graph cannot agree with is a wrong one (an alias of the
-    place): after optimising, its residual is far outside its covariance (χ² beyond
-    :data:`LOOP_CHI2_MAX`). It goes, and the graph is solved again from where it was.
-    Returns the graph, the matches kept (their edges are the graph's last) and how many went.
+    graph: PoseGraph  # solved: the copy's edges (less those undone) and the accepted matches' edges
+    accepted: list[LoopMatch]
+    rejected: int  # matches left out: implausible for their chain, or disagreeing with the graph
+    undone: frozenset[tuple[int, int]]  # earlier closures (source, target) the graph no longer agrees with
+    copied_edges: tuple[Edge, ...]  # the copy's edges before the matches (edges added to the mapper since are not)
+
+
+def plausible(graph: PoseGraph, matches: list[LoopMatch]) -> list[bool]:
+    """Whether each match agrees with what the graph already knows (:data:`LOOP_CONSISTENCY_CHI2`,
+    :data:`LOOP_AGREE_M`): how far the match would move the newer keyframe relative to the
+    older one, weighed by how well the running matches and earlier closures between them pin
+    that (their joint marginal covariance). A place that looks the same a few metres away (an
+    identical room, the next corridor of a maze) is not taken for a loop the map could not
+    have got that wrong."""
+    covariances = graph.relative_covariances([(m.source, m.target) for m in matches])
+    verdicts = []
+    for match, covariance in zip(matches, covariances):
+        error = se2_compose(se2_inverse(match.relative), graph.relative(match.source, match.target))
+        error[2] = float(wrap_angles(error[2]))
+        small = math.hypot(error[0], error[1]) <= LOOP_AGREE_M and abs(error[2]) <= LOOP_AGREE_RAD
+        weight = LOOP_COVARIANCE_SCALE * (covariance + match.covariance)
+        verdicts.append(bool(small or error @ np.linalg.solve(weight, error) <= LOOP_CONSISTENCY_CHI2))
+    return verdicts
+
+
+def solve_loops(graph: PoseGraph, matches: list[LoopMatch]) -> LoopSolution:
+    """Add the plausible matches to ``graph`` (a copy of the mapper's) as loop edges and optimise it.
+
+    A closure the rest of the graph cannot agree with is a wrong one (an alias of the place):
+    after optimising, its residual is far outside its covariance (χ² beyond
+    :data:`LOOP_CHI2_MAX`). The loop edge worst by that measure goes, new or accepted
+    earlier (a closure that looked right alone can prove wrong once later loops pin the
+    graph: it is undone), and the graph is solved again from where it was; until every
+    loop edge agrees.
     """
+    copied_edges = tuple(graph.edges)
     before = [pose.copy() for pose in graph.poses]
-    added = [(graph.add_edge(m.source, m.target, m.relative, m.covariance, loop=True), m) for m in matches]
+    kept = [m for m, ok in zip(matches, plausible(graph, matches)) if ok]
+    rejected = len(matches) - len(kept)
+    added = [(graph.add_edge(m.source, m.target, m.relative, m.covariance, loop=True), m) for m in kept]
+    undone: set[tuple[int, int]] = set()
+
+    def drop(edge: Edge) -> None:
+        nonlocal added, rejected
+        graph.edges = [e for e in graph.edges if e is not edge]
+        if any(edge is e for e, _ in added):
+            added = [(e, m) for e, m in added if e is not edge]
+            rejected += 1
+        else:
+            undone.add((edge.source, edge.target))
+
     graph.optimize()
-    wrong = [edge for edge, _ in added if graph.residual_chi2(edge) > LOOP_CHI2_MAX]
-    if wrong:
-        graph.edges = [e for e in graph.edges if all(e is not w for w in wrong)]
-        graph.poses = before
-        added = [(edge, match) for edge, match in added if all(edge is not w for w in wrong)]
-        if added:
-            graph.optimize()
-    return graph, [match for _, match in added], len(wrong)
+    while True:
+        loops = [e for e in graph.edges if e.loop]
+        chi2 = [graph.residual_chi2(e) for e in loops]
+        if chi2 and max(chi2) > LOOP_CHI2_MAX:
+            drop(loops[int(np.argmax(chi2))])
+        else:
+            # A tight closure can be met by straining the chain instead: a chain edge far outside
+            # its covariance, between closures. The closure whose removal lets every edge agree goes.
+            culprit = _straining_closure(graph, before)
+            if culprit is None:
+                break
+            drop(culprit)
+        graph.poses = [pose.copy() for pose in before]
+        graph.optimize()
+    return LoopSolution(graph, [m for _, m in added], rejected, frozenset(undone), copied_edges)
+
+
+def _straining_closure(graph: PoseGraph, start: list[np.ndarray]) -> Edge | None:
+    """The loop edge to drop when a chain edge of the solved ``graph`` is strained beyond
+    :data:`LOOP_CHI2_MAX`: of the loop edges spanning it, the one without which the graph
+    (solved again from ``start``) has every edge within that bound. None when no chain edge is
+    strained, fewer than two closures span it (nothing to tell a wrong closure from a slipped
+    chain) or no single closure explains it."""
+    strained = [e for e in graph.edges if not e.loop and graph.residual_chi2(e) > LOOP_CHI2_MAX]
+    if not strained:
+        return None
+    worst = max(strained, key=graph.residual_chi2)
+    low, high = min(worst.source, worst.target), max(worst.source, worst.target)
+    spanning = [e for e in graph.edges if e.loop and min(e.source, e.target) <= low and max(e.source, e.target) >= high]
+    if len(spanning) < 2:
+        return None
+    best, best_chi2 = None, LOOP_CHI2_MAX
+    for candidate in spanning:
+        trial = PoseGraph()
+        trial.poses = [pose.copy() for pose in start]
+        trial.edges = [e for e in graph.edges if e is not candidate]
+        trial.optimize()
+        chi2 = max(trial.residual_chi2(e) for e in trial.edges)
+        if chi2 <= best_chi2:
+            best, best_chi2 = candidate, chi2
+    return best
+
+
+def observable_only(pose: np.ndarray, covariance: np.ndarray, predicted: np.ndarray, travel_m: float
+                    ) -> tuple[np.ndarray, np.ndarray, bool]:
+    """A match taken only along the directions its scan observes.
+
+    In a featureless corridor every position along its length fits the scan about as well:
+    the matched pose there is noise, not a measurement. When the position covariance's
+    larger axis is degenerate (:data:`DEGENERATE_RATIO`, :data:`DEGENERATE_MIN_STD_M`), the
+    correction from ``predicted`` (odometry, ``travel_m`` since the last keyframe) along it is
+    dropped and the variance along it is odometry's (:data:`ODOMETRY_STD_PER_M`) instead of the
+    search window's spread, so the pose graph weighs that axis as what it is: dead reckoning.
+    Returns the pose, the covariance and whether it was degenerate.
+    """
+    values, vectors = np.linalg.eigh(covariance[:2, :2])
+    if values[1] < DEGENERATE_RATIO * max(values[0], 0.0) or values[1] < DEGENERATE_MIN_STD_M ** 2:
+        return pose, covariance, False
+    axis = vectors[:, 1]
+    kept = pose.copy()
+    kept[:2] -= axis * float(axis @ (pose[:2] - predicted[:2]))
+    odometry = max(ODOMETRY_STD_PER_M * travel_m, DEGENERATE_MIN_STD_M / 4) ** 2
+    along = np.zeros(3)
+    along[:2] = axis
+    across = np.eye(3) - np.outer(along, along)  # the matcher's covariance without that axis ...
+    return kept, across @ covariance @ across + odometry * np.outer(along, along), True  # ... and odometry's on it
 
 
 def _in_frame_of(covariance: np.ndarray, yaw: float) -> np.ndarray:

@@ -105,13 +105,8 @@ class PoseGraph:
         """``target``'s current pose in ``source``'s frame."""
         return np.asarray(se2_compose(se2_inverse(self.poses[source]), self.poses[target]))
 
-    def optimize(self, max_iterations: int = 100) -> float:
-        """Solve the graph (Levenberg–Marquardt) and update :attr:`poses`; returns the final error.
-
-        The first node stays where it is (anchored).
-        """
-        if len(self.poses) < 2 or not self.edges:
-            return 0.0
+    def _factors(self) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+        """The graph as GTSAM factors (anchor, one between-factor per edge) and its current poses."""
         graph = gtsam.NonlinearFactorGraph()
         anchor = gtsam.noiseModel.Diagonal.Sigmas(np.array(ANCHOR_SIGMAS))
         graph.add(gtsam.PriorFactorPose2(0, gtsam.Pose2(*self.poses[0]), anchor))
@@ -121,9 +116,38 @@ class PoseGraph:
             if edge.loop:
                 noise = gtsam.noiseModel.Robust.Create(huber, noise)
             graph.add(gtsam.BetweenFactorPose2(edge.source, edge.target, gtsam.Pose2(*edge.relative), noise))
-        initial = gtsam.Values()
+        values = gtsam.Values()
         for i, pose in enumerate(self.poses):
-            initial.insert(i, gtsam.Pose2(*pose))
+            values.insert(i, gtsam.Pose2(*pose))
+        return graph, values
+
+    def relative_covariances(self, pairs: list[tuple[int, int]]) -> list[np.ndarray]:
+        """How well the graph knows each ``target``'s pose relative to its ``source`` (3×3, in
+        the relative pose's tangent space, x, y, yaw): from the joint marginal of the two poses
+        at the current estimate, through every edge between them (the chain and earlier loops)."""
+        if not pairs:
+            return []
+        graph, values = self._factors()
+        marginals = gtsam.Marginals(graph, values)
+        covariances = []
+        for source, target in pairs:
+            joint = gtsam.KeyVector()
+            joint.append(source)
+            joint.append(target)
+            full = marginals.jointMarginalCovariance(joint).fullMatrix()
+            between = gtsam.Pose2(*self.poses[source]).between(gtsam.Pose2(*self.poses[target]))
+            jacobian = np.hstack([-between.inverse().AdjointMap(), np.eye(3)])
+            covariances.append(jacobian @ full @ jacobian.T)
+        return covariances
+
+    def optimize(self, max_iterations: int = 100) -> float:
+        """Solve the graph (Levenberg–Marquardt) and update :attr:`poses`; returns the final error.
+
+        The first node stays where it is (anchored).
+        """
+        if len(self.poses) < 2 or not self.edges:
+            return 0.0
+        graph, initial = self._factors()
         params = gtsam.LevenbergMarquardtParams()
         params.setMaxIterations(max_iterations)
         result = gtsam.LevenbergMarquardtOptimizer(graph, initial, params).optimize()

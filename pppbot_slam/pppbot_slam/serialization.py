@@ -6,7 +6,8 @@ so a file cannot run code) holding
 
 * ``format`` ("pppbot-posegraph") and ``version`` (1);
 * per keyframe: ``stamps`` (K,), ``odom_poses`` (K, 3), ``poses`` (K, 3) in the map,
-  ``sessions`` (K,) — which odometry session it came from;
+  ``sessions`` (K,) — which odometry session it came from; ``drawn`` (K,) — in the map
+  (false for one placed while the mapper was lost; a file without it has every keyframe drawn);
 * the scans, in the sensor frame: ``ray_counts`` (K,), ``directions`` (ΣN, 2),
   ``ranges`` (ΣN,), ``range_limits`` (K, 2) — beam counts may differ;
 * ``sensor_offset`` (3,), the lidar in the base frame;
@@ -64,6 +65,7 @@ def save_posegraph(mapper: Mapper, name: str | Path) -> Path:
         odom_poses=np.array([k.odom_pose for k in keyframes]).reshape(-1, 3),
         poses=np.array(graph.poses).reshape(-1, 3),
         sessions=np.array([k.session for k in keyframes], dtype=np.int64),
+        drawn=np.array([k.drawn for k in keyframes], dtype=bool),
         ray_counts=np.array([len(k.rays.ranges_m) for k in keyframes], dtype=np.int64),
         directions=np.vstack([k.rays.directions for k in keyframes]).reshape(-1, 2),
         ranges=np.concatenate([k.rays.ranges_m for k in keyframes]),
@@ -133,6 +135,7 @@ def _mapper_from(path: Path, data: dict[str, np.ndarray], settings: MapperSettin
     odom = _field(path, data, "odom_poses", (count, 3))
     poses = _field(path, data, "poses", (count, 3))
     sessions = _field(path, data, "sessions", (count,), "i")
+    drawn = _field(path, data, "drawn", (count,), "b") if "drawn" in data else np.ones(count, dtype=bool)
     ray_counts = _field(path, data, "ray_counts", (count,), "i")
     directions = _field(path, data, "directions", (None, 2))
     ranges = _field(path, data, "ranges", (len(directions),))
@@ -171,7 +174,7 @@ def _mapper_from(path: Path, data: dict[str, np.ndarray], settings: MapperSettin
             raise PoseGraphFileError(f"{path}: the scan of keyframe {index} is malformed: {exc}") from exc
         points, normals = mapper.hit_points(rays)
         mapper.keyframes.append(Keyframe(index, float(stamps[index]), odom[index].astype(float), rays, points,
-                                         normals, int(sessions[index])))
+                                         normals, int(sessions[index]), bool(drawn[index])))
     for source, target, response in closures:
         if not (0 <= source < count and 0 <= target < count):
             raise PoseGraphFileError(f"{path}: loop closure ({source:g}, {target:g}) names a node the graph lacks")

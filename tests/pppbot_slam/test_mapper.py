@@ -6,7 +6,7 @@ import pytest
 
 from pppbot_common.maps import OCCUPIED
 from pppbot_common.se2 import se2_compose, se2_inverse
-from pppbot_slam.mapper import Mapper, MapperError, MapperSettings, solve_loops
+from pppbot_slam.mapper import LoopSolution, Mapper, MapperError, MapperSettings, solve_loops
 from slam_synthetic import RING, drifting_odometry, feed, ring_path, scan_rays, wall_points
 
 
@@ -79,10 +79,10 @@ def test_loops_closed_beside_the_scans_merge_with_the_keyframes_added_meanwhile(
         if keyframe is None:
             continue
         for solved_at, result in [item for item in in_flight if keyframe.index - item[0] >= 2]:
-            last = len(result[0].poses) - 1
+            last = len(result.graph.poses) - 1
             tail = [mapper.graph.relative(last, j) for j in range(last + 1, len(mapper.keyframes))]
             newest = mapper.graph.poses[-1].copy()
-            moved = mapper.merge_loops(*result)
+            moved = mapper.merge_loops(result)
             np.testing.assert_allclose(mapper.graph.poses[-1][:2] - newest[:2], moved[:2], atol=1e-12)
             assert tail, "keyframes were added between the solve and the merge"
             for j, relative in enumerate(tail, start=last + 1):
@@ -99,7 +99,7 @@ def test_loops_closed_beside_the_scans_merge_with_the_keyframes_added_meanwhile(
     assert len(mapper.loop_closures) == mapper.graph.loop_closures
     # A solution for another map (one reset since, say) is refused.
     with pytest.raises(MapperError, match="does not belong to this map"):
-        Mapper().merge_loops(mapper.graph, [object()], 0)
+        Mapper().merge_loops(LoopSolution(mapper.graph, [object()], 0, frozenset(), ()))
 
 
 def jumped_run(jump: bool) -> tuple[Mapper, np.ndarray]:

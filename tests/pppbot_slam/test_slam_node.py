@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rosgraph_msgs.msg import Clock
@@ -65,6 +66,10 @@ def test_maps_a_room_from_scans_and_odometry_and_saves_it(ros_node, spawn, tmp_p
     wait_until(lambda: scans.get_subscription_count() and tf.get_subscription_count()
                and clock.get_subscription_count(), 20, "the slam node's subscriptions", node=node)
     graphs: list[MarkerArray] = []
+    health: list[dict[str, str]] = []
+    node.create_subscription(DiagnosticArray, "/diagnostics", lambda m: health.extend(
+        {"level": s.level,
+         **{v.key: v.value for v in s.values}} for s in m.status if s.name == "slam_toolbox: mapping"), 10)
     node.create_subscription(MarkerArray, "/slam_toolbox/graph_visualization", graphs.append, 10)
     # The robot drives 2 m along x at 0.4 m/s; odometry is exact; a scan every 0.1 s.
     for k in range(60):
@@ -145,6 +150,25 @@ def test_maps_a_room_from_scans_and_odometry_and_saves_it(ros_node, spawn, tmp_p
     rclpy_spin(node, 0.2)
     scans.publish(stray)
     slam.wait_for_output(r"dropping a scan: no transform odom → base_footprint → nowhere", 20)
+    wait_until(lambda: health and health[-1]["lost"] == "false", 20, "a healthy /diagnostics", node=node)
+    assert health[-1]["level"] == DiagnosticStatus.OK and int(health[-1]["keyframes"]) >= 3
+    # Scans that fit nothing (clutter half a metre around the lidar) while odometry goes on:
+    # after LOST_KEYFRAMES keyframes the node says it is lost, and leaves them out of the map.
+    clutter = np.random.default_rng(0)
+    for k in range(8):
+        t = 41.0 + 0.5 * k
+        # turning on the spot in the room's open middle, 0.6 rad a scan: a keyframe each
+        tf.publish(TFMessage(transforms=[transform("odom", "base_link", t - 0.1, 0.0, -0.3, 0.6 * k),
+                                         transform("odom", "base_link", t + 0.1, 0.0, -0.3, 0.6 * (k + 1))]))
+        clock.publish(Clock(clock=transform("", "", t, 0, 0, 0).header.stamp))
+        scan = LaserScan(angle_min=float(angles[0]), angle_increment=float(angles[1] - angles[0]), range_min=0.08,
+                         range_max=20.0, ranges=clutter.uniform(0.3, 0.5, len(angles)).astype(np.float32).tolist())
+        scan.header.frame_id, scan.header.stamp = "lidar_frame", transform("", "", t, 0, 0, 0).header.stamp
+        scans.publish(scan)
+        rclpy_spin(node, 0.1)
+    slam.wait_for_output(r"lost at keyframe \d+ .*left out of the map", 20)
+    wait_until(lambda: health and health[-1]["lost"] == "true", 20, "/diagnostics saying lost", node=node)
+    assert health[-1]["level"] == DiagnosticStatus.WARN and int(health[-1]["keyframes_left_out"]) >= 1
 
 
 def rclpy_spin(node: Any, seconds: float) -> None:

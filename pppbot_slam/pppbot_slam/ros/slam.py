@@ -5,8 +5,10 @@ lidar's mounting); publishes ``/map`` and ``/map_metadata`` (transient local, re
 every ``map_update_interval`` in a thread of its own, so mapping never blocks scans),
 ``pose`` (PoseWithCovarianceStamped of ``base_frame`` in ``map_frame``), and the TF
 ``map_frame → odom_frame`` every ``transform_publish_period``, stamped ahead by
-``transform_timeout`` as slam_toolbox does, and the pose graph as markers
-(``~/graph_visualization``). Services (std_srvs; file names are parameters, which
+``transform_timeout`` as slam_toolbox does, the pose graph as markers
+(``~/graph_visualization``) and its health on ``/diagnostics`` (diagnostic_msgs, with the
+map: match responses, closures accepted, rejected and undone, the largest correction, and
+whether it is lost — also warned about in the log when it happens). Services (std_srvs; file names are parameters, which
 ``ros2 param set`` may change at run time): ``~/save_map`` (Nav2 YAML + PGM at
 ``map_save_name``), ``~/serialize_map`` (the pose graph with its scans,
 ``map_save_name`` + ``.posegraph``), ``~/deserialize_map`` (load ``map_file_name``
@@ -30,6 +32,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseWithCovarianceStamped, TransformStamped
 from nav_msgs.msg import MapMetaData
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
@@ -37,7 +40,7 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import SetBool, Trigger
-from std_msgs.msg import ColorRGBA
+from std_msgs.msg import ColorRGBA, Header
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -51,7 +54,7 @@ from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.qos import LATCHED, SENSOR
 from pppbot_common.ros.scan_odometry import ScanOdometry
 from pppbot_common.se2 import quaternion_from_yaw
-from pppbot_slam.mapper import Mapper, MapperError, MapperSettings, solve_loops
+from pppbot_slam.mapper import LOST_KEYFRAMES, Mapper, MapperError, MapperSettings, solve_loops
 from pppbot_slam.matcher import MatcherError, MatcherSettings
 from pppbot_slam.occupancy import LogOddsGrid, OccupancyError, ScanRays
 from pppbot_slam.pose_graph import Edge
@@ -188,6 +191,7 @@ class Slam(Node):
         self.graph_pub = self.create_publisher(MarkerArray, "~/graph_visualization", 1)
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "pose", 10)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
+        self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         require_match(self, self.create_subscription(LaserScan, p.scan_topic, guarded(self, at_step(self, self.on_scan), "LaserScan"),
                                                      SENSOR))
         self.create_service(Trigger, "~/save_map", self._save_map)
@@ -272,9 +276,10 @@ class Slam(Node):
             if self._scan_frame != frame or not np.allclose(mapper.sensor_offset, sensor):
                 mapper.sensor_offset = sensor
                 self._scan_frame = frame
-            recoveries = mapper.recoveries
+            recoveries, was_lost = mapper.recoveries, mapper.lost
             keyframe = mapper.process(stamp, odom_pose, rays)
             recovered = mapper.recoveries > recoveries
+            lost = mapper.lost
             pose = mapper.predict(odom_pose)
             response = mapper.last_response
         if keyframe is not None:
@@ -285,6 +290,8 @@ class Slam(Node):
                     f"keyframe {keyframe.index}: the scan did not fit where odometry put it (a collision or a "
                     f"skid?); found at ({pose[0]:.2f}, {pose[1]:.2f}, {pose[2]:.3f}) by a search over every heading "
                     f"(response {response:.2f})")
+            if lost != was_lost:
+                self._report_lost(lost, keyframe.index, stamp, mapper)
             self._publish_pose(msg.header.stamp, pose)
             if keyframe.index == 0:
                 self._request_map()  # a first map at once
@@ -308,11 +315,12 @@ class Slam(Node):
             if mapper is not self.mapper:
                 return
             graph = mapper.graph.copy()
-        solved, accepted, rejected = solve_loops(graph, matches)
+        solution = solve_loops(graph, matches)
+        accepted, rejected = solution.accepted, solution.rejected
         with self.lock:
             if mapper is not self.mapper:
                 return
-            moved = mapper.merge_loops(solved, accepted, rejected)
+            moved = mapper.merge_loops(solution)
             stamp = mapper.keyframes[index].stamp_s
         for match in accepted:
             self.get_logger().info(f"loop closure: keyframe {match.target} (scan at t = {stamp:.2f} s) with "
@@ -323,6 +331,9 @@ class Slam(Node):
         if rejected:
             self.get_logger().info(f"keyframe {index} (t = {stamp:.2f} s): {rejected} loop match(es) the pose graph "
                                    "could not agree with, dropped")
+        for source, target in sorted(solution.undone):
+            self.get_logger().warning(f"loop closure of keyframe {target} with {source} undone: the closures since "
+                                      "show it was wrong (a place that looks like another)")
 
     def _publish_pose(self, stamp: Any, pose: np.ndarray) -> None:
         msg = PoseWithCovarianceStamped()
@@ -383,6 +394,34 @@ class Slam(Node):
         self.map_pub.publish(grid_message(grid, stamp))
         self.meta_pub.publish(map_metadata(grid, stamp))
         self.publish_graph(stamp)
+        self.publish_diagnostics(stamp)
+
+    def _report_lost(self, lost: bool, index: int, stamp: float, mapper: Mapper) -> None:
+        if lost:
+            self.get_logger().warning(
+                f"lost at keyframe {index} (t = {stamp:.2f} s): the last {LOST_KEYFRAMES} scans matched nothing "
+                f"around where odometry put them (response below {mapper.settings.link_match_minimum_response_fine}); "
+                "keyframes are placed by odometry alone and left out of the map until a scan matches again")
+        else:
+            self.get_logger().info(f"found again at keyframe {index} (t = {stamp:.2f} s): the scan matched the map")
+        self.publish_diagnostics(self.get_clock().now().to_msg())
+
+    def publish_diagnostics(self, stamp: Any) -> None:
+        """The mapper's health as one DiagnosticStatus (level WARN while lost or when a closure
+        had to be undone, as rqt_robot_monitor and the diagnostic aggregator read it)."""
+        with self.lock:
+            health = self.mapper.health()
+        status = DiagnosticStatus(name=f"{self.get_name()}: mapping", hardware_id=self.params.scan_topic)
+        if health["lost"]:
+            status.level, status.message = DiagnosticStatus.WARN, "lost: scans do not match the map"
+        elif health["undone_closures"]:
+            status.level = DiagnosticStatus.WARN
+            status.message = f"{health['undone_closures']} loop closure(s) proved wrong and were undone"
+        else:
+            status.level, status.message = DiagnosticStatus.OK, "mapping"
+        status.values = [KeyValue(key=key, value=str(value).lower() if isinstance(value, bool) else str(value))
+                         for key, value in health.items()]
+        self.diagnostics_pub.publish(DiagnosticArray(header=Header(stamp=stamp), status=[status]))
 
     def publish_graph(self, stamp: Any) -> None:
         """Keyframes as spheres, matching edges and loop closures as lines (slam_toolbox's markers)."""
