@@ -97,6 +97,10 @@ def run_world(spec: WorldSpec, out: Path, goals: int, resume: bool) -> dict[str,
     figures["slam"] = {k: _round(slam.get(k)) for k in
                        ("ok", "failure", "map_f1", "map_precision", "map_recall", "ate_rms_m", "ate_max_m",
                         "ate_yaw_rms_rad", "collisions", "sim_seconds", "wall_seconds", "real_time_factor")}
+    health = slam.get("slam_health") or {}
+    figures["slam"]["health"] = {k: health.get(k) for k in ("keyframes", "loop_closures", "rejected_closures",
+                                                            "undone_closures", "degenerate_matches", "recoveries",
+                                                            "lost", "keyframes_left_out", "largest_correction_m")}
     _say(layout.name, "slam", figures["slam"], ("map_f1", "ate_rms_m", "ate_max_m"))
     map_file = slam.get("map")
     if not map_file or not Path(map_file).is_file():

@@ -9,8 +9,10 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+import pytest
 from PIL import Image
 
+from pppbot_common.maps import OCCUPIED, load_map
 from pppbot_common.process import ChildProcess
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -84,6 +86,13 @@ def test_slam_scenario_maps_the_room_and_tracks_the_robot(spawn, tmp_path: Path)
     with np.load(out / "recording.npz") as recording:
         map_to_odom = recording["tf_map__odom"]
     assert len(np.unique(map_to_odom[:, 1:].round(4), axis=0)) > 3
+    # The final map is saved as map_saver would (Nav2 YAML + PGM), for --map of the next scenarios.
+    assert report["map"] == str(out / "map.yaml")
+    saved, meta = load_map(out / "map.yaml")
+    assert saved.resolution == pytest.approx(0.05) and (saved.data == OCCUPIED).sum() > 100
+    # The slam node's health from /diagnostics: not lost, nothing undone.
+    health = report["slam_health"]
+    assert health["lost"] is False and health["keyframes"] >= 8 and health["undone_closures"] == 0, health
 
 
 def box_room_map(spawn: Callable[..., ChildProcess], folder: Path) -> Path:

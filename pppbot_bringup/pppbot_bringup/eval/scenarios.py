@@ -134,6 +134,7 @@ class Recording:
     failure: str | None = None
     final_map: OccupancyGrid | None = None  # the last /map, for scenarios that map
     final_map_stamp_s: float = -1.0
+    slam_health: dict[str, str] = field(default_factory=dict)  # the last /diagnostics of the slam node
     goals: list[GoalRecord] = field(default_factory=list)  # navigation
 
     @property

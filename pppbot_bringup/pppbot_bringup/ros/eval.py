@@ -267,6 +267,21 @@ def nav_max_speed() -> float:
     return _nav2_parameter("controller_server", "FollowPath.desired_linear_vel", 0.5)
 
 
+def slam_health(values: dict[str, str]) -> dict[str, Any]:
+    """The slam node's last /diagnostics values, as numbers and booleans where they are."""
+    def parse(text: str) -> Any:
+        if text in ("true", "false"):
+            return text == "true"
+        try:
+            return int(text)
+        except ValueError:
+            try:
+                return float(text)
+            except ValueError:
+                return text
+    return {key: parse(value) for key, value in values.items()}
+
+
 def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     if run.route is None:
         return navigation_report(run, truth_map)
@@ -286,6 +301,7 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
                 metrics["map"] = str(save_map(rec.final_map, run.out / "map.yaml"))
                 map_truth = world_truth(run.world_file, run.route, rec.final_map.resolution)
                 metrics.update(map_metrics(rec.final_map, map_truth, run.route.start, run.out, title + " — map"))
+                metrics["slam_health"] = slam_health(rec.slam_health)
         except (PppbotError, ValueError, OSError) as exc:
             problem = f"metrics: {exc}"
     failure = rec.failure

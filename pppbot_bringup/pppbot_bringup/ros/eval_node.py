@@ -14,6 +14,7 @@ import time
 from typing import Callable
 
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped, Twist, Vector3
 from nav2_msgs.action import NavigateToPose
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
@@ -82,6 +83,7 @@ class EvalNode:
         require_match(node, node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100))
         if wants_map:
             node.create_subscription(OccupancyGridMsg, "/map", self._on_map, LATCHED)
+            node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 10)
         self.amcl_poses = 0
         if localizes:
             self.initial_pose_pub = node.create_publisher(PoseWithCovarianceStamped, "/initialpose", DEFAULT)
@@ -208,6 +210,11 @@ class EvalNode:
         except ValueError:
             return  # a malformed map is nobody's result; the next one replaces it
         self.recording.final_map_stamp_s = stamp_seconds(msg.header.stamp)
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name.endswith(": mapping"):  # the slam node's health (its node name first)
+                self.recording.slam_health = {v.key: v.value for v in status.values}
 
     # ------------------------------------------------------------------ loop
     def stop_robot(self) -> None:
