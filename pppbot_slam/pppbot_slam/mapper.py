@@ -79,6 +79,8 @@ ODOMETRY_STD_PER_M = 0.05
 LOST_KEYFRAMES = 5
 #: Keyframes whose match responses the health report averages.
 HEALTH_WINDOW = 20
+#: Hits this close to the range limit are not matched (see :meth:`Mapper.within_reach`).
+MATCH_RANGE_MARGIN_M = 1.0
 
 
 class MapperError(PppbotError, ValueError):
@@ -245,6 +247,16 @@ class Mapper:
         normals = rotate(scan_normals(sensor_xy), float(self.sensor_offset[2]))
         return np.asarray(se2_apply(self.sensor_offset, sensor_xy)), normals
 
+    def within_reach(self, points: np.ndarray, rays: ScanRays) -> np.ndarray:
+        """Which hits (base frame) are at least :data:`MATCH_RANGE_MARGIN_M` short of the range
+        limit: those the keyframes around have seen too. A hit farther out lies past the
+        ends of the walls the map has (each keyframe saw them only up to the limit from where
+        it was), where the likelihood field falls off; matched, such points pull the scan
+        back along the walls, on both sides of a corridor at different distances, and turn
+        it: a steady heading drift down long corridors."""
+        limit = min(rays.range_max_m, self.settings.max_laser_range) - MATCH_RANGE_MARGIN_M
+        return np.asarray(np.hypot(*(points - self.sensor_offset[:2]).T) < limit)
+
     # -------------------------------------------------------------- keyframes
     def needs_keyframe(self, odom_pose: PoseLike) -> bool:
         last = self._last_of_session()
@@ -273,7 +285,8 @@ class Mapper:
             self.last_response = 1.0
             return self.keyframes[0]
         continuing = self._last_of_session() is None  # the first keyframe of a continued map's new run
-        result = self._match_running(points, normals, predicted)
+        near = self.within_reach(points, rays)
+        result = self._match_running(points[near], normals[near], predicted)
         accepted = result is not None and result.response >= self.settings.link_match_minimum_response_fine
         pose, covariance = predicted, ODOMETRY_ONLY_COVARIANCE
         if accepted and result is not None:
@@ -364,7 +377,8 @@ class Mapper:
         at their current poses (None when there is nothing to search). Chains already
         linked, or searched a moment ago, are left out; the rest are marked as tried."""
         keyframe = self.keyframes[index]
-        if len(keyframe.points) < MIN_MATCH_POINTS:
+        near = self.within_reach(keyframe.points, keyframe.rays)
+        if near.sum() < MIN_MATCH_POINTS:
             return None
         chains = []
         for chain in self.loop_candidates(index):
@@ -378,7 +392,8 @@ class Mapper:
                                     world_normals))
         if not chains:
             return None
-        return LoopSearch(index, self.map_pose(index).copy(), keyframe.points, keyframe.normals, tuple(chains))
+        return LoopSearch(index, self.map_pose(index).copy(), keyframe.points[near], keyframe.normals[near],
+                          tuple(chains))
 
     def close_loops(self, index: int) -> None:
         """Search, match and add keyframe ``index``'s loop closures, and optimise (all at once)."""
