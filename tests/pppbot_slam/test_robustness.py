@@ -210,3 +210,14 @@ def test_a_mapper_that_matches_nothing_says_it_is_lost_and_leaves_those_scans_ou
     pose = np.array([0.0, 0.0, 0.0])
     keyframe = mapper.process(30.0, pose, rays(cast_ranges(ROOM, pose, noise=0.01, seed=99)))
     assert keyframe is not None and keyframe.drawn and not mapper.lost
+
+
+def test_hits_near_the_range_limit_are_not_matched_so_a_long_corridor_does_not_bend(monkeypatch):
+    mapper, truth = corridor_run()
+    sideways = np.abs(np.array(mapper.graph.poses)[:, 1] - truth[:, 1])
+    assert sideways.max() < 0.07
+    # Matched, the hits past the ends of the walls the map has turn each scan a little, the
+    # same way every time: the corridor's map bends.
+    monkeypatch.setattr("pppbot_slam.mapper.MATCH_RANGE_MARGIN_M", 0.0)
+    bent, truth = corridor_run()
+    assert np.abs(np.array(bent.graph.poses)[:, 1] - truth[:, 1]).max() > 0.12
