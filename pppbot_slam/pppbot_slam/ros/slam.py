@@ -54,7 +54,8 @@ from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.qos import LATCHED, SENSOR
 from pppbot_common.ros.scan_odometry import ScanOdometry
 from pppbot_common.se2 import quaternion_from_yaw
-from pppbot_slam.mapper import LOST_KEYFRAMES, Mapper, MapperError, MapperSettings, solve_loops
+from pppbot_slam.loops import solve_loops
+from pppbot_slam.mapper import LOST_KEYFRAMES, Mapper, MapperError, MapperSettings
 from pppbot_slam.matcher import MatcherError, MatcherSettings
 from pppbot_slam.occupancy import LogOddsGrid, OccupancyError, ScanRays
 from pppbot_slam.pose_graph import Edge

@@ -1,0 +1,195 @@
+"""Loop closure: searching older keyframes for the place a new one sees, and keeping only the
+closures the pose graph can agree with.
+
+:class:`LoopSearch` is one keyframe's search as taken from the mapper (it runs without it, in a
+loop-closing thread); :func:`solve_loops` adds its matches to a copy of the pose graph: those
+implausible for what the graph already knows are left out (:func:`plausible`), and after the
+solve every loop edge, old or new, is checked again — a closure the rest cannot agree with
+goes, and one accepted earlier is undone (:class:`LoopSolution`). No ROS here.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pppbot_common.se2 import se2_compose, se2_inverse, wrap_angles
+from pppbot_slam.matcher import ScanMatcher
+from pppbot_slam.pose_graph import Edge, PoseGraph
+
+if TYPE_CHECKING:
+    from pppbot_slam.mapper import MapperSettings
+
+#: A loop edge whose residual after optimisation exceeds this (χ² with 3 degrees of freedom;
+#: 16.3 is the 99.9 % quantile) disagrees with the rest of the graph and is dropped.
+LOOP_CHI2_MAX = 16.3
+#: A loop match must agree with what the graph knows of its two keyframes' relative pose: the
+#: difference, in their relative covariance (through the chain and earlier closures) plus the
+#: match's, within this χ² (3 degrees of freedom) ...
+LOOP_CONSISTENCY_CHI2 = 25.0
+#: The covariances that check weighs by, scaled: the matcher's (Karto's spread of good
+#: candidates) are wider than its errors — in the generated maze worlds a keyframe's yaw
+#: variance says 0.018 rad where the matches are off by about 0.002 — and the relative
+#: covariance over a long chain adds them all up.
+LOOP_COVARIANCE_SCALE = 0.25
+#: ... or be smaller than this (m, rad) whatever the covariances say (they are optimistic).
+LOOP_AGREE_M = 0.3
+LOOP_AGREE_RAD = 0.15
+
+
+@dataclass(frozen=True)
+class LoopChain:
+    indices: np.ndarray  # (C,) consecutive older keyframes
+    poses: np.ndarray  # (C, 3) their map poses when the search was taken
+    points: np.ndarray  # their hits in the map
+    normals: np.ndarray  # and the hits' surface normals
+
+
+@dataclass(frozen=True)
+class LoopMatch:
+    source: int  # the chain's keyframe nearest the match
+    target: int  # the searching keyframe
+    relative: np.ndarray  # target's pose in the source's frame
+    covariance: np.ndarray  # in the source's frame
+    response: float
+
+
+@dataclass(frozen=True)
+class LoopSearch:
+    """One keyframe's loop search as taken from the mapper: it runs without the mapper (so
+    a loop-closing thread can run it while scans go on)."""
+
+    index: int
+    pose: np.ndarray  # the keyframe's map pose when the search was taken
+    points: np.ndarray  # its hits in the base frame
+    normals: np.ndarray
+    chains: tuple[LoopChain, ...]
+
+    def run(self, settings: MapperSettings) -> list[LoopMatch]:
+        """Each chain matched in the large window (coarse response ≥
+        ``loop_match_minimum_response_coarse``, variance ≤ ``loop_match_maximum_variance_coarse``),
+        then finely (response ≥ ``loop_match_minimum_response_fine``)."""
+        matches = []
+        for chain in self.chains:
+            coarse = ScanMatcher(chain.points, settings.loop_matcher, chain.normals).match(
+                self.points, self.pose, self.normals)
+            if (coarse.response < settings.loop_match_minimum_response_coarse
+                    or max(coarse.covariance[0, 0], coarse.covariance[1, 1]) > settings.loop_match_maximum_variance_coarse):
+                continue
+            fine = ScanMatcher(chain.points, settings.matcher, chain.normals).match(self.points, coarse.pose,
+                                                                                    self.normals)
+            if fine.response < settings.loop_match_minimum_response_fine:
+                continue
+            k = int(np.argmin(np.hypot(*(chain.poses[:, :2] - fine.pose[:2]).T)))
+            matches.append(LoopMatch(int(chain.indices[k]), self.index,
+                                     np.asarray(se2_compose(se2_inverse(chain.poses[k]), fine.pose)),
+                                     in_frame_of(fine.covariance, float(chain.poses[k][2])), fine.response))
+        return matches
+
+
+@dataclass(frozen=True)
+class LoopSolution:
+    """What :func:`solve_loops` made of a copy of the mapper's graph and some loop matches."""
+
+    graph: PoseGraph  # solved: the copy's edges (less those undone) and the accepted matches' edges
+    accepted: list[LoopMatch]
+    rejected: int  # matches left out: implausible for their chain, or disagreeing with the graph
+    undone: frozenset[tuple[int, int]]  # earlier closures (source, target) the graph no longer agrees with
+    copied_edges: tuple[Edge, ...]  # the copy's edges before the matches (edges added to the mapper since are not)
+
+
+def plausible(graph: PoseGraph, matches: list[LoopMatch]) -> list[bool]:
+    """Whether each match agrees with what the graph already knows (:data:`LOOP_CONSISTENCY_CHI2`,
+    :data:`LOOP_AGREE_M`): how far the match would move the newer keyframe relative to the
+    older one, weighed by how well the running matches and earlier closures between them pin
+    that (their joint marginal covariance). A place that looks the same a few metres away (an
+    identical room, the next corridor of a maze) is not taken for a loop the map could not
+    have got that wrong."""
+    covariances = graph.relative_covariances([(m.source, m.target) for m in matches])
+    verdicts = []
+    for match, covariance in zip(matches, covariances):
+        error = se2_compose(se2_inverse(match.relative), graph.relative(match.source, match.target))
+        error[2] = float(wrap_angles(error[2]))
+        small = math.hypot(error[0], error[1]) <= LOOP_AGREE_M and abs(error[2]) <= LOOP_AGREE_RAD
+        weight = LOOP_COVARIANCE_SCALE * (covariance + match.covariance)
+        verdicts.append(bool(small or error @ np.linalg.solve(weight, error) <= LOOP_CONSISTENCY_CHI2))
+    return verdicts
+
+
+def solve_loops(graph: PoseGraph, matches: list[LoopMatch]) -> LoopSolution:
+    """Add the plausible matches to ``graph`` (a copy of the mapper's) as loop edges and optimise it.
+
+    A closure the rest of the graph cannot agree with is a wrong one (an alias of the place):
+    after optimising, its residual is far outside its covariance (χ² beyond
+    :data:`LOOP_CHI2_MAX`). The loop edge worst by that measure goes, new or accepted
+    earlier (a closure that looked right alone can prove wrong once later loops pin the
+    graph: it is undone), and the graph is solved again from where it was; until every
+    loop edge agrees.
+    """
+    copied_edges = tuple(graph.edges)
+    before = [pose.copy() for pose in graph.poses]
+    kept = [m for m, ok in zip(matches, plausible(graph, matches)) if ok]
+    rejected = len(matches) - len(kept)
+    added = [(graph.add_edge(m.source, m.target, m.relative, m.covariance, loop=True), m) for m in kept]
+    undone: set[tuple[int, int]] = set()
+
+    def drop(edge: Edge) -> None:
+        nonlocal added, rejected
+        graph.edges = [e for e in graph.edges if e is not edge]
+        if any(edge is e for e, _ in added):
+            added = [(e, m) for e, m in added if e is not edge]
+            rejected += 1
+        else:
+            undone.add((edge.source, edge.target))
+
+    graph.optimize()
+    while True:
+        loops = [e for e in graph.edges if e.loop]
+        chi2 = [graph.residual_chi2(e) for e in loops]
+        if chi2 and max(chi2) > LOOP_CHI2_MAX:
+            drop(loops[int(np.argmax(chi2))])
+        else:
+            # A tight closure can be met by straining the chain instead: a chain edge far outside
+            # its covariance, between closures. The closure whose removal lets every edge agree goes.
+            culprit = _straining_closure(graph, before)
+            if culprit is None:
+                break
+            drop(culprit)
+        graph.poses = [pose.copy() for pose in before]
+        graph.optimize()
+    return LoopSolution(graph, [m for _, m in added], rejected, frozenset(undone), copied_edges)
+
+
+def _straining_closure(graph: PoseGraph, start: list[np.ndarray]) -> Edge | None:
+    """The loop edge to drop when a chain edge of the solved ``graph`` is strained beyond
+    :data:`LOOP_CHI2_MAX`: of the loop edges spanning it, the one without which the graph
+    (solved again from ``start``) has every edge within that bound. None when no chain edge is
+    strained, fewer than two closures span it (nothing to tell a wrong closure from a slipped
+    chain) or no single closure explains it."""
+    strained = [e for e in graph.edges if not e.loop and graph.residual_chi2(e) > LOOP_CHI2_MAX]
+    if not strained:
+        return None
+    worst = max(strained, key=graph.residual_chi2)
+    low, high = min(worst.source, worst.target), max(worst.source, worst.target)
+    spanning = [e for e in graph.edges if e.loop and min(e.source, e.target) <= low and max(e.source, e.target) >= high]
+    if len(spanning) < 2:
+        return None
+    best, best_chi2 = None, LOOP_CHI2_MAX
+    for candidate in spanning:
+        trial = PoseGraph()
+        trial.poses = [pose.copy() for pose in start]
+        trial.edges = [e for e in graph.edges if e is not candidate]
+        trial.optimize()
+        chi2 = max(trial.residual_chi2(e) for e in trial.edges)
+        if chi2 <= best_chi2:
+            best, best_chi2 = candidate, chi2
+    return best
+
+
+def in_frame_of(covariance: np.ndarray, yaw: float) -> np.ndarray:
+    """A map-frame (x, y, yaw) covariance expressed in a frame rotated by ``yaw``."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    rotation = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    return np.asarray(rotation @ covariance @ rotation.T)
