@@ -177,7 +177,9 @@ def test_play_publishes_the_recorded_bytes_into_a_subscriber(recording):
     test.node.create_subscription(Clock, "/clock", lambda m: clock.append(stamp_s(m, "/clock")), 10)
     try:
         with ChildProcess([PPPBOT, "bag", "play", str(bag), "--topics", "/scan", "--remap", "/scan:=/scan_replay",
-                           "--rate", "5", "--clock", "50", "--delay", "2"], name="player") as player:
+                           # --delay: time for discovery before the first message (2 s was too
+                           # little once, on a machine running two other jobs)
+                           "--rate", "5", "--clock", "50", "--delay", "5"], name="player") as player:
             test.spin_until(lambda: player.proc.poll() is not None, 60, "the player to finish")
             assert player.wait(5) == 0
             test.spin_until(lambda: len(got) >= len(recorded), 5,
