@@ -31,6 +31,7 @@ import argparse
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -67,9 +68,7 @@ def run_stage(stage: str, world_file: Path, out: Path, arguments: list[str], res
     report_file = out / "report.json"
     if resume and report_file.is_file():
         return dict(json.loads(report_file.read_text()))
-    if out.exists():
-        for path in sorted(out.rglob("*"), reverse=True):  # an earlier, unfinished or replaced run
-            path.unlink() if path.is_file() or path.is_symlink() else path.rmdir()
+    shutil.rmtree(out, ignore_errors=True)  # an earlier, unfinished or replaced run
     command = [PPPBOT, "eval", stage, "--world", str(world_file), "--lockstep", "--wheel-slip", str(WHEEL_SLIP),
                "--out", str(out), "--json", *arguments]
     proc = subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
@@ -219,8 +218,11 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--goals {args.goals}: must be at least 1")
     sets = args.sets or ["tune", "held_out"]
     wanted = None if args.worlds is None else set(args.worlds.split(","))
+    # Each world's name, generated once (only to filter by --worlds: run_world generates it again).
+    names = {} if wanted is None else {s: generate(s.family, s.seed, small=s.small).name
+                                       for name in sets for s in SETS[name]}
     if wanted is not None:
-        known = {generate(s.family, s.seed, small=s.small).name for name in sets for s in SETS[name]}
+        known = set(names.values())
         if wanted - known:
             parser.error(f"--worlds: {', '.join(sorted(wanted - known))} not in the sets {', '.join(sets)} "
                          f"(they have {', '.join(sorted(known))})")
@@ -231,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in sets:
         worlds = []
         for spec in SETS[name]:
-            if wanted is not None and generate(spec.family, spec.seed, small=spec.small).name not in wanted:
+            if wanted is not None and names[spec] not in wanted:
                 continue
             worlds.append(run_world(spec, args.out, args.goals, args.resume))
         families: dict[str, list[dict[str, Any]]] = {}
