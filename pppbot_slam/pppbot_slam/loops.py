@@ -30,10 +30,11 @@ LOOP_CHI2_MAX = 16.3
 #: match's, within this χ² (3 degrees of freedom) ...
 LOOP_CONSISTENCY_CHI2 = 25.0
 #: The covariances that check weighs by, scaled: the matcher's (Karto's spread of good
-#: candidates) are wider than its errors — in the tune world maze_000 a keyframe's yaw
-#: variance says 0.018 rad where the matches are off by about 0.002 — and the relative
-#: covariance over a long chain adds them all up.
-LOOP_COVARIANCE_SCALE = 0.25
+#: candidates) are wider than its errors, and the relative covariance over a long chain adds
+#: them all up. In the tune world maze_000 the running matches' errors against ground truth,
+#: weighed by their covariances (NEES), average 0.06 where 3 would be calibrated: the
+#: covariances are about 50 times too wide; a tenth leaves a margin for correlated errors.
+LOOP_COVARIANCE_SCALE = 0.1
 #: ... or be smaller than this (m, rad), whatever the covariances say.
 LOOP_AGREE_M = 0.3
 LOOP_AGREE_RAD = 0.15

@@ -14,6 +14,8 @@ from PIL import Image
 
 from pppbot_common.maps import OCCUPIED, load_map
 from pppbot_common.process import ChildProcess
+from pppbot_slam.mapper import MapperSettings
+from pppbot_slam.serialization import load_posegraph
 
 ROOT = Path(__file__).resolve().parents[2]
 PPPBOT = str(ROOT / "pppbot")
@@ -93,6 +95,10 @@ def test_slam_scenario_maps_the_room_and_tracks_the_robot(spawn, tmp_path: Path)
     # The slam node's health from /diagnostics: not lost, nothing undone.
     health = report["slam_health"]
     assert health["lost"] is False and health["keyframes"] >= 8 and health["undone_closures"] == 0, health
+    # And its pose graph, as serialize_map writes it: every keyframe with its scan, for a replay.
+    assert report["posegraph"] == str((out / "map.posegraph").resolve())
+    graph = load_posegraph(out / "map.posegraph", MapperSettings())
+    assert len(graph.keyframes) == health["keyframes"] and all(np.isfinite(k.rays.ranges_m).sum() > 100 for k in graph.keyframes)
 
 
 def box_room_map(spawn: Callable[..., ChildProcess], folder: Path) -> Path:

@@ -135,6 +135,7 @@ class Recording:
     final_map: OccupancyGrid | None = None  # the last /map, for scenarios that map
     final_map_stamp_s: float = -1.0
     slam_health: dict[str, str] = field(default_factory=dict)  # the last /diagnostics of the slam node
+    posegraph: str = ""  # the pose graph the slam node serialized at the end, if it did
     goals: list[GoalRecord] = field(default_factory=list)  # navigation
 
     @property

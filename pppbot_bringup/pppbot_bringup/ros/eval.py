@@ -121,7 +121,19 @@ class Run:
                       # The route scenarios drive themselves: no navigation nodes to share the CPU.
                       navigation="true" if navigates else "false",
                       map=str(self.args.map or ""))
+        if self.scenario is Scenario.SLAM:
+            values["slam_params_file"] = str(self._slam_params())
         return values
+
+    def _slam_params(self) -> Path:
+        """The bringup's slam parameters with ``map_save_name`` in ``--out``: serialize_map writes
+        the pose graph next to the report."""
+        params = yaml.safe_load((config_directory() / "mapper_params_online_async.yaml").read_text())
+        params["slam_toolbox"]["ros__parameters"]["map_save_name"] = str((self.out / "map").resolve())
+        path = self.out / "logs" / "slam_params.yaml"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(yaml.safe_dump(params, sort_keys=False))
+        return path
 
     def execute(self, progress: Progress) -> None:
         urdf_file = self.out / "logs" / "robot.urdf"
@@ -179,6 +191,7 @@ class Run:
             self._run(node, behavior, thread, progress)
             if self.scenario is Scenario.SLAM and self.recording.failure is None:
                 self._wait_for_final_map(node, thread, progress)
+                self._serialize(node, thread, progress)
         finally:
             if isinstance(behavior, NavigateGoals):
                 behavior.cancel()
@@ -248,6 +261,26 @@ class Run:
                 return
 
 
+    def _serialize(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> None:
+        """Have the slam node write its pose graph (``map.posegraph``, what ``serialize_map``
+        writes): the graph, keyframes and scans, for a later session or an offline replay."""
+        progress.message("serializing the pose graph")
+        future = node.serialize()
+        deadline = time.monotonic() + FINAL_MAP_TIMEOUT_S
+        while not future.done():
+            node.spin_pending(0.05)
+            if self.interrupted or not thread.is_alive() or time.monotonic() > deadline:
+                self.recording.failure = self.recording.failure or (
+                    "interrupted" if self.interrupted else "no reply from /slam_toolbox/serialize_map within "
+                                                          f"{FINAL_MAP_TIMEOUT_S:.0f} s")
+                return
+        reply = future.result()
+        if not reply.success:
+            self.recording.failure = f"/slam_toolbox/serialize_map failed: {reply.message}"
+            return
+        self.recording.posegraph = str((self.out / "map.posegraph").resolve())
+
+
 def _nav2_parameter(node: str, name: str, default: float) -> float:
     """A number from the parameter file the bringup gives the nodes (``config/nav2_params.yaml``)."""
     values = yaml.safe_load((config_directory() / "nav2_params.yaml").read_text()) or {}
@@ -302,6 +335,8 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
                 map_truth = world_truth(run.world_file, run.route, rec.final_map.resolution)
                 metrics.update(map_metrics(rec.final_map, map_truth, run.route.start, run.out, title + " — map"))
                 metrics["slam_health"] = slam_health(rec.slam_health)
+                if rec.posegraph:
+                    metrics["posegraph"] = rec.posegraph
         except (PppbotError, ValueError, OSError) as exc:
             problem = f"metrics: {exc}"
     failure = rec.failure

@@ -23,7 +23,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
-from std_srvs.srv import Empty
+from std_srvs.srv import Empty, Trigger
 from tf2_msgs.msg import TFMessage
 
 from pppbot_bringup.eval.scenarios import Estimate, Recording
@@ -100,6 +100,9 @@ class EvalNode:
         if navigates:
             self.navigator = ActionClient(node, NavigateToPose, "navigate_to_pose")
             self.servers["the navigate_to_pose server"] = self.navigator.server_is_ready
+        if wants_map:
+            self.serialize_client = node.create_client(Trigger, "/slam_toolbox/serialize_map")
+            self.servers["the serialize_map service"] = self.serialize_client.service_is_ready
         if self.participant is not None:
             for what, ready in self.servers.items():
                 self.participant.require_when(what, ready)
@@ -171,6 +174,10 @@ class EvalNode:
     def request_global_localization(self) -> Future:
         """Ask AMCL to spread its particles over the map."""
         return self.global_client.call_async(Empty.Request())
+
+    def serialize(self) -> Future:
+        """Ask the slam node to write its pose graph (``/slam_toolbox/serialize_map``)."""
+        return self.serialize_client.call_async(Trigger.Request())
 
     # --------------------------------------------------------------- records
     def _on_truth(self, msg: Odometry) -> None:
