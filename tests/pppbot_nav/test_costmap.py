@@ -88,6 +88,25 @@ def test_inflation_costs_follow_nav2s_formula_around_lethal_cells():
     assert np.all(master.costs[0:5, :] == NO_INFORMATION)  # too far to reach: unknown stays unknown
 
 
+def test_inflation_again_after_a_few_changes_equals_inflating_from_scratch():
+    """The layer inflates again only around the lethal cells that changed: the costs must be
+    those of a fresh layer, for changes near each other, far apart, at the edges, and none."""
+    rng = np.random.default_rng(3)
+    kept = InflationLayer(inflation_radius=0.55, cost_scaling_factor=3.0, inscribed_radius=0.3)
+    lethal = np.zeros((120, 90), dtype=bool)
+    lethal[30, 10:80] = lethal[10:100, 45] = True
+    changes = [[(31, 20)], [(31, 20), (5, 5)], [], [(0, 0), (119, 89)], [(60, 45)],
+               *[[tuple(rng.integers(0, (120, 90))) for _ in range(k)] for k in (1, 3, 8, 40)]]
+    for change in changes:
+        lethal = lethal.copy()
+        for cell in change:
+            lethal[cell] = not lethal[cell]
+        fresh = InflationLayer(inflation_radius=0.55, cost_scaling_factor=3.0, inscribed_radius=0.3)
+        assert np.array_equal(kept.spread(lethal, RES), fresh.spread(lethal, RES)), change
+    lethal[:] = False  # every obstacle gone: nothing to spread
+    assert not kept.spread(lethal, RES).any()
+
+
 def test_rolling_window_keeps_cells_where_they_are_in_the_world():
     cm = Costmap.filled(2.0, 2.0, RES, (-1.0, -1.0), FREE_SPACE, frame_id="odom")
     row, col = cm.cell_of(0.52, -0.33)
@@ -112,6 +131,25 @@ def test_layered_costmap_combines_static_obstacle_and_inflation():
     assert master.cost_at(0.0, 1.0 + RES / 4, 0)[()] == LETHAL_OBSTACLE
     assert master.cost_at(0.0, 0.8, 0)[()] == INSCRIBED_INFLATED_OBSTACLE
     assert master.cost_at(-1.0, -1.0, 0)[()] == FREE_SPACE
+
+
+def test_static_layer_follows_a_moved_window_and_a_new_map():
+    """The layer keeps the map's costs for the window it last filled: a moved window or a new
+    map must be looked up again."""
+    data = np.zeros((80, 80), dtype=np.int8)
+    data[:, 60] = 100  # a wall at x = 1.0
+    static = StaticLayer()
+    static.set_map(OccupancyGrid(data, RES, (-2.0, -2.0, 0.0)))
+    costmap = LayeredCostmap(Costmap.filled(2.0, 2.0, RES, (-0.5, -1.0), NO_INFORMATION), [static], rolling=True)
+    assert costmap.update((0.5, 0.0)).cost_at(1.0 + RES / 2, 0.0, 0)[()] == LETHAL_OBSTACLE
+    assert not (costmap.update((-1.0, 0.0)).costs == LETHAL_OBSTACLE).any()  # the wall is off the window
+    assert (costmap.update((0.5, 0.0)).costs == LETHAL_OBSTACLE).sum() == 40  # back: the wall's column
+    data[:, 60] = 0
+    data[:, 50] = 100  # the map changed: a wall at x = 0.5
+    static.set_map(OccupancyGrid(data, RES, (-2.0, -2.0, 0.0)))
+    master = costmap.update((0.5, 0.0))
+    assert master.cost_at(0.5 + RES / 2, 0.0, 0)[()] == LETHAL_OBSTACLE
+    assert master.cost_at(1.0 + RES / 2, 0.0, 0)[()] == FREE_SPACE
 
 
 @pytest.mark.parametrize("make, name", [

@@ -43,11 +43,15 @@ class StaticLayer:
         self.track_unknown_space = track_unknown_space
         self.lethal_cost_threshold = lethal_cost_threshold
         self.map: OccupancyGrid | None = None
+        #: The map's costs over the master's last geometry: a window that has not moved (the
+        #: global costmap, a robot standing still) takes them again without a lookup.
+        self._window: tuple[tuple[object, ...], np.ndarray, np.ndarray] | None = None
 
     def set_map(self, grid: OccupancyGrid) -> None:
         if grid.origin[2] != 0.0:
             raise CostmapError(f"a map with a rotated origin (yaw {grid.origin[2]}) is not supported")
         self.map = grid
+        self._window = None
 
     def costs_of(self, values: np.ndarray) -> np.ndarray:
         """Costs of OccupancyGrid values."""
@@ -58,12 +62,16 @@ class StaticLayer:
     def update(self, master: Costmap) -> None:
         if self.map is None:
             return
-        xs, ys = master.cell_centres()
-        rows, cols = self.map.cell_of(xs, ys)
-        h, w = self.map.data.shape
-        ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-        values = self.map.data[np.where(ok, rows, 0), np.where(ok, cols, 0)]
-        master.costs[ok] = self.costs_of(values)[ok]
+        geometry = (master.origin, master.costs.shape, master.resolution)
+        if self._window is None or self._window[0] != geometry:
+            xs, ys = master.cell_centres()
+            rows, cols = self.map.cell_of(xs, ys)
+            h, w = self.map.data.shape
+            ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+            values = self.map.data[np.where(ok, rows, 0), np.where(ok, cols, 0)]
+            self._window = (geometry, ok, self.costs_of(values)[ok])
+        _, ok, costs = self._window
+        master.costs[ok] = costs
 
 
 def combine_max(master: Costmap, layer: np.ndarray) -> None:
@@ -148,6 +156,10 @@ class InflationLayer:
             raise CostmapError(f"the robot's inscribed radius must be a finite number ≥ 0, not {inscribed_radius}")
         self.inflation_radius, self.cost_scaling_factor = inflation_radius, cost_scaling_factor
         self.inscribed_radius, self.inflate_unknown = inscribed_radius, inflate_unknown
+        #: The last lethal cells and the costs they spread (with the resolution): the next
+        #: update inflates again only around the cells that changed, as Nav2 does within the
+        #: layers' update bounds.
+        self._spread: tuple[np.ndarray, float, np.ndarray] | None = None
 
     def cost_at_distance(self, distance_m: np.ndarray) -> np.ndarray:
         """Nav2's ``computeCost`` of a distance (m) to the nearest lethal cell."""
@@ -157,12 +169,41 @@ class InflationLayer:
         cost = np.where(d > self.inflation_radius, FREE_SPACE, cost)
         return np.where(d == 0.0, LETHAL_OBSTACLE, cost).astype(np.uint8)
 
+    def spread(self, lethal: np.ndarray, resolution: float) -> np.ndarray:
+        """The cost every cell gets from its nearest ``lethal`` cell. Where the lethal cells are
+        those of the last call but for a few, only the cells within the inflation radius of a
+        changed one are computed again (from the lethal cells within the radius of those):
+        the global costmap takes one scan's worth of changes a second, not a whole map's."""
+        last = self._spread
+        if last is None or last[1] != resolution or last[0].shape != lethal.shape:
+            cost = self._spread_over(lethal, resolution)
+        else:
+            changed = lethal != last[0]
+            if not changed.any():
+                return last[2]
+            rows, cols = np.flatnonzero(changed.any(axis=1)), np.flatnonzero(changed.any(axis=0))
+            reach = int(math.ceil(self.inflation_radius / resolution)) + 1  # cells
+            h, w = lethal.shape
+            r0, r1 = max(rows[0] - reach, 0), min(rows[-1] + reach + 1, h)  # costs that may change
+            c0, c1 = max(cols[0] - reach, 0), min(cols[-1] + reach + 1, w)
+            s0, s1 = max(r0 - reach, 0), min(r1 + reach, h)  # lethal cells that may reach them
+            t0, t1 = max(c0 - reach, 0), min(c1 + reach, w)
+            around = self._spread_over(lethal[s0:s1, t0:t1], resolution)
+            cost = last[2].copy()
+            cost[r0:r1, c0:c1] = around[r0 - s0:r1 - s0, c0 - t0:c1 - t0]
+        self._spread = (lethal.copy(), resolution, cost)
+        return cost
+
+    def _spread_over(self, lethal: np.ndarray, resolution: float) -> np.ndarray:
+        if not lethal.any():
+            return np.full(lethal.shape, FREE_SPACE, dtype=np.uint8)
+        return self.cost_at_distance(np.asarray(ndimage.distance_transform_edt(~lethal)) * resolution)
+
     def update(self, master: Costmap) -> None:
         lethal = master.costs == LETHAL_OBSTACLE
         if not lethal.any():
             return
-        distance = np.asarray(ndimage.distance_transform_edt(~lethal)) * master.resolution
-        cost = self.cost_at_distance(distance)
+        cost = self.spread(lethal, master.resolution)
         old = master.costs
         unknown = old == NO_INFORMATION
         floor = FREE_SPACE if self.inflate_unknown else INSCRIBED_INFLATED_OBSTACLE - 1

@@ -150,6 +150,8 @@ class CostmapNode(Node):
                                                          p.global_frame), self.layers, rolling=True,
                                           default_value=NO_INFORMATION if p.track_unknown_space else 0)
         self.costmap: Costmap | None = None  # the last update, a copy owned by its readers
+        #: The message of the costmap last published: an unchanged costmap is sent again restamped.
+        self._message: tuple[Costmap, OccupancyGridMsg] | None = None
         self.pub = self.create_publisher(OccupancyGridMsg, "costmap", LATCHED)
         self._map_arrived = require(self, f"a map on '{p.map_topic}'") if self.static is not None else None
         if self.static is not None:
@@ -265,12 +267,21 @@ class CostmapNode(Node):
             self.layered.master.recentre(robot[0], robot[1], self.layered.default_value)
         self._mark(self.layered)
         master = self.layered.update(robot)
-        self.costmap = Costmap(master.costs.copy(), master.resolution, master.origin, master.frame_id)
+        last = self.costmap
+        if (last is None or last.origin != master.origin or last.resolution != master.resolution
+                or not np.array_equal(last.costs, master.costs)):
+            self.costmap = Costmap(master.costs.copy(), master.resolution, master.origin, master.frame_id)
         return self.costmap
 
     def publish(self) -> None:
-        if self.costmap is not None:
-            self.pub.publish(grid_message(self.costmap.to_occupancy_grid(), self.get_clock().now().to_msg()))
+        if self.costmap is None:
+            return
+        stamp = self.get_clock().now().to_msg()
+        if self._message is None or self._message[0] is not self.costmap:
+            self._message = (self.costmap, grid_message(self.costmap.to_occupancy_grid(), stamp))
+        msg = self._message[1]
+        msg.header.stamp = msg.info.map_load_time = stamp
+        self.pub.publish(msg)
 
     def clear(self) -> None:
         for layer in self.obstacles:
