@@ -81,6 +81,23 @@ def test_refinement_is_more_accurate_than_the_particle_mean():
     assert results[True] < 0.5 * results[False]
 
 
+def test_standing_still_the_fit_between_updates_is_not_made_again():
+    """Between filter updates the estimate is fitted to each scan, but not again while odometry
+    stands still (it would only follow the scan's noise); moving, or a new update, fits again."""
+    loc = localizer(4, refine_estimate=True, update_min_d=0.25, update_min_a=0.2)
+    _, truth, odom = drive()[0]
+    loc.set_initial_pose(truth + [0.03, -0.02, 0.01], NAV2_INITIAL_COVARIANCE / 100)
+    assert loc.update(odom, scan(truth)) is not None
+    assert loc.track(odom, scan(truth)) is not None  # the first fit after the update
+    assert loc.track(odom, scan(truth)) is None  # standing still
+    assert loc.track(odom + [0.0005, 0.0, 0.0], scan(truth)) is None  # within a millimetre
+    moved = odom + [0.01, 0.0, 0.0]
+    assert loc.track(moved, scan(truth + [0.01, 0.0, 0.0])) is not None
+    loc.request_nomotion_update()
+    assert loc.update(moved, scan(truth + [0.01, 0.0, 0.0])) is not None
+    assert loc.track(moved, scan(truth + [0.01, 0.0, 0.0])) is not None  # a new update: fitted again
+
+
 def test_nothing_happens_before_an_initial_pose():
     loc = localizer()
     _, truth, odom = drive()[0]

@@ -10,6 +10,7 @@ is set (or global localization asked for) it does nothing.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -38,6 +39,10 @@ GLOBAL_SETTLE_FIT = 0.9
 GLOBAL_RESEARCHES = 10
 #: Standard deviations (m, m, rad) of the particles redrawn around a refined estimate.
 REFINED_SPREAD = np.array([0.02, 0.02, 0.01])
+#: Odometry that moved less than this (m, rad) since the last fit between updates is standing
+#: still: the fit is not made again (it would only follow the scan's noise), as Nav2's AMCL
+#: does not update below ``update_min_d`` / ``update_min_a``.
+TRACK_STILL = (1e-3, 1e-3)
 
 
 @dataclass(frozen=True)
@@ -86,6 +91,8 @@ class Localizer:
         self._researches_left = 0
         self._updates = 0
         self.last: Update | None = None
+        #: Where odometry was at the last fit between updates, and the update it started from.
+        self._tracked: tuple[np.ndarray, Update] | None = None
 
     def set_map(self, grid: OccupancyGrid) -> None:
         """Localize on ``grid`` from now on (particles are kept; Nav2 re-initialises on a new map
@@ -237,13 +244,16 @@ class Localizer:
         if not (self.settings.refine_estimate and self.initialized and self.last is not None):
             return None
         odom_pose = np.asarray(odom_pose, dtype=float)
+        if self._tracked is not None and self._tracked[1] is self.last:
+            moved = se2_compose(se2_inverse(self._tracked[0]), odom_pose)
+            if math.hypot(moved[0], moved[1]) < TRACK_STILL[0] and abs(moved[2]) < TRACK_STILL[1]:
+                return None
         refined = self.fitter.refine(se2_compose(self.last.map_to_odom, odom_pose), full_scan)
-        if refined is None:
-            return None
-        map_to_odom = self.map_to_odom(refined, odom_pose)
-        self.last = Update(Cluster(self.last.estimate.weight, refined, self.last.estimate.covariance),
-                           map_to_odom, resampled=False, refined=True)
-        return map_to_odom
+        if refined is not None:
+            self.last = Update(Cluster(self.last.estimate.weight, refined, self.last.estimate.covariance),
+                               self.map_to_odom(refined, odom_pose), resampled=False, refined=True)
+        self._tracked = (odom_pose, self.last)
+        return None if refined is None else self.last.map_to_odom
 
     def _search(self, scan: Scan) -> None:
         """Global localization's particles: the best poses for ``scan`` (see :meth:`global_localization`)."""

@@ -45,7 +45,8 @@ class ScanFitter:
         fx = (x - g.origin[0]) / g.resolution - 0.5
         fy = (y - g.origin[1]) / g.resolution - 0.5
         h, w = self.distance.shape[0], self.distance.shape[1]
-        fx, fy = np.clip(fx, 0.0, w - 1.001), np.clip(fy, 0.0, h - 1.001)
+        # (np.minimum/np.maximum: the same as np.clip, without its per-call overhead on every scan)
+        fx, fy = np.minimum(np.maximum(fx, 0.0), w - 1.001), np.minimum(np.maximum(fy, 0.0), h - 1.001)
         c0, r0 = np.floor(fx).astype(int), np.floor(fy).astype(int)
         ax, ay = fx - c0, fy - r0
         d = self.distance
