@@ -76,7 +76,12 @@ def run_stage(stage: str, world_file: Path, out: Path, arguments: list[str], res
         tail = proc.stderr.strip().splitlines()[-5:]
         return {"ok": False, "failure": f"eval {stage} exited {proc.returncode} without a report: "
                                         + " | ".join(tail)}
-    return dict(json.loads(report_file.read_text()))
+    report = dict(json.loads(report_file.read_text()))
+    if report.get("failure") == "interrupted":  # Ctrl-C (or a signal) stopped the run: the suite stops too
+        shutil.rmtree(out, ignore_errors=True)  # not a result: --resume runs it again
+        raise SystemExit(f"autonomy_suite: eval {stage} in {world_file.stem} was interrupted; "
+                         "--resume goes on from there")
+    return report
 
 
 def _round(value: Any, digits: int = 4) -> Any:

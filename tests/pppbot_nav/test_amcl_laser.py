@@ -39,6 +39,25 @@ def test_nav2_beam_selection_takes_every_step_th_beam_and_treats_short_and_bad_r
     assert s.ranges[3] == pytest.approx(ranges[30])
 
 
+def test_beams_with_returns_spreads_max_beams_over_the_beams_that_returned():
+    ranges = np.full(360, np.inf)
+    hits = np.array([3, 4, 5, 90, 91, 200, 201, 202, 203, 300, 350])  # a few cones in an open field
+    ranges[hits] = np.linspace(2.0, 6.0, hits.size)
+    ranges[100], ranges[101] = 0.05, 15.0  # under range_min, beyond range_max: no return
+    args = (ranges, -math.pi, 2 * math.pi / 360, 0.12, 12.0, (0.1, 0.0, 0.0))
+    nav2 = Scan.from_laser(*args, LaserSettings(max_beams=60))
+    assert (nav2.ranges < 12.0).sum() == 2  # beams 0, 6, 12, ...: two of the eleven hits
+    picked = Scan.from_laser(*args, LaserSettings(max_beams=60, beams_with_returns=True))
+    assert picked.ranges.tolist() == pytest.approx(ranges[hits].tolist())  # fewer hits than max_beams: all of them
+    assert picked.bearings.tolist() == pytest.approx((-math.pi + hits * 2 * math.pi / 360).tolist())
+    few = Scan.from_laser(*args, LaserSettings(max_beams=4, beams_with_returns=True))  # evenly over the hits
+    assert few.ranges.tolist() == pytest.approx(ranges[hits[[0, 3, 7, 10]]].tolist())
+    full = Scan.from_laser(*args, LaserSettings(max_beams=4, beams_with_returns=True), max_beams=360)
+    assert full.ranges.size == 360  # the full scan (for the refinement) is every beam, as before
+    nothing = Scan.from_laser(np.full(360, np.inf), *args[1:], LaserSettings(beams_with_returns=True))
+    assert nothing.ranges.size == nav2.ranges.size and (nothing.ranges == 12.0).all()  # no return: Nav2's pick
+
+
 def test_laser_range_limits_override_the_scans():
     ranges = np.array([0.3, 1.0, 6.0, 9.0])
     s = Scan.from_laser(ranges, 0.0, 0.1, 0.1, 12.0, (0, 0, 0),

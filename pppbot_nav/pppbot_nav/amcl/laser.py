@@ -40,7 +40,8 @@ class LaserModelType(enum.Enum):
 @dataclass(frozen=True)
 class LaserSettings:
     """Nav2's laser parameters (their names); ``laser_min_range``/``laser_max_range`` ≤ 0
-    use the scan's own limits."""
+    use the scan's own limits. ``beams_with_returns`` (pppbot's): pick the ``max_beams``
+    among the beams that returned, not among all of them."""
 
     z_hit: float = 0.5
     z_short: float = 0.05
@@ -52,6 +53,7 @@ class LaserSettings:
     max_beams: int = 60
     laser_min_range: float = -1.0
     laser_max_range: float = 100.0
+    beams_with_returns: bool = False
 
 
 @dataclass(frozen=True)
@@ -71,7 +73,10 @@ class Scan:
         """Nav2's beam selection: every ``(n − 1) // (max_beams − 1)``-th beam (``max_beams``
         from the settings unless given); ranges under ``range_min`` and non-finite ones become
         ``range_max`` (no return); ``laser_min_range``/``laser_max_range``, when positive, narrow
-        the scan's own limits.
+        the scan's own limits. With the settings' ``beams_with_returns`` (and ``max_beams`` not
+        given), ``max_beams`` spread evenly over the beams that returned instead: where most
+        beams see nothing (a cone field), Nav2's pick keeps few of the hits, and the likelihood
+        field has nothing to weigh the particles with.
 
         Raises:
             AmclError: no beams, or limits that are not finite or out of order.
@@ -88,6 +93,12 @@ class Scan:
         beams = settings.max_beams if max_beams is None else max_beams
         step = max(1, (ranges.size - 1) // max(1, beams - 1))
         index = np.arange(0, ranges.size, step)
+        if settings.beams_with_returns and max_beams is None:
+            returned = np.flatnonzero(np.isfinite(ranges) & (ranges > low) & (ranges < high))
+            if returned.size > beams:
+                index = returned[np.linspace(0, returned.size - 1, beams).round().astype(int)]
+            elif returned.size:
+                index = returned
         picked = ranges[index]
         picked = np.where(np.isfinite(picked) & (picked > low), np.minimum(picked, high), high)
         bearings = laser_pose[2] + angle_min + index * angle_increment

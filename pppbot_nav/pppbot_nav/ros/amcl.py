@@ -12,10 +12,11 @@ the next scan without motion). Until it has an initial pose (``set_initial_pose`
 ``initial_pose.*``, ``/initialpose`` or global localization) it says so every 2 s, as
 Nav2 does.
 
-Parameters carry Nav2's names and meanings; three are pppbot's own: ``refine_estimate``
+Parameters carry Nav2's names and meanings; four are pppbot's own: ``refine_estimate``
 (polish each estimate by fitting the whole scan to the map, :mod:`pppbot_nav.amcl.refine`,
 and between filter updates refit map → odom at every scan, so odometry's drift does not
-wait for ``update_min_d``),
+wait for ``update_min_d``), ``beams_with_returns`` (the likelihood field's ``max_beams``
+picked among the beams that returned),
 ``refined_particle_fraction`` (the share of particles redrawn around each refined estimate)
 and ``seed`` (the random generator's seed; −1 draws one). The algorithm is
 :mod:`pppbot_nav.amcl.localizer`.
@@ -110,6 +111,8 @@ class AmclParameters:
     tf_buffer_duration: float = param(10.0, "seconds of TF history kept")
     refine_estimate: bool = param(True, "pppbot: polish each estimate by fitting the whole scan to the map, and "
                                         "refit map → odom at every scan between filter updates")
+    beams_with_returns: bool = param(True, "pppbot: with likelihood_field, pick the max_beams among the beams that "
+                                           "returned (Nav2 picks among all and skips those without a return)")
     refined_particle_fraction: float = param(0.1, "pppbot: share of particles redrawn around each refined "
                                                   "estimate (0: refinement only changes the output)")
     seed: int = param(-1, "pppbot: random seed (-1: a fresh one)")
@@ -149,7 +152,8 @@ class AmclParameters:
                                   self.recovery_alpha_slow, self.recovery_alpha_fast),
             laser=LaserSettings(self.z_hit, self.z_short, self.z_max, self.z_rand, self.sigma_hit,
                                 self.lambda_short, self.laser_likelihood_max_dist, self.max_beams,
-                                self.laser_min_range, self.laser_max_range),
+                                self.laser_min_range, self.laser_max_range,
+                                self.beams_with_returns and self.laser_model_type == LaserModelType.LIKELIHOOD_FIELD.value),
             laser_model_type=LaserModelType(self.laser_model_type),
             robot_model_type=RobotModel(self.robot_model_type),
             motion_noise=MotionNoise(self.alpha1, self.alpha2, self.alpha3, self.alpha4, self.alpha5),
