@@ -67,7 +67,9 @@ def run_stage(stage: str, world_file: Path, out: Path, arguments: list[str], res
     """
     report_file = out / "report.json"
     if resume and report_file.is_file():
-        return dict(json.loads(report_file.read_text()))
+        report = dict(json.loads(report_file.read_text()))
+        if report.get("failure") != "interrupted":
+            return report
     shutil.rmtree(out, ignore_errors=True)  # an earlier, unfinished or replaced run
     command = [PPPBOT, "eval", stage, "--world", str(world_file), "--lockstep", "--wheel-slip", str(WHEEL_SLIP),
                "--out", str(out), "--json", *arguments]
