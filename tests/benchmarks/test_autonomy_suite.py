@@ -32,6 +32,26 @@ def world(name: str, family: str, f1: float | None, ate: float | None, ate_max: 
                            "wall_seconds": 5.0}}
 
 
+def test_an_interrupted_stage_stops_the_suite_and_runs_again_on_resume(suite, tmp_path, monkeypatch):
+    """Ctrl-C reaches the eval too: its report says "interrupted", which is no result. The suite
+    stops there (not on to the next world), and --resume runs that stage again."""
+    out = tmp_path / "slam"
+    failures = ["interrupted", None]
+
+    def fake_eval(command, **kwargs):
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "report.json").write_text(json.dumps({"ok": failures[0] is None, "failure": failures.pop(0)}))
+    monkeypatch.setattr(suite.subprocess, "run", fake_eval)
+    with pytest.raises(SystemExit, match="interrupted"):
+        suite.run_stage("slam", tmp_path / "w.sdf", out, [], resume=False)
+    assert not out.exists()  # nothing left for --resume to take as a result
+    out.mkdir()
+    (out / "report.json").write_text(json.dumps({"ok": False, "failure": "interrupted"}))  # an older suite's
+    failures = [None]
+    assert suite.run_stage("slam", tmp_path / "w.sdf", out, [], resume=True) == {"ok": True, "failure": None}
+    assert suite.run_stage("slam", tmp_path / "w.sdf", out, [], resume=True) == {"ok": True, "failure": None}
+
+
 def test_the_aggregate_counts_worlds_against_each_target(suite):
     worlds = [world("a", "maze", 0.99, 0.03, 0.1, 0.02, 10, 10),
               world("b", "maze", 0.96, 0.06, 0.2, 0.04, 9, 10),  # ATE RMS over 5 cm: not a good map
