@@ -10,7 +10,8 @@ Runs, one after the other in ``--world`` (default maze), on a DDS domain of its 
 * ``navigation_1x``: the same without lockstep at 1× real time — the navigation nodes'
   CPU while they drive;
 * ``idle_1x`` and ``idle_lockstep_1x``: ``launch_sim localization:=true`` at 1× with no goal,
-  free running and in lockstep paced at 1× (the navigation nodes composed) — every node's CPU, and
+  free running and in lockstep paced at 1× (the navigation nodes composed in both, launch_sim's
+  default) — every node's CPU, and
   the bringup's memory: the sum of its processes' RSS (the issue's measure, which counts the
   libraries they share once per process) and of their PSS (each shared page counted once).
 
@@ -176,8 +177,8 @@ def run_eval(scenario: str, args: list[str], domain: int) -> dict[str, Any]:
 
 
 def run_idle(world: str, seconds: float, domain: int, lockstep: bool = False) -> dict[str, Any]:
-    """launch_sim with localization and navigation at 1× (free running, or lockstep paced at 1×,
-    where the navigation nodes are one composed process), no goal: CPU per node over ``seconds``."""
+    """launch_sim with localization and navigation at 1× (free running, or lockstep paced at 1×;
+    the navigation nodes one composed process), no goal: CPU per node over ``seconds``."""
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
     proc = subprocess.Popen([PPPBOT, "launch_sim", f"world:={world}", "localization:=true", "use_teleop:=false",
                              "use_rviz:=false", "real_time_factor:=1.0", f"lockstep:={str(lockstep).lower()}"],

@@ -5,8 +5,8 @@ The ROS side (readiness probes, running the plan) is ``pppbot_bringup.ros.launch
 Start order, each step waiting for real readiness (a first message, not a sleep):
 simulator (first /clock; the robot's controllers run in its process, as gz_ros2_control
 runs them in Gazebo) → robot_state_publisher (/robot_description) → twist_mux → mapping or
-localization → navigation (planner, controller, navigator; in lockstep one process, as Nav2
-composes them, unless ``use_composition:=false``) → RViz (when on PATH) →
+localization → navigation (planner, controller, navigator; one process, as Nav2 composes
+them, unless ``use_composition:=false``) → RViz (when on PATH) →
 keyboard teleop. With ``lockstep:=true`` the nodes on the data path are lockstep
 participants: each is ready once it has joined (time starts when all have).
 """
@@ -30,8 +30,8 @@ ARGUMENTS = [
     Argument("use_slam", True, "with localization:=false, map with the SLAM node (false: drive on odometry only)"),
     Argument("navigation", "auto", "planner_server, controller_server and navigator (auto: with localization:=true)",
              choices=("auto", "true", "false")),
-    Argument("use_composition", True, "with lockstep:=true, navigation's three nodes in one process, as Nav2's "
-                                      "bringup composes its servers (false, and free running: a process each)"),
+    Argument("use_composition", True, "navigation's three nodes in one process, as Nav2's bringup composes its "
+                                      "servers (false: a process each)"),
     Argument("slam_params_file", "", "the slam node's parameters; default config/mapper_params_online_async.yaml"),
     Argument("use_teleop", True, "keyboard teleop in this terminal (other nodes' output goes to log files)"),
     Argument("use_rviz", True, "start rviz2 with config/ppp_bot.rviz when rviz2 is on PATH"),
@@ -195,9 +195,7 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
         servers: tuple[tuple[str, str], ...] = (("planner_server", r"planner 'GridBased' ready"),
                                                 ("controller_server", r"controller 'FollowPath'"),
                                                 ("navigator", r"navigator ready"))
-        # Composed only in lockstep, where time starts once every endpoint has matched: free running,
-        # the composed process missed the first goal and commands of an evaluation started at once.
-        if values["use_composition"] and lockstep:
+        if values["use_composition"]:
             # The navigator is made last: its line means all three are.
             servers = (("navigation", r"navigator ready"),)
         for name, ready in servers:

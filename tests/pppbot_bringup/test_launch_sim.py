@@ -174,7 +174,7 @@ def test_lockstep_makes_the_data_path_participants_and_tells_the_simulator_whom_
     assert ("/clock", "rosgraph_msgs/msg/Clock", False) in probes
 
 
-def test_navigation_in_lockstep_is_one_composed_process_unless_use_composition_is_false():
+def test_navigation_is_one_composed_process_unless_use_composition_is_false():
     composed = {n.name: n for n in fake_plan("localization:=true", "lockstep:=true")[0].nodes}
     nav = composed["navigation"]
     assert nav.cmd[0] == "/bin/pppbot_nav/navigation" and nav.after == ("amcl",) and nav.required
@@ -184,8 +184,11 @@ def test_navigation_in_lockstep_is_one_composed_process_unless_use_composition_i
     assert "navigation" not in separate
     for name in ("planner_server", "controller_server", "navigator"):
         assert separate[name].cmd[0] == f"/bin/pppbot_nav/{name}" and f"lockstep_name:={name}" in separate[name].cmd
-    free_running = {n.name for n in fake_plan("localization:=true")[0].nodes}  # composed in lockstep only
-    assert "navigation" not in free_running and {"planner_server", "controller_server", "navigator"} <= free_running
+    free_running = {n.name: n for n in fake_plan("localization:=true")[0].nodes}  # composed too, as Nav2's bringup
+    assert not {"planner_server", "controller_server", "navigator"} & free_running.keys()
+    assert not any("lockstep" in arg for arg in free_running["navigation"].cmd)
+    apart = {n.name for n in fake_plan("localization:=true", "use_composition:=false")[0].nodes}
+    assert "navigation" not in apart and {"planner_server", "controller_server", "navigator"} <= apart
 
 
 def test_record_adds_a_recorder_right_after_the_simulator(tmp_path):

@@ -102,3 +102,76 @@ def test_composed_nodes_share_one_clock_subscription_and_all_follow_clock():
             node.destroy_node()
     finally:
         rclpy.try_shutdown()
+
+
+def test_composed_nodes_share_one_tf_listener_and_each_hears_of_new_transforms():
+    """TfListener: the nodes of one process share one buffer and one /tf subscription; each
+    node's callback runs after a transform arrives; a node made after /tf_static arrived is
+    told at once; after the first nodes are destroyed a new one listens again."""
+    from rclpy.executors import SingleThreadedExecutor
+    from geometry_msgs.msg import TransformStamped
+    from tf2_msgs.msg import TFMessage
+
+    from pppbot_common.ros.qos import LATCHED
+    from pppbot_common.ros.tf_listener import _SHARED, TfListener
+    from pppbot_common.ros.node_main import Warnings
+    from pppbot_common.ros.wait import wait_until
+
+    def transform(parent: str, child: str, x: float, sec: int = 0) -> TFMessage:
+        t = TransformStamped()
+        t.header.frame_id, t.child_frame_id = parent, child
+        t.header.stamp.sec = sec
+        t.transform.translation.x, t.transform.rotation.w = x, 1.0
+        return TFMessage(transforms=[t])
+
+    rclpy.init()
+    try:
+        source = Node("tf_source")
+        static_pub = source.create_publisher(TFMessage, "/tf_static", LATCHED)
+        dynamic_pub = source.create_publisher(TFMessage, "/tf", 10)
+        heard = {0: 0, 1: 0}
+        nodes = [Node(f"listening_{i}") for i in range(2)]
+        listeners = [TfListener(n, Warnings(n), on_tf=lambda i=i: heard.__setitem__(i, heard[i] + 1))
+                     for i, n in enumerate(nodes)]
+        assert listeners[0].buffer is listeners[1].buffer
+        tf_subscribers = [n for n in nodes if any(s.topic_name == "/tf" for s in n.subscriptions)]
+        assert tf_subscribers == [nodes[0]]
+        executor = SingleThreadedExecutor()
+        for node in (source, *nodes):
+            executor.add_node(node)
+        static_pub.publish(transform("base_link", "laser", 0.1))
+
+        def spin_until(condition, what: str) -> None:
+            def step() -> bool:
+                executor.spin_once(timeout_sec=0.05)
+                return condition()
+            assert wait_until(step, 10.0, what)
+
+        def has_static() -> bool:
+            try:
+                listeners[0].buffer.lookup("base_link", "laser")
+            except Exception:
+                return False
+            return True
+        spin_until(has_static, "the static transform")
+        late = Node("listening_late")
+        told: list[bool] = []
+        _SHARED[late.context].add(late, None, lambda: told.append(True))  # what needs_static registers
+        assert told == [True]  # /tf_static had arrived: the late node is not left waiting
+
+        def both_heard() -> bool:
+            dynamic_pub.publish(transform("odom", "base_link", 1.0, sec=1))
+            return heard[0] > 0 and heard[1] > 0
+        spin_until(both_heard, "both nodes told of /tf")
+        assert listeners[1].buffer.lookup("odom", "laser", 1.0)[0] == pytest.approx(1.1)
+        executor.shutdown()
+        for node in (*nodes, late):
+            node.destroy_node()
+        again = Node("listening_again")
+        assert TfListener(again, Warnings(again)).buffer is not listeners[0].buffer  # a new owner, a new buffer
+        assert any(s.topic_name == "/tf" for s in again.subscriptions)
+        assert len(_SHARED) == 1
+        again.destroy_node()
+        source.destroy_node()
+    finally:
+        rclpy.try_shutdown()

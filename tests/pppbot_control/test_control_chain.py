@@ -112,8 +112,10 @@ def test_one_metre_through_the_whole_chain(ros_node, chain):
     odom1, truth1 = standstill(ros_node, tele, odoms, truths)
     travelled = distance(truth1, truth0)
     measured = distance(odom1, odom0)
-    assert travelled == pytest.approx(1.0, rel=0.03)
-    assert measured == pytest.approx(travelled, rel=0.01)
+    # Free running, the stop goes out when this test sees 0.955 m: on a busy machine it can see
+    # that late (a clean-clone run on a loaded machine stopped at 1.030 m), each 0.1 s 3 cm more.
+    assert 0.97 <= travelled <= 1.1
+    assert measured == pytest.approx(travelled, rel=0.01)  # what the chain must get right: odometry
 
 
 def test_controller_publishes_odometry_tf_and_wheel_commands(ros_node, chain):

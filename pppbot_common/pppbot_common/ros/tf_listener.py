@@ -1,8 +1,16 @@
-"""``/tf`` and ``/tf_static`` into a planar transform buffer: tf2_ros's TransformListener for pppbot's nodes."""
+"""``/tf`` and ``/tf_static`` into a planar transform buffer: tf2_ros's TransformListener for pppbot's nodes.
+
+One listener per process: composed nodes (the planner's and the controller's costmaps and the
+navigator in ``navigation``) share one buffer and one pair of subscriptions, as Nav2's servers
+use their costmap's buffer, instead of each taking every ``/tf`` message.
+"""
 from __future__ import annotations
 
+import functools
+import weakref
 from typing import Callable
 
+from rclpy.context import Context
 from rclpy.node import Node
 from tf2_msgs.msg import TFMessage
 
@@ -14,21 +22,51 @@ from pppbot_common.transforms import TransformBuffer
 
 
 class TfListener:
-    """Keeps ``buffer`` (``cache_s`` seconds of history) filled; ``on_tf`` is called after each
-    dynamic TF message (in lockstep, at the next step). A malformed transform is dropped with a throttled warning, and so is
-    any error ``on_tf`` raises (it hands on scans that waited for odometry: one bad scan
-    must not end the node). ``needs_static``: in lockstep the node's process joins only once
-    ``/tf_static`` has delivered (a scan's user needs the sensor's mounting from the start)."""
+    """Keeps ``buffer`` (at least ``cache_s`` seconds of history) filled; ``on_tf`` is called after
+    each dynamic TF message (in lockstep, at the next step). A malformed transform is dropped with a
+    throttled warning, and so is any error ``on_tf`` raises (it hands on scans that waited for
+    odometry: one bad scan must not end the node). ``needs_static``: in lockstep the node's process
+    joins only once ``/tf_static`` has delivered (a scan's user needs the sensor's mounting from
+    the start). Listeners of nodes in one process share one buffer (:class:`_Shared`)."""
 
     def __init__(self, node: Node, warn: Warnings, cache_s: float = 10.0,
                  on_tf: Callable[[], None] | None = None, needs_static: bool = False) -> None:
+        shared = _SHARED.get(node.context)
+        if shared is None or not shared.alive():
+            shared = _SHARED[node.context] = _Shared(node, warn, cache_s)
+        shared.buffer.cache_s = max(shared.buffer.cache_s, cache_s)
+        shared.add(node, on_tf, require(node, "the static transforms (/tf_static)") if needs_static else None)
+        self.buffer = shared.buffer
+
+
+class _Shared:
+    """The process's buffer and subscriptions (made by the first node that listens, ``owner``),
+    and what each listening node wants told."""
+
+    def __init__(self, owner: Node, warn: Warnings, cache_s: float) -> None:
         self.buffer = TransformBuffer(cache_s=cache_s)
+        self.owner = owner
         self._warn = warn
-        self._on_tf = on_tf
-        self._static_arrived = require(node, "the static transforms (/tf_static)") if needs_static else None
-        self._node = node
-        require_match(node, node.create_subscription(TFMessage, "/tf", guarded(node, self._dynamic, "TFMessage"), 200))
-        node.create_subscription(TFMessage, "/tf_static", guarded(node, self._static, "TFMessage"), LATCHED)
+        self._on_tf: list[tuple[Node, Callable[[], None]]] = []
+        self._static_waiting: list[Callable[[], None]] = []
+        self._static_seen = False
+        require_match(owner, owner.create_subscription(TFMessage, "/tf", guarded(owner, self._dynamic, "TFMessage"),
+                                                       200))
+        owner.create_subscription(TFMessage, "/tf_static", guarded(owner, self._static, "TFMessage"), LATCHED)
+
+    def alive(self) -> bool:
+        """Whether the owner (and so the subscriptions) still exists: a process may make nodes
+        again after destroying the first ones (tests do)."""
+        return bool(self.owner.handle.pointer)
+
+    def add(self, node: Node, on_tf: Callable[[], None] | None, static_arrived: Callable[[], None] | None) -> None:
+        if on_tf is not None:  # guarded by its own node: its error is that node's to report, and the others go on
+            self._on_tf.append((node, functools.partial(guarded(node, lambda _: on_tf(), "TFMessage"), None)))
+        if static_arrived is not None:
+            if self._static_seen:
+                static_arrived()
+            else:
+                self._static_waiting.append(static_arrived)
 
     def _store(self, msg: TFMessage, static: bool) -> None:
         for t in planar_transforms(msg):
@@ -39,11 +77,16 @@ class TfListener:
 
     def _dynamic(self, msg: TFMessage) -> None:
         self._store(msg, static=False)
-        if self._on_tf is not None:
-            in_step(self._node, self._on_tf)
+        for node, on_tf in self._on_tf:
+            in_step(node, on_tf)
 
     def _static(self, msg: TFMessage) -> None:
         self._store(msg, static=True)
-        if self._static_arrived is not None:
-            self._static_arrived()
-            self._static_arrived = None
+        self._static_seen = True
+        waiting, self._static_waiting = self._static_waiting, []
+        for arrived in waiting:
+            arrived()
+
+
+#: The shared listener of each context (a process's nodes share the default one).
+_SHARED: weakref.WeakKeyDictionary[Context, _Shared] = weakref.WeakKeyDictionary()

@@ -1,8 +1,8 @@
 """``navigation``: planner_server, controller_server and navigator in one process.
 
 Nav2's bringup composes its servers into one container by default (``use_composition``);
-``launch_sim`` does the same with these three in lockstep (``use_composition:=false``, and a
-free-running launch, start each as its own process). They stay separate nodes, with their own
+``launch_sim`` does the same with these three (``use_composition:=false`` starts each as its
+own process). They stay separate nodes, with their own
 names, parameters (their sections of ``nav2_params.yaml``), topics, services and actions;
 what they share is the process: one interpreter and one DDS participant instead of three
 (about 180 MB less summed RSS, measured standing still), one executor, one ``/clock``
