@@ -252,7 +252,7 @@ class Localizer:
         if refined is not None:
             self.last = Update(Cluster(self.last.estimate.weight, refined, self.last.estimate.covariance),
                                self.map_to_odom(refined, odom_pose), resampled=False, refined=True)
-        self._tracked = (odom_pose, self.last)
+        self._tracked = (odom_pose.copy(), self.last)
         return None if refined is None else self.last.map_to_odom
 
     def _search(self, scan: Scan) -> None:
