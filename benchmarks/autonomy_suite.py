@@ -32,6 +32,7 @@ import json
 import math
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -73,13 +74,24 @@ def run_stage(stage: str, world_file: Path, out: Path, arguments: list[str], res
     shutil.rmtree(out, ignore_errors=True)  # an earlier, unfinished or replaced run
     command = [PPPBOT, "eval", stage, "--world", str(world_file), "--lockstep", "--wheel-slip", str(WHEEL_SLIP),
                "--out", str(out), "--json", *arguments]
-    proc = subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        _, stderr = proc.communicate()
+    except KeyboardInterrupt:
+        # Ctrl-C: the eval (in the same process group) stops its stack and writes its report;
+        # killing it instead would leave the stack's nodes running. Signalled alone, the
+        # suite passes the interrupt on.
+        proc.send_signal(signal.SIGINT)
+        proc.wait()
+        shutil.rmtree(out, ignore_errors=True)
+        raise SystemExit(f"autonomy_suite: interrupted in eval {stage} of {world_file.stem}; "
+                         "--resume goes on from there") from None
     if not report_file.is_file():
-        tail = proc.stderr.strip().splitlines()[-5:]
+        tail = stderr.strip().splitlines()[-5:]
         return {"ok": False, "failure": f"eval {stage} exited {proc.returncode} without a report: "
                                         + " | ".join(tail)}
     report = dict(json.loads(report_file.read_text()))
-    if report.get("failure") == "interrupted":  # Ctrl-C (or a signal) stopped the run: the suite stops too
+    if report.get("failure") == "interrupted":  # the eval alone was signalled: the suite stops too
         shutil.rmtree(out, ignore_errors=True)  # not a result: --resume runs it again
         raise SystemExit(f"autonomy_suite: eval {stage} in {world_file.stem} was interrupted; "
                          "--resume goes on from there")

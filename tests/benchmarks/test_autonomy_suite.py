@@ -33,15 +33,21 @@ def world(name: str, family: str, f1: float | None, ate: float | None, ate_max: 
 
 
 def test_an_interrupted_stage_stops_the_suite_and_runs_again_on_resume(suite, tmp_path, monkeypatch):
-    """Ctrl-C reaches the eval too: its report says "interrupted", which is no result. The suite
-    stops there (not on to the next world), and --resume runs that stage again."""
+    """An eval stopped by a signal reports "interrupted", which is no result: the suite stops
+    there (not on to the next world), and --resume runs that stage again."""
     out = tmp_path / "slam"
     failures = ["interrupted", None]
 
-    def fake_eval(command, **kwargs):
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "report.json").write_text(json.dumps({"ok": failures[0] is None, "failure": failures.pop(0)}))
-    monkeypatch.setattr(suite.subprocess, "run", fake_eval)
+    class FakeEval:  # writes the report an eval run would, then has nothing to say
+        returncode = 0
+
+        def __init__(self, command, **kwargs):
+            out.mkdir(parents=True, exist_ok=True)
+            (out / "report.json").write_text(json.dumps({"ok": failures[0] is None, "failure": failures.pop(0)}))
+
+        def communicate(self):
+            return "", ""
+    monkeypatch.setattr(suite.subprocess, "Popen", FakeEval)
     with pytest.raises(SystemExit, match="interrupted"):
         suite.run_stage("slam", tmp_path / "w.sdf", out, [], resume=False)
     assert not out.exists()  # nothing left for --resume to take as a result

@@ -113,7 +113,7 @@ def test_composed_nodes_share_one_tf_listener_and_each_hears_of_new_transforms()
     from tf2_msgs.msg import TFMessage
 
     from pppbot_common.ros.qos import LATCHED
-    from pppbot_common.ros.tf_listener import _SHARED, TfListener
+    from pppbot_common.ros.tf_listener import _ATTRIBUTE, TfListener
     from pppbot_common.ros.node_main import Warnings
     from pppbot_common.ros.wait import wait_until
 
@@ -156,7 +156,7 @@ def test_composed_nodes_share_one_tf_listener_and_each_hears_of_new_transforms()
         spin_until(has_static, "the static transform")
         late = Node("listening_late")
         told: list[bool] = []
-        _SHARED[late.context].add(late, None, lambda: told.append(True))  # what needs_static registers
+        getattr(late.context, _ATTRIBUTE).add(late, None, lambda: told.append(True))  # what needs_static registers
         assert told == [True]  # /tf_static had arrived: the late node is not left waiting
 
         def both_heard() -> bool:
@@ -170,7 +170,7 @@ def test_composed_nodes_share_one_tf_listener_and_each_hears_of_new_transforms()
         again = Node("listening_again")
         assert TfListener(again, Warnings(again)).buffer is not listeners[0].buffer  # a new owner, a new buffer
         assert any(s.topic_name == "/tf" for s in again.subscriptions)
-        assert len(_SHARED) == 1
+        assert getattr(again.context, _ATTRIBUTE).owner is again
         again.destroy_node()
         source.destroy_node()
     finally:

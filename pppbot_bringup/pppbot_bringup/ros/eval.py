@@ -263,22 +263,25 @@ class Run:
 
     def _serialize(self, node: EvalNode, thread: threading.Thread, progress: Progress) -> None:
         """Have the slam node write its pose graph (``map.posegraph``, what ``serialize_map``
-        writes): the graph, keyframes and scans, for a later session or an offline replay."""
+        writes): the graph, keyframes and scans, for a later session or an offline replay. A
+        by-product: when it cannot be written the run says so and goes on (no ``posegraph``)."""
         progress.message("serializing the pose graph")
         future = node.serialize()
         deadline = time.monotonic() + FINAL_MAP_TIMEOUT_S
         while not future.done():
             node.spin_pending(0.05)
-            if self.interrupted or not thread.is_alive() or time.monotonic() > deadline:
-                self.recording.failure = self.recording.failure or (
-                    "interrupted" if self.interrupted else "no reply from /slam_toolbox/serialize_map within "
-                                                          f"{FINAL_MAP_TIMEOUT_S:.0f} s")
+            if self.interrupted:
+                self.recording.failure = self.recording.failure or "interrupted"
+                return
+            if not thread.is_alive() or time.monotonic() > deadline:
+                progress.message("no pose graph: /slam_toolbox/serialize_map did not answer within "
+                                 f"{FINAL_MAP_TIMEOUT_S:.0f} s")
                 return
         reply = future.result()
-        if not reply.success:
-            self.recording.failure = f"/slam_toolbox/serialize_map failed: {reply.message}"
-            return
-        self.recording.posegraph = str((self.out / "map.posegraph").resolve())
+        if reply.success:
+            self.recording.posegraph = str((self.out / "map.posegraph").resolve())
+        else:
+            progress.message(f"no pose graph: /slam_toolbox/serialize_map failed: {reply.message}")
 
 
 def _nav2_parameter(node: str, name: str, default: float) -> float:

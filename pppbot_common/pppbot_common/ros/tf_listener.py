@@ -7,10 +7,8 @@ use their costmap's buffer, instead of each taking every ``/tf`` message.
 from __future__ import annotations
 
 import functools
-import weakref
 from typing import Callable
 
-from rclpy.context import Context
 from rclpy.node import Node
 from tf2_msgs.msg import TFMessage
 
@@ -31,9 +29,10 @@ class TfListener:
 
     def __init__(self, node: Node, warn: Warnings, cache_s: float = 10.0,
                  on_tf: Callable[[], None] | None = None, needs_static: bool = False) -> None:
-        shared = _SHARED.get(node.context)
+        shared = getattr(node.context, _ATTRIBUTE, None)
         if shared is None or not shared.alive():
-            shared = _SHARED[node.context] = _Shared(node, warn, cache_s)
+            shared = _Shared(node, warn, cache_s)
+            setattr(node.context, _ATTRIBUTE, shared)  # lives as long as the context, no longer
         shared.buffer.cache_s = max(shared.buffer.cache_s, cache_s)
         shared.add(node, on_tf, require(node, "the static transforms (/tf_static)") if needs_static else None)
         self.buffer = shared.buffer
@@ -41,7 +40,9 @@ class TfListener:
 
 class _Shared:
     """The process's buffer and subscriptions (made by the first node that listens, ``owner``),
-    and what each listening node wants told."""
+    and what each listening node wants told. The owner is to be destroyed last (composed
+    processes destroy their nodes in reverse order of making): once it is gone, the buffer
+    no longer fills, and the next listener made starts a new one."""
 
     def __init__(self, owner: Node, warn: Warnings, cache_s: float) -> None:
         self.buffer = TransformBuffer(cache_s=cache_s)
@@ -88,5 +89,6 @@ class _Shared:
             arrived()
 
 
-#: The shared listener of each context (a process's nodes share the default one).
-_SHARED: weakref.WeakKeyDictionary[Context, _Shared] = weakref.WeakKeyDictionary()
+#: The attribute of an rclpy context that holds its shared listener (a process's nodes share the
+#: default context).
+_ATTRIBUTE = "_pppbot_tf_listener"
