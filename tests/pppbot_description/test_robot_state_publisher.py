@@ -2,6 +2,7 @@
 bad input, and republishing when the parameter changes."""
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 
@@ -160,14 +161,24 @@ def test_rate_limit_by_message_time(ros_node, spawn):
     t0 = msg.header.stamp.sec
     sub_msgs: list[TFMessage] = []
     sub = ros_node.create_subscription(TFMessage, "/tf", sub_msgs.append, QoSProfile(depth=50))
-    # A new subscription misses what is published before discovery matches it to the publisher.
-    wait_until(lambda: sub.get_publisher_count() > 0, 10, "the /tf subscription to match", node=ros_node)
-    for sec, nsec in ((t0, 500_000_000), (t0 + 1, 0)):
+
+    def joint_state(sec: int, nsec: int = 0) -> None:
         m = JointState(name=["left_wheel_joint"], position=[0.1])
         m.header.stamp.sec, m.header.stamp.nanosec = sec, nsec
         pub.publish(m)
-    wait_until(lambda: any(x.transforms[0].header.stamp.sec == t0 + 1 for x in sub_msgs), 10, "the t0 + 1 s /tf",
-               node=ros_node)
-    stamps = [(x.transforms[0].header.stamp.sec, x.transforms[0].header.stamp.nanosec) for x in sub_msgs]
-    assert (t0, 500_000_000) not in stamps and (t0 + 1, 0) in stamps
+
+    def stamps() -> list[tuple[int, int]]:
+        return [(x.transforms[0].header.stamp.sec, x.transforms[0].header.stamp.nanosec) for x in sub_msgs]
+
+    # A new subscription misses what is published before discovery matches it, on both sides:
+    # a whole second later each time (every one published) until one comes through.
+    sent: list[int] = []
+    seconds = itertools.count(t0 + 1)
+    wait_until(lambda: (sent.append(next(seconds)), joint_state(sent[-1]), bool(stamps()))[2], 20,
+               "the /tf subscription to match", node=ros_node)
+    t1 = sent[-1]  # the last one published: the next within a second must not be
+    for sec, nsec in ((t1, 500_000_000), (t1 + 1, 0)):
+        joint_state(sec, nsec)
+    wait_until(lambda: (t1 + 1, 0) in stamps(), 10, "the t1 + 1 s /tf", node=ros_node)
+    assert (t1, 500_000_000) not in stamps()
     ros_node.destroy_subscription(sub)
