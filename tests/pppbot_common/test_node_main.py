@@ -164,8 +164,21 @@ def test_composed_nodes_share_one_tf_listener_and_each_hears_of_new_transforms()
             return heard[0] > 0 and heard[1] > 0
         spin_until(both_heard, "both nodes told of /tf")
         assert listeners[1].buffer.lookup("odom", "laser", 1.0)[0] == pytest.approx(1.1)
+        with pytest.raises(ValueError, match="cache_s"):  # a later listener's cache is checked too
+            TfListener(late, Warnings(late), cache_s=float("nan"))
+        # A composed node destroyed before the owner is no longer told; the owner's node still is.
+        executor.remove_node(nodes[1])
+        nodes[1].destroy_node()
+        before = dict(heard)
+
+        def owner_heard_again() -> bool:
+            dynamic_pub.publish(transform("odom", "base_link", 2.0, sec=2))
+            return heard[0] > before[0]
+        spin_until(owner_heard_again, "the owner's node told of /tf after the other was destroyed")
+        assert heard[1] == before[1]
+        assert [node for node, _ in getattr(late.context, _ATTRIBUTE)._on_tf] == [nodes[0]]
         executor.shutdown()
-        for node in (*nodes, late):
+        for node in (nodes[0], late):
             node.destroy_node()
         again = Node("listening_again")
         assert TfListener(again, Warnings(again)).buffer is not listeners[0].buffer  # a new owner, a new buffer

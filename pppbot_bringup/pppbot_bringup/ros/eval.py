@@ -278,10 +278,13 @@ class Run:
                                  f"{FINAL_MAP_TIMEOUT_S:.0f} s")
                 return
         reply = future.result()
-        if reply.success:
-            self.recording.posegraph = str((self.out / "map.posegraph").resolve())
-        else:
+        path = self.out / "map.posegraph"  # where map_save_name (slam_params) has it written
+        if not reply.success:
             progress.message(f"no pose graph: /slam_toolbox/serialize_map failed: {reply.message}")
+        elif not path.is_file():  # another slam node answered, or its parameters were not ours
+            progress.message(f"no pose graph: the slam node answered '{reply.message}' but {path} is not there")
+        else:
+            self.recording.posegraph = str(path.resolve())
 
 
 def _nav2_parameter(node: str, name: str, default: float) -> float:

@@ -7,6 +7,7 @@ use their costmap's buffer, instead of each taking every ``/tf`` message.
 from __future__ import annotations
 
 import functools
+import math
 from typing import Callable
 
 from rclpy.node import Node
@@ -29,6 +30,8 @@ class TfListener:
 
     def __init__(self, node: Node, warn: Warnings, cache_s: float = 10.0,
                  on_tf: Callable[[], None] | None = None, needs_static: bool = False) -> None:
+        if not (math.isfinite(cache_s) and cache_s > 0):  # checked here too: a later listener only widens
+            raise ValueError(f"cache_s must be a positive number of seconds, not {cache_s}")
         shared = getattr(node.context, _ATTRIBUTE, None)
         if shared is None or not shared.alive():
             shared = _Shared(node, warn, cache_s)
@@ -58,7 +61,7 @@ class _Shared:
     def alive(self) -> bool:
         """Whether the owner (and so the subscriptions) still exists: a process may make nodes
         again after destroying the first ones (tests do)."""
-        return bool(self.owner.handle.pointer)
+        return _exists(self.owner)
 
     def add(self, node: Node, on_tf: Callable[[], None] | None, static_arrived: Callable[[], None] | None) -> None:
         if on_tf is not None:  # guarded by its own node: its error is that node's to report, and the others go on
@@ -78,6 +81,8 @@ class _Shared:
 
     def _dynamic(self, msg: TFMessage) -> None:
         self._store(msg, static=False)
+        if not all(_exists(node) for node, _ in self._on_tf):  # a composed node destroyed before the owner
+            self._on_tf = [(node, on_tf) for node, on_tf in self._on_tf if _exists(node)]
         for node, on_tf in self._on_tf:
             in_step(node, on_tf)
 
@@ -87,6 +92,10 @@ class _Shared:
         waiting, self._static_waiting = self._static_waiting, []
         for arrived in waiting:
             arrived()
+
+
+def _exists(node: Node) -> bool:
+    return bool(node.handle.pointer)
 
 
 #: The attribute of an rclpy context that holds its shared listener (a process's nodes share the

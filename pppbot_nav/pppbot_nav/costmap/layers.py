@@ -173,7 +173,8 @@ class InflationLayer:
         """The cost every cell gets from its nearest ``lethal`` cell. Where the lethal cells are
         those of the last call but for a few, only the cells within the inflation radius of a
         changed one are computed again (from the lethal cells within the radius of those):
-        the global costmap takes one scan's worth of changes a second, not a whole map's."""
+        the global costmap takes one scan's worth of changes a second, not a whole map's. The
+        array is read-only: the layer keeps it for the next call."""
         last = self._spread
         if last is None or last[1] != resolution or last[0].shape != lethal.shape:
             cost = self._spread_over(lethal, resolution)
@@ -191,6 +192,7 @@ class InflationLayer:
             around = self._spread_over(lethal[s0:s1, t0:t1], resolution)
             cost = last[2].copy()
             cost[r0:r1, c0:c1] = around[r0 - s0:r1 - s0, c0 - t0:c1 - t0]
+        cost.flags.writeable = False
         self._spread = (lethal.copy(), resolution, cost)
         return cost
 
