@@ -9,6 +9,7 @@ from __future__ import annotations
 import faulthandler
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -61,6 +62,48 @@ def dump_stacks_on_signal() -> None:
             return
         except (AttributeError, ValueError, OSError):  # no file descriptor (captured, closed)
             continue
+
+
+def group_stacks(pgid: int, timeout_s: float = 30.0) -> str:
+    """Where each Python process in process group ``pgid`` is now (``py-spy dump --native``), as
+    text to append to a report about a child that stopped making progress: a hang before the
+    child's own stack dump is installed (imports, ``rclpy.init``, DDS discovery) shows too.
+    Empty when py-spy is not installed or the group is gone."""
+    py_spy = shutil.which("py-spy") or os.path.join(os.path.dirname(sys.executable), "py-spy")
+    if not os.access(py_spy, os.X_OK):
+        return ""
+    parts = []
+    for pid in _group_members(pgid):
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                cmdline = f.read().replace(b"\0", b" ").decode(errors="replace").strip()
+        except OSError:
+            continue
+        if "python" not in cmdline:
+            continue
+        try:
+            dump = subprocess.run([py_spy, "dump", "--native", "--pid", str(pid)], capture_output=True,
+                                  text=True, errors="replace", timeout=timeout_s)
+            text = dump.stdout + dump.stderr
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            text = f"py-spy failed: {exc}"
+        parts.append(f"\n--- stacks of {pid} ({cmdline[:200]}):\n{text}")
+    return "".join(parts)
+
+
+def _group_members(pgid: int) -> list[int]:
+    members = []
+    for entry in os.listdir("/proc") if os.path.isdir("/proc") else ():
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        if len(fields) > 2 and int(fields[2]) == pgid:
+            members.append(int(entry))
+    return members
 
 
 def block_stop_signals() -> None:
@@ -186,11 +229,13 @@ class ChildProcess:
                 ended = self.proc.poll() is not None and not self._reader.is_alive()
                 if remaining <= 0 or ended:
                     why = f"it exited with {self.proc.returncode}" if ended else f"{timeout_s:.1f} s passed"
-                    raise TimeoutExpired(
-                        f"{self.name}: {len(matches)} of {count} output lines matched {regex.pattern!r} "
-                        f"({why}); output was:\n" + "\n".join(self._lines[-40:])
-                    )
+                    message = (f"{self.name}: {len(matches)} of {count} output lines matched {regex.pattern!r} "
+                               f"({why}); output was:\n" + "\n".join(self._lines[-40:]))
+                    break
                 self._changed.wait(timeout=min(remaining, 0.5))
+        if not ended:
+            message += group_stacks(self.proc.pid)
+        raise TimeoutExpired(message)
 
     def wait(self, timeout_s: float) -> int:
         """Wait for the child to exit on its own; return its exit code.

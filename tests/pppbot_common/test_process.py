@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import shlex
 import signal
 import sys
 import textwrap
@@ -95,3 +96,12 @@ def test_wait_times_out_on_a_running_child():
         with pytest.raises(TimeoutExpired, match="still running"):
             child.wait(0.2)
     assert not child.running()
+
+
+def test_a_child_that_prints_nothing_in_time_is_reported_with_where_it_is():
+    # A bash wrapper runs the Python process, as ./pppbot does: the report looks through the group.
+    code = "import time\ndef stuck_here():\n    time.sleep(60)\nprint('started', flush=True)\nstuck_here()"
+    with ChildProcess(["bash", "-c", f"{sys.executable} -c {shlex.quote(code)}; true"]) as child:
+        child.wait_for_output("started", 10)
+        with pytest.raises(TimeoutExpired, match=r"0 of 1 output lines matched 'ready'(?s:.*)stuck_here"):
+            child.wait_for_output("ready", 0.5)
