@@ -141,8 +141,9 @@ def _controller() -> Any:
     return from_values(DiffDriveParameters, document["diff_drive_base_controller"]["ros__parameters"])
 
 
-def _planar(translation: np.ndarray, rotation: Any) -> np.ndarray:
-    return np.array([translation[0], translation[1], rotation.as_euler("xyz")[2]])
+def _planar(translation: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """(x, y, yaw) of a pose given as a translation and a rotation matrix."""
+    return np.array([translation[0], translation[1], np.arctan2(rotation[1, 0], rotation[0, 0])])
 
 
 def _cross_track_m(points: np.ndarray, route: np.ndarray) -> np.ndarray:

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 from typing import Iterable, Mapping
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from transforms3d.euler import euler2quat
+from transforms3d.quaternions import axangle2quat, qmult, quat2mat, rotate_vector
 
 from pppbot_description.urdf_model import Joint, JointType, Origin, RobotModel
 
@@ -28,17 +29,19 @@ class FrameTransform:
     rotation: Quaternion
 
 
-def origin_rotation(origin: Origin) -> Rotation:
-    """URDF rpy: roll about x, then pitch about y, then yaw about z, all fixed axes."""
-    return Rotation.from_euler("xyz", origin.rpy)
+def origin_rotation(origin: Origin) -> np.ndarray:
+    """URDF rpy (roll about x, then pitch about y, then yaw about z, all fixed axes) as a
+    quaternion (w, x, y, z): transforms3d's order, not the message's."""
+    roll, pitch, yaw = origin.rpy
+    return euler2quat(roll, pitch, yaw, "sxyz")
 
 
 def _as_tuple3(v: np.ndarray) -> Vector3:
     return (float(v[0]), float(v[1]), float(v[2]))
 
 
-def _as_quaternion(r: Rotation) -> Quaternion:
-    x, y, z, w = r.as_quat()
+def _as_quaternion(wxyz: np.ndarray) -> Quaternion:
+    w, x, y, z = wxyz
     return (float(x), float(y), float(z), float(w))
 
 
@@ -46,11 +49,13 @@ def joint_transform(joint: Joint, position: float = 0.0, frame_prefix: str = "")
     """The parent ← child transform of ``joint`` at ``position`` (rad or m)."""
     rotation = origin_rotation(joint.origin)
     translation = np.asarray(joint.origin.xyz, dtype=float)
-    axis = np.asarray(joint.axis, dtype=float)
+    motion = np.asarray(joint.axis, dtype=float) * position
     if joint.type in (JointType.REVOLUTE, JointType.CONTINUOUS):
-        rotation = rotation * Rotation.from_rotvec(axis * position)
+        angle = float(np.linalg.norm(motion))
+        if angle > 0.0:
+            rotation = qmult(rotation, axangle2quat(motion / angle, angle, is_normalized=True))
     elif joint.type is JointType.PRISMATIC:
-        translation = translation + rotation.apply(axis * position)
+        translation = translation + rotate_vector(motion, rotation)
     return FrameTransform(frame_prefix + joint.parent, frame_prefix + joint.child,
                           _as_tuple3(translation), _as_quaternion(rotation))
 
@@ -88,14 +93,14 @@ class KinematicTree:
             out.append(joint_transform(joint, position, self.frame_prefix))
         return out
 
-    def link_poses(self, positions: Mapping[str, float] | None = None) -> dict[str, tuple[np.ndarray, Rotation]]:
-        """Each link's pose in the root frame (translation, rotation); unset joints at 0."""
+    def link_poses(self, positions: Mapping[str, float] | None = None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Each link's pose in the root frame (translation, 3×3 rotation matrix); unset joints at 0."""
         positions = positions or {}
-        poses: dict[str, tuple[np.ndarray, Rotation]] = {self.model.root: (np.zeros(3), Rotation.identity())}
+        poses: dict[str, tuple[np.ndarray, np.ndarray]] = {self.model.root: (np.zeros(3), np.eye(3))}
         for joint in self.model.walk():
             q = positions.get(joint.name, 0.0) if joint.type.moves else 0.0
             t = joint_transform(joint, q)
             parent_t, parent_r = poses[joint.parent]
-            poses[joint.child] = (parent_t + parent_r.apply(t.translation),
-                                  parent_r * Rotation.from_quat(t.rotation))
+            x, y, z, w = t.rotation
+            poses[joint.child] = (parent_t + parent_r @ np.asarray(t.translation), parent_r @ quat2mat([w, x, y, z]))
         return poses

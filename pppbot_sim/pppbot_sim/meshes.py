@@ -1,17 +1,21 @@
-"""Mesh files (STL, OBJ, COLLADA .dae) as vertex and face arrays, via trimesh."""
+"""Mesh files (STL, OBJ, COLLADA .dae) as vertex and face arrays, via trimesh.
+
+trimesh is imported on the first mesh read: with it (and the scipy modules it brings) a
+simulator takes about 80 MB more, which a world of boxes and cylinders has no use for."""
 from __future__ import annotations
 
 import functools
 from pathlib import Path
 
 import numpy as np
-import trimesh
 
 from pppbot_sim.errors import WorldError
 
 
 @functools.lru_cache(maxsize=64)
 def _load(path: str) -> tuple[np.ndarray, np.ndarray]:
+    import trimesh
+
     try:
         loaded = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for bad files

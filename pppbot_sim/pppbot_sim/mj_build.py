@@ -19,7 +19,8 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation
+from transforms3d.euler import euler2quat
+from transforms3d.quaternions import mat2quat
 
 from pppbot_description.urdf_model import Geometry, Joint, JointType, Origin, RobotModel
 from pppbot_sim.errors import SpawnError, WorldError
@@ -71,8 +72,12 @@ class RobotHandles:
 
 
 def quat_wxyz(matrix: np.ndarray) -> list[float]:
-    x, y, z, w = Rotation.from_matrix(matrix).as_quat()
-    return [w, x, y, z]
+    return [float(v) for v in mat2quat(matrix)]
+
+
+def rpy_quat_wxyz(roll: float, pitch: float, yaw: float) -> list[float]:
+    """URDF/SDF rpy (about fixed x, then y, then z) as MuJoCo's quaternion (w, x, y, z)."""
+    return [float(v) for v in euler2quat(roll, pitch, yaw, "sxyz")]
 
 
 # -------------------------------------------------------------------- world
@@ -168,7 +173,7 @@ def mjcf_world_spec(path: Path) -> mujoco.MjSpec:
 
 # -------------------------------------------------------------------- robot
 def _origin_pose(origin: Origin) -> tuple[list[float], list[float]]:
-    return list(origin.xyz), quat_wxyz(Rotation.from_euler("xyz", origin.rpy).as_matrix())
+    return list(origin.xyz), rpy_quat_wxyz(*origin.rpy)
 
 
 def _add_robot_geom(spec: mujoco.MjSpec, body: mujoco.MjsBody, name: str, geometry: Geometry, origin: Origin,
@@ -241,7 +246,7 @@ def add_robot(spec: mujoco.MjSpec, model: RobotModel, pose: SpawnPose, name: str
     prefix = f"{name}/"
     root = model.root
     base = spec.worldbody.add_body(name=f"{prefix}{root}", pos=[pose.x, pose.y, pose.z],
-                                   quat=quat_wxyz(Rotation.from_euler("z", pose.yaw).as_matrix()))
+                                   quat=rpy_quat_wxyz(0.0, 0.0, pose.yaw))
     handles = RobotHandles(name=name, root_body=f"{prefix}{root}", free_joint=f"{prefix}free")
     base.add_freejoint(name=handles.free_joint)
     _link_body(spec, base, model, root, handles, prefix)

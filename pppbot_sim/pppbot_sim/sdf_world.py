@@ -16,6 +16,7 @@ ignored; anything else is reported by name and line in ``World.warnings``.
 """
 from __future__ import annotations
 
+import math
 import os
 from collections import Counter
 from dataclasses import dataclass, field
@@ -24,7 +25,9 @@ from typing import Iterable
 
 import numpy as np
 from lxml import etree
-from scipy.spatial.transform import Rotation
+from transforms3d.axangles import axangle2mat
+from transforms3d.euler import euler2mat
+from transforms3d.quaternions import quat2mat
 
 from pppbot_sim.errors import WorldError
 
@@ -86,9 +89,20 @@ class World:
         return "skipped " + ", ".join(parts)
 
 
+def z_onto(direction: np.ndarray) -> np.ndarray:
+    """The shortest rotation taking +z onto ``direction`` (nonzero), as a matrix."""
+    n = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    axis = np.cross([0.0, 0.0, 1.0], n)
+    sin = float(np.linalg.norm(axis))
+    if sin < 1e-12:  # along z already, or against it: half a turn about x
+        return np.eye(3) if n[2] > 0 else np.diag([1.0, -1.0, -1.0])
+    return axangle2mat(axis / sin, math.atan2(sin, float(n[2])), is_normalized=True)
+
+
 def pose_matrix(xyz: Iterable[float], rpy: Iterable[float]) -> np.ndarray:
     t = np.eye(4)
-    t[:3, :3] = Rotation.from_euler("xyz", list(rpy)).as_matrix()
+    roll, pitch, yaw = rpy
+    t[:3, :3] = euler2mat(roll, pitch, yaw, "sxyz")  # URDF/SDF rpy: about fixed x, then y, then z
     t[:3, 3] = list(xyz)
     return t
 
@@ -146,8 +160,12 @@ class _Reader:
             self.warn(element, f"<pose relative_to='{relative}'> is read as relative to its parent", file)
         values = self.floats(element, (6, 7), file)
         if len(values) == 7 or element.get("rotation_format") == "quat_xyzw":
+            if len(values) != 7 or not any(values[3:7]):
+                raise self.fail(element, f"<pose rotation_format='quat_xyzw'> needs x y z qx qy qz qw with a "
+                                         f"nonzero quaternion, not '{(element.text or '').strip()}'", file)
+            qx, qy, qz, qw = values[3:7]
             t = np.eye(4)
-            t[:3, :3] = Rotation.from_quat(values[3:7]).as_matrix()
+            t[:3, :3] = quat2mat([qw, qx, qy, qz])
             t[:3, 3] = values[:3]
             return t
         rpy = np.radians(values[3:]) if element.get("degrees") == "true" else values[3:]
@@ -329,10 +347,10 @@ class _Reader:
             normal = np.array(self.floats(normal_el, 3, file) if normal_el is not None else [0.0, 0.0, 1.0])
             size_el = g.find("size")
             size = tuple(self.floats(size_el, 2, file)) if size_el is not None else (100.0, 100.0)
-            # Rotate the plane's +z onto its normal.
-            align, _ = Rotation.align_vectors([normal / np.linalg.norm(normal)], [[0.0, 0.0, 1.0]])
+            if not np.linalg.norm(normal) > 0.0:
+                raise self.fail(normal_el if normal_el is not None else g, "<plane><normal> must not be 0 0 0", file)
             turn = np.eye(4)
-            turn[:3, :3] = align.as_matrix()
+            turn[:3, :3] = z_onto(normal)
             pose = pose @ turn
         elif g.tag == "mesh":
             uri = self.child(g, "uri", file)

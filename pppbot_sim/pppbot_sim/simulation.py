@@ -15,7 +15,6 @@ from typing import Mapping
 
 import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_description.urdf_model import RobotModel, Sensor
@@ -27,7 +26,7 @@ from pppbot_sim.mj_build import (
     WheelDrive,
     add_robot,
     mjcf_world_spec,
-    quat_wxyz,
+    rpy_quat_wxyz,
     world_spec,
 )
 from pppbot_sim.sdf_world import World, read_sdf_world
@@ -246,8 +245,7 @@ class Simulation:
             raise SpawnError(f"sensor '{sensor}' is on link '{link}', which the robot does not have")
         site = f"{robot}/sensor/{sensor}"
         x, y, z, roll, pitch, yaw = pose
-        w_, x_, y_, z_ = quat_wxyz(Rotation.from_euler("xyz", [roll, pitch, yaw]).as_matrix())
-        body.add_site(name=site, pos=[x, y, z], quat=[w_, x_, y_, z_])
+        body.add_site(name=site, pos=[x, y, z], quat=rpy_quat_wxyz(roll, pitch, yaw))
         return site
 
     # --------------------------------------------------------------- stepping

@@ -42,7 +42,7 @@ def test_link_poses_agree_with_yourdfpy(independent):
         expected = independent.get_transform(link, "base_link")
         translation, rotation = poses[link]
         np.testing.assert_allclose(translation, expected[:3, 3], atol=1e-9, err_msg=link)
-        np.testing.assert_allclose(rotation.as_matrix(), expected[:3, :3], atol=1e-9, err_msg=link)
+        np.testing.assert_allclose(rotation, expected[:3, :3], atol=1e-9, err_msg=link)
 
 
 @pytest.mark.parametrize("link, xyz", [
@@ -65,14 +65,14 @@ def test_wheel_axes_point_the_same_way_in_base_link():
     for side in ("left", "right"):
         joint = MODEL.joints[f"{side}_wheel_joint"]
         assert joint.type is JointType.CONTINUOUS
-        axis_in_base = poses[f"{side}_wheel"][1].apply(joint.axis)
+        axis_in_base = poses[f"{side}_wheel"][1] @ joint.axis
         np.testing.assert_allclose(axis_in_base, (0.0, 1.0, 0.0), atol=1e-12)
 
 
 def test_optical_frame_looks_along_base_x():
     _, rotation = KinematicTree(MODEL).link_poses()["camera_link_optical"]
-    np.testing.assert_allclose(rotation.apply([0, 0, 1]), [1, 0, 0], atol=1e-12)  # z forward
-    np.testing.assert_allclose(rotation.apply([1, 0, 0]), [0, -1, 0], atol=1e-12)  # x right
+    np.testing.assert_allclose(rotation @ [0, 0, 1], [1, 0, 0], atol=1e-12)  # z forward
+    np.testing.assert_allclose(rotation @ [1, 0, 0], [0, -1, 0], atol=1e-12)  # x right
 
 
 def test_every_physical_link_has_visual_collision_and_inertial():

@@ -157,6 +157,10 @@ def world_text(body: str) -> str:
     ('<physics><max_step_size>0.5</max_step_size></physics>', r"max_step_size 0\.5 s must be in \(0, 0\.1\]"),
     ('<model name="m"><static>true</static><link name="l"><collision name="c"><geometry>'
      '<box><size>1 -1 1</size></box></geometry></collision></link></model>', r"sizes must be positive"),
+    ('<model name="m"><static>true</static><pose rotation_format="quat_xyzw">0 0 0 0 0 0 0</pose></model>',
+     r"quat_xyzw'> needs x y z qx qy qz qw with a nonzero quaternion, not '0 0 0 0 0 0 0'"),
+    ('<model name="m"><static>true</static><link name="l"><collision name="c"><geometry>'
+     '<plane><normal>0 0 0</normal></plane></geometry></collision></link></model>', r"<normal> must not be 0 0 0"),
 ])
 def test_bad_worlds_name_file_line_and_element(tmp_path, body, message):
     (tmp_path / "w.sdf").write_text(world_text(body))
@@ -187,3 +191,18 @@ def test_unknown_world_lists_the_known_ones():
     assert find_world("maze.sdf") == find_world("maze")
     with pytest.raises(WorldError, match=r"world file 'mars.sdf' not found \(known worlds in .*: cones, empty"):
         find_world("mars.sdf")
+
+
+@pytest.mark.parametrize("normal", [(0, 0, 1), (0, 0, -1), (1, 0, 0), (0.3, -0.4, 0.5)])
+def test_a_plane_turns_its_z_onto_its_normal_and_a_quaternion_pose_reads_as_xyzw(tmp_path, normal):
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    q = Rotation.from_euler("z", 30, degrees=True).as_quat()  # x y z w
+    (tmp_path / "w.sdf").write_text(world_text(
+        f'<model name="m"><static>true</static><pose rotation_format="quat_xyzw">1 2 3 {" ".join(map(str, q))}</pose>'
+        f'<link name="l"><collision name="c"><geometry><plane><normal>{" ".join(map(str, normal))}</normal>'
+        f'</plane></geometry></collision></link></model>'))
+    (plane,) = read_sdf_world(tmp_path / "w.sdf").static_shapes
+    model = Rotation.from_quat(q).as_matrix()
+    np.testing.assert_allclose(plane.pose[:3, 3], [1, 2, 3], atol=1e-12)
+    np.testing.assert_allclose(plane.pose[:3, :3] @ [0, 0, 1], model @ n, atol=1e-12)
+    np.testing.assert_allclose(plane.pose[:3, :3] @ plane.pose[:3, :3].T, np.eye(3), atol=1e-12)
