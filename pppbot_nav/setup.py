@@ -26,6 +26,7 @@ setup(
             'controller_server = pppbot_nav.ros.controller_server:main',
             'navigator = pppbot_nav.ros.navigator:main',
             'navigation = pppbot_nav.ros.navigation:main',
+            'localization = pppbot_nav.ros.localization:main',
         ],
     },
 )

@@ -5,10 +5,11 @@ The ROS side (readiness probes, running the plan) is ``pppbot_bringup.ros.launch
 Start order, each step waiting for real readiness (a first message, not a sleep):
 simulator (first /clock; the robot's controllers run in its process, as gz_ros2_control
 runs them in Gazebo) → robot_state_publisher (/robot_description) → twist_mux → mapping or
-localization → navigation (planner, controller, navigator; one process, as Nav2 composes
-them, unless ``use_composition:=false``) → RViz (when on PATH) →
-keyboard teleop. With ``lockstep:=true`` the nodes on the data path are lockstep
-participants: each is ready once it has joined (time starts when all have).
+localization (map_server and amcl; one process) → navigation (planner, controller,
+navigator; one process) → RViz (when on PATH) → keyboard teleop. The processes of several
+nodes are Nav2's composition (``use_composition:=false``: a process per node). With
+``lockstep:=true`` the nodes on the data path are lockstep participants: each is ready once
+it has joined (time starts when all have).
 """
 from __future__ import annotations
 
@@ -30,8 +31,9 @@ ARGUMENTS = [
     Argument("use_slam", True, "with localization:=false, map with the SLAM node (false: drive on odometry only)"),
     Argument("navigation", "auto", "planner_server, controller_server and navigator (auto: with localization:=true)",
              choices=("auto", "true", "false")),
-    Argument("use_composition", True, "navigation's three nodes in one process, as Nav2's bringup composes its "
-                                      "servers (false: a process each)"),
+    Argument("use_composition", True, "map_server and amcl in one process (localization), the navigation nodes "
+                                      "in another (navigation), as Nav2's bringup composes its servers "
+                                      "(false: a process each)"),
     Argument("slam_params_file", "", "the slam node's parameters; default config/mapper_params_online_async.yaml"),
     Argument("use_teleop", True, "keyboard teleop in this terminal (other nodes' output goes to log files)"),
     Argument("use_rviz", True, "start rviz2 with config/ppp_bot.rviz when rviz2 is on PATH"),
@@ -160,19 +162,30 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
             raise ArgumentError(f"localization:=true needs a map; {map_file} does not exist "
                                 f"(save one while mapping, or give map:=path/to/map.yaml)")
         nav2_params = config / "nav2_params.yaml"
-        nodes.append(NodeSpec("map_server", [resolve("pppbot_nav", "map_server"), *ros_args(
-            level, {"yaml_filename": map_file.resolve()}, params_file=nav2_params)],
-            after=("simulator",), required=True, pppbot_node=True,
-            ready=ReadyCheck("/map", probes.first_message("/map", "nav_msgs/msg/OccupancyGrid", True))))
         # AMCL starts where the robot was spawned (the shipped maps' frame is the world's, the
         # spawn pose of a map made with the default spawn); RViz's 2D Pose Estimate moves it.
-        amcl_params, amcl_ready = participant("amcl", "an initial pose",
-                                              ReadyCheck("an initial pose", output_pattern=r"initial pose \("))
         # The launch's seed seeds AMCL's particles too: one seed makes the whole run repeatable.
-        nodes.append(NodeSpec("amcl", [resolve("pppbot_nav", "amcl"), *ros_args(level, {
-            "set_initial_pose": True, "initial_pose.x": values["x"], "initial_pose.y": values["y"],
-            "initial_pose.yaw": values["yaw"], "seed": values["seed"], **amcl_params}, params_file=nav2_params)],
-            after=("map_server", "robot_state_publisher"), required=True, pppbot_node=True, ready=amcl_ready))
+        server_params = {"yaml_filename": map_file.resolve()}
+        amcl_params = {"set_initial_pose": True, "initial_pose.x": values["x"], "initial_pose.y": values["y"],
+                       "initial_pose.yaw": values["yaw"], "seed": values["seed"]}
+        amcl_ready = ReadyCheck("an initial pose", output_pattern=r"initial pose \(")
+        if values["use_composition"]:
+            # One process, as Nav2 composes its servers; each parameter goes to its own node.
+            extra, localized = participant("localization", "an initial pose", amcl_ready)
+            scoped = {**{f"map_server:{k}": v for k, v in server_params.items()},
+                      **{f"amcl:{k}": v for k, v in amcl_params.items()}, **extra}
+            nodes.append(NodeSpec("localization", [resolve("pppbot_nav", "localization"), *ros_args(
+                level, scoped, params_file=nav2_params)],
+                after=("robot_state_publisher",), required=True, pppbot_node=True, ready=localized))
+        else:
+            nodes.append(NodeSpec("map_server", [resolve("pppbot_nav", "map_server"), *ros_args(
+                level, server_params, params_file=nav2_params)],
+                after=("simulator",), required=True, pppbot_node=True,
+                ready=ReadyCheck("/map", probes.first_message("/map", "nav_msgs/msg/OccupancyGrid", True))))
+            extra, localized = participant("amcl", "an initial pose", amcl_ready)
+            nodes.append(NodeSpec("amcl", [resolve("pppbot_nav", "amcl"), *ros_args(
+                level, {**amcl_params, **extra}, params_file=nav2_params)],
+                after=("map_server", "robot_state_publisher"), required=True, pppbot_node=True, ready=localized))
         notes.append(f"localizing on {map_file}")
     elif values["use_slam"]:
         slam_params = Path(values["slam_params_file"] or config / "mapper_params_online_async.yaml")
@@ -187,7 +200,8 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
         nodes.append(NodeSpec("slam_toolbox", [resolve("pppbot_slam", "slam"), *ros_args(
             level, slam_params_lockstep, params_file=slam_params)],
             after=("robot_state_publisher",), required=True, pppbot_node=True, ready=slam_ready))
-    localizer = "amcl" if values["localization"] else "slam_toolbox" if values["use_slam"] else None
+    localizer = (("localization" if values["use_composition"] else "amcl") if values["localization"]
+                 else "slam_toolbox" if values["use_slam"] else None)
     if values["navigation"] == "true" or (values["navigation"] == "auto" and values["localization"]):
         if localizer is None:
             raise ArgumentError("navigation:=true needs a map frame: localization:=true or use_slam:=true")

@@ -157,7 +157,7 @@ def test_navigation_scenario_reaches_random_goals_judged_on_ground_truth(spawn, 
     assert np.allclose(goals[:, 0], [r["start_s"] for r in results], atol=1e-3)
     assert report["ate_rms_m"] < 0.1  # AMCL along the way
     assert report["plots"] == ["trajectory.png"]
-    for log in ("navigation-1.log", "amcl-1.log"):  # navigation: the composed planner, controller, navigator
+    for log in ("navigation-1.log", "localization-1.log"):  # composed: planner, controller, navigator; map_server, amcl
         assert (out / "logs" / log).is_file()
     assert "process has died" not in output
 

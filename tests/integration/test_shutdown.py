@@ -25,10 +25,11 @@ RUNS = 20
 #: loaded machine a node still importing when the stop comes can need more, and any escalation
 #: fails the test anyway; a node that hangs is still named.
 ESCALATION = ("sigterm_timeout:=20", "sigkill_timeout:=10")
-#: Processes of a localization + navigation bringup without teleop and RViz: the navigation nodes
-#: composed (the default), or each its own (``use_composition:=false``, every fourth run).
-NODES = ("simulator", "robot_state_publisher", "twist_mux", "map_server", "amcl", "navigation")
-SEPARATE_NODES = (*NODES[:-1], "planner_server", "controller_server", "navigator")
+#: Processes of a localization + navigation bringup without teleop and RViz: map_server and amcl
+#: composed, and the navigation nodes (the default), or each its own (``use_composition:=false``,
+#: every fourth run).
+NODES = ("simulator", "robot_state_publisher", "twist_mux", "localization", "navigation")
+SEPARATE_NODES = (*NODES[:3], "map_server", "amcl", "planner_server", "controller_server", "navigator")
 
 
 def _stop_moment(run: int) -> str:
@@ -47,7 +48,7 @@ def test_sigint_ends_every_node_of_the_navigation_bringup_with_exit_code_0(spawn
                         "use_rviz:=false", f"use_composition:={str(not separate).lower()}", *ESCALATION],
                        name=f"launch_sim run {run}")
         if moment == "starting":
-            launch.wait_for_output(r"\[amcl-1\]: process started", 60)
+            launch.wait_for_output(r"\[(amcl|localization)-1\]: process started", 60)
         else:
             launch.wait_for_output(r"ppp_bot is up in 'room'", 90)
             if moment == "running":

@@ -139,9 +139,22 @@ def test_plan_without_terminal_rviz_or_mapping_says_so():
 
 
 def test_localization_serves_the_worlds_map_and_starts_amcl_at_the_spawn_pose_instead_of_slam():
-    p, probes = fake_plan("world:=maze", "localization:=true", "x:=1.5", "yaw:=0.5")
+    # Composed (the default): one process; each parameter is given to its own node.
+    p, _ = fake_plan("world:=maze", "localization:=true", "x:=1.5", "yaw:=0.5")
     by_name = {n.name: n for n in p.nodes}
-    assert "slam_toolbox" not in by_name
+    assert "slam_toolbox" not in by_name and not {"map_server", "amcl"} & by_name.keys()
+    both = " ".join(by_name["localization"].cmd)
+    assert both.startswith("/bin/pppbot_nav/localization ") and "nav2_params.yaml" in both
+    assert f"map_server:yaml_filename:={ROOT / 'maps' / 'maze.yaml'}" in both
+    for scoped in ("amcl:set_initial_pose:=true", "amcl:initial_pose.x:=1.5", "amcl:initial_pose.yaw:=0.5",
+                   "amcl:seed:=0"):  # the launch's seed: AMCL's particles are the same on every run
+        assert scoped in both
+    assert by_name["localization"].after == ("robot_state_publisher",) and by_name["localization"].required
+    assert by_name["navigation"].after == ("localization",)
+    # A process each: the same parameters, unscoped.
+    p, probes = fake_plan("world:=maze", "localization:=true", "x:=1.5", "yaw:=0.5", "use_composition:=false")
+    by_name = {n.name: n for n in p.nodes}
+    assert "slam_toolbox" not in by_name and "localization" not in by_name
     server = " ".join(by_name["map_server"].cmd)
     assert server.startswith("/bin/pppbot_nav/map_server ") and "nav2_params.yaml" in server
     assert f"yaml_filename:={ROOT / 'maps' / 'maze.yaml'}" in server
@@ -149,11 +162,12 @@ def test_localization_serves_the_worlds_map_and_starts_amcl_at_the_spawn_pose_in
     assert amcl.startswith("/bin/pppbot_nav/amcl ") and "nav2_params.yaml" in amcl
     assert "set_initial_pose:=true" in amcl and "initial_pose.x:=1.5" in amcl and "initial_pose.yaw:=0.5" in amcl
     assert by_name["amcl"].after == ("map_server", "robot_state_publisher")
-    assert "seed:=0" in amcl  # the launch's seed: AMCL's particles are the same on every run
+    assert "seed:=0" in amcl
     assert by_name["amcl"].required and by_name["map_server"].required
+    assert by_name["planner_server"].after == ("amcl",)
     assert ("/map", "nav_msgs/msg/OccupancyGrid", True) in probes
     other = {n.name: n for n in fake_plan("localization:=true", f"map:={ROOT / 'maps' / 'room.yaml'}")[0].nodes}
-    assert f"yaml_filename:={ROOT / 'maps' / 'room.yaml'}" in " ".join(other["map_server"].cmd)
+    assert f"yaml_filename:={ROOT / 'maps' / 'room.yaml'}" in " ".join(other["localization"].cmd)
 
 
 def test_lockstep_makes_the_data_path_participants_and_tells_the_simulator_whom_to_wait_for():
@@ -162,10 +176,14 @@ def test_lockstep_makes_the_data_path_participants_and_tells_the_simulator_whom_
     by_name = {n.name: " ".join(n.cmd) for n in p.nodes}
     # robot_state_publisher too: its wheel transforms are on /tf, which lockstep counts.
     # The planner, controller_server and navigator composed in one process: one participant.
-    participants = ["twist_mux", "robot_state_publisher", "amcl", "navigation"]
+    # map_server and amcl composed likewise.
+    participants = ["twist_mux", "robot_state_publisher", "localization", "navigation"]
     for name in participants:
         assert "lockstep:=true" in by_name[name] and f"lockstep_name:={name}" in by_name[name]
-    assert "lockstep" not in by_name["map_server"]  # not on the data path: never waited for
+    apart = {n.name: " ".join(n.cmd) for n in fake_plan("lockstep:=true", "localization:=true",
+                                                        "use_composition:=false")[0].nodes}
+    assert "lockstep_name:=amcl" in apart["amcl"]
+    assert "lockstep" not in apart["map_server"]  # not on the data path: never waited for
     sim = by_name["simulator"]
     assert "lockstep:=true" in sim and "real_time_factor:=0.0" in sim
     assert f"lockstep_participants:={[*participants, 'pppbot_eval']}" in sim
@@ -177,7 +195,7 @@ def test_lockstep_makes_the_data_path_participants_and_tells_the_simulator_whom_
 def test_navigation_is_one_composed_process_unless_use_composition_is_false():
     composed = {n.name: n for n in fake_plan("localization:=true", "lockstep:=true")[0].nodes}
     nav = composed["navigation"]
-    assert nav.cmd[0] == "/bin/pppbot_nav/navigation" and nav.after == ("amcl",) and nav.required
+    assert nav.cmd[0] == "/bin/pppbot_nav/navigation" and nav.after == ("localization",) and nav.required
     assert "lockstep_name:=navigation" in nav.cmd and "nav2_params.yaml" in " ".join(nav.cmd)
     assert not {"planner_server", "controller_server", "navigator"} & composed.keys()
     separate = {n.name: n for n in fake_plan("localization:=true", "lockstep:=true", "use_composition:=false")[0].nodes}
