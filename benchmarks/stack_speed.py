@@ -5,13 +5,14 @@ Runs, one after the other in ``--world`` (default maze), on a DDS domain of its 
 * ``mapping``: ``pppbot eval slam`` in lockstep (simulator with the controller,
   robot_state_publisher, twist_mux, slam, the eval driver) — achieved real-time factor;
 * ``navigation``: ``pppbot eval navigation`` in lockstep (simulator, robot_state_publisher,
-  twist_mux, map_server, amcl, planner_server, controller_server and navigator composed in
-  one process, the eval) — achieved real-time factor and the peak RSS of all of them;
+  twist_mux, map_server and amcl composed in one process (``localization``), planner_server,
+  controller_server and navigator in another (``navigation``), the eval) — achieved
+  real-time factor and the peak RSS of all of them;
 * ``navigation_1x``: the same without lockstep at 1× real time — the navigation nodes'
   CPU while they drive;
 * ``idle_1x`` and ``idle_lockstep_1x``: ``launch_sim localization:=true`` at 1× with no goal,
-  free running and in lockstep paced at 1× (the navigation nodes composed in both, launch_sim's
-  default) — every node's CPU, and
+  free running and in lockstep paced at 1× (``localization`` and ``navigation`` composed in
+  both, launch_sim's default) — every node's CPU, and
   the bringup's memory: the sum of its processes' RSS (the issue's measure, which counts the
   libraries they share once per process) and of their PSS (each shared page counted once).
 

@@ -64,15 +64,19 @@ def dump_stacks_on_signal() -> None:
             continue
 
 
-def group_stacks(pgid: int, timeout_s: float = 30.0) -> str:
-    """Where each Python process in process group ``pgid`` is now (``py-spy dump --native``), as
-    text to append to a report about a child that stopped making progress: a hang before the
-    child's own stack dump is installed (imports, ``rclpy.init``, DDS discovery) shows too.
-    Empty when py-spy is not installed or the group is gone."""
+def group_stacks(pgid: int, timeout_s: float = 15.0, max_processes: int = 4, max_chars: int = 6000) -> str:
+    """Where the Python processes in process group ``pgid`` are now (``py-spy dump``), as text to
+    append to a report about a child that stopped making progress: a hang before the child's own
+    stack dump is installed (imports, ``rclpy.init``, DDS discovery) shows too. At most
+    ``max_processes`` dumps, ``timeout_s`` in all, each cut to ``max_chars``. Native frames when
+    py-spy can unwind them, the Python stack alone when not. Empty when py-spy is not installed
+    or the group is gone. A launch starts its nodes in groups of their own: for a launch, this
+    shows the launch, not its nodes (their output is in the launch's log directory)."""
     py_spy = shutil.which("py-spy") or os.path.join(os.path.dirname(sys.executable), "py-spy")
     if not os.access(py_spy, os.X_OK):
         return ""
-    parts = []
+    deadline = time.monotonic() + timeout_s
+    parts: list[str] = []
     for pid in _group_members(pgid):
         try:
             with open(f"/proc/{pid}/cmdline", "rb") as f:
@@ -81,13 +85,21 @@ def group_stacks(pgid: int, timeout_s: float = 30.0) -> str:
             continue
         if "python" not in cmdline:
             continue
-        try:
-            dump = subprocess.run([py_spy, "dump", "--native", "--pid", str(pid)], capture_output=True,
-                                  text=True, errors="replace", timeout=timeout_s)
+        if len(parts) == max_processes or time.monotonic() >= deadline:
+            parts.append(f"\n--- (more processes in the group not dumped: {timeout_s:g} s or {max_processes} dumps)")
+            break
+        text = ""
+        for native in (["--native"], []):
+            try:
+                dump = subprocess.run([py_spy, "dump", *native, "--pid", str(pid)], capture_output=True, text=True,
+                                      errors="replace", timeout=max(deadline - time.monotonic(), 0.1))
+            except (OSError, subprocess.TimeoutExpired) as exc:
+                text = f"py-spy failed: {exc}"
+                break
             text = dump.stdout + dump.stderr
-        except (OSError, subprocess.TimeoutExpired) as exc:
-            text = f"py-spy failed: {exc}"
-        parts.append(f"\n--- stacks of {pid} ({cmdline[:200]}):\n{text}")
+            if dump.returncode == 0:
+                break
+        parts.append(f"\n--- stacks of {pid} ({cmdline[:200]}):\n{text[:max_chars]}")
     return "".join(parts)
 
 

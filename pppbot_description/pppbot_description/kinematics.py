@@ -3,7 +3,8 @@
 A joint's transform takes child-frame coordinates to parent-frame coordinates:
 ``T = T_origin · T_motion(q)``, with ``T_motion`` a rotation of ``q`` rad about
 the joint axis (revolute, continuous) or a shift of ``q`` m along it (prismatic).
-Rotations are quaternions ``(x, y, z, w)``.
+A :class:`FrameTransform`'s rotation is a quaternion ``(x, y, z, w)``, the messages' order;
+inside, transforms3d's ``(w, x, y, z)``; :meth:`KinematicTree.link_poses` gives matrices.
 """
 from __future__ import annotations
 

@@ -160,7 +160,7 @@ class _Reader:
             self.warn(element, f"<pose relative_to='{relative}'> is read as relative to its parent", file)
         values = self.floats(element, (6, 7), file)
         if len(values) == 7 or element.get("rotation_format") == "quat_xyzw":
-            if len(values) != 7 or not any(values[3:7]):
+            if len(values) != 7 or not np.linalg.norm(values[3:7]) > 1e-6:  # quat2mat reads ~0 as identity
                 raise self.fail(element, f"<pose rotation_format='quat_xyzw'> needs x y z qx qy qz qw with a "
                                          f"nonzero quaternion, not '{(element.text or '').strip()}'", file)
             qx, qy, qz, qw = values[3:7]

@@ -103,5 +103,9 @@ def test_a_child_that_prints_nothing_in_time_is_reported_with_where_it_is():
     code = "import time\ndef stuck_here():\n    time.sleep(60)\nprint('started', flush=True)\nstuck_here()"
     with ChildProcess(["bash", "-c", f"{sys.executable} -c {shlex.quote(code)}; true"]) as child:
         child.wait_for_output("started", 10)
-        with pytest.raises(TimeoutExpired, match=r"0 of 1 output lines matched 'ready'(?s:.*)stuck_here"):
+        with pytest.raises(TimeoutExpired, match=r"0 of 1 output lines matched 'ready'") as failed:
             child.wait_for_output("ready", 0.5)
+    report = str(failed.value)
+    if "Permission" in report or "not permitted" in report:  # py-spy is pinned; ptrace may not be allowed
+        pytest.skip("py-spy may not attach to a process here (ptrace)")
+    assert "stuck_here" in report

@@ -159,6 +159,8 @@ def world_text(body: str) -> str:
      '<box><size>1 -1 1</size></box></geometry></collision></link></model>', r"sizes must be positive"),
     ('<model name="m"><static>true</static><pose rotation_format="quat_xyzw">0 0 0 0 0 0 0</pose></model>',
      r"quat_xyzw'> needs x y z qx qy qz qw with a nonzero quaternion, not '0 0 0 0 0 0 0'"),
+    ('<model name="m"><static>true</static><pose rotation_format="quat_xyzw">0 0 0 1e-9 0 0 1e-9</pose></model>',
+     r"quat_xyzw'> needs x y z qx qy qz qw with a nonzero quaternion"),
     ('<model name="m"><static>true</static><link name="l"><collision name="c"><geometry>'
      '<plane><normal>0 0 0</normal></plane></geometry></collision></link></model>', r"<normal> must not be 0 0 0"),
 ])
