@@ -37,7 +37,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, NoReturn
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -83,19 +83,21 @@ def run_stage(stage: str, world_file: Path, out: Path, arguments: list[str], res
         # suite passes the interrupt on.
         proc.send_signal(signal.SIGINT)
         proc.wait()
-        shutil.rmtree(out, ignore_errors=True)
-        raise SystemExit(f"autonomy_suite: interrupted in eval {stage} of {world_file.stem}; "
-                         "--resume goes on from there") from None
+        _stop_interrupted(stage, world_file, out)
     if not report_file.is_file():
         tail = stderr.strip().splitlines()[-5:]
         return {"ok": False, "failure": f"eval {stage} exited {proc.returncode} without a report: "
                                         + " | ".join(tail)}
     report = dict(json.loads(report_file.read_text()))
     if report.get("failure") == "interrupted":  # the eval alone was signalled: the suite stops too
-        shutil.rmtree(out, ignore_errors=True)  # not a result: --resume runs it again
-        raise SystemExit(f"autonomy_suite: eval {stage} in {world_file.stem} was interrupted; "
-                         "--resume goes on from there")
+        _stop_interrupted(stage, world_file, out)
     return report
+
+
+def _stop_interrupted(stage: str, world_file: Path, out: Path) -> NoReturn:
+    """End the suite after an interrupted stage, whose output is no result: --resume runs it again."""
+    shutil.rmtree(out, ignore_errors=True)
+    raise SystemExit(f"autonomy_suite: eval {stage} in {world_file.stem} was interrupted; --resume goes on from there")
 
 
 def _round(value: Any, digits: int = 4) -> Any:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import Iterable, Mapping
 
 import numpy as np
-from transforms3d.euler import euler2quat
+from transforms3d.euler import euler2mat, euler2quat
 from transforms3d.quaternions import axangle2quat, qmult, quat2mat, rotate_vector
 
 from pppbot_description.urdf_model import Joint, JointType, Origin, RobotModel
@@ -30,11 +30,25 @@ class FrameTransform:
     rotation: Quaternion
 
 
+#: URDF's and SDF's rpy in transforms3d's terms: roll about x, then pitch about y, then yaw
+#: about z, all fixed ("static") axes.
+RPY_AXES = "sxyz"
+
+
+def rpy_quaternion(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """URDF/SDF rpy as a quaternion (w, x, y, z): transforms3d's and MuJoCo's order, not the
+    messages'."""
+    return euler2quat(roll, pitch, yaw, RPY_AXES)
+
+
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """URDF/SDF rpy as a 3×3 rotation matrix."""
+    return euler2mat(roll, pitch, yaw, RPY_AXES)
+
+
 def origin_rotation(origin: Origin) -> np.ndarray:
-    """URDF rpy (roll about x, then pitch about y, then yaw about z, all fixed axes) as a
-    quaternion (w, x, y, z): transforms3d's order, not the message's."""
-    roll, pitch, yaw = origin.rpy
-    return euler2quat(roll, pitch, yaw, "sxyz")
+    """A URDF origin's rotation as a quaternion (w, x, y, z)."""
+    return rpy_quaternion(*origin.rpy)
 
 
 def _as_tuple3(v: np.ndarray) -> Vector3:

@@ -19,9 +19,9 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from transforms3d.euler import euler2quat
 from transforms3d.quaternions import mat2quat
 
+from pppbot_description.kinematics import rpy_quaternion
 from pppbot_description.urdf_model import Geometry, Joint, JointType, Origin, RobotModel
 from pppbot_sim.errors import SpawnError, WorldError
 from pppbot_sim.meshes import load_mesh
@@ -76,8 +76,8 @@ def quat_wxyz(matrix: np.ndarray) -> list[float]:
 
 
 def rpy_quat_wxyz(roll: float, pitch: float, yaw: float) -> list[float]:
-    """URDF/SDF rpy (about fixed x, then y, then z) as MuJoCo's quaternion (w, x, y, z)."""
-    return [float(v) for v in euler2quat(roll, pitch, yaw, "sxyz")]
+    """URDF/SDF rpy as MuJoCo's quaternion (w, x, y, z)."""
+    return [float(v) for v in rpy_quaternion(roll, pitch, yaw)]
 
 
 # -------------------------------------------------------------------- world

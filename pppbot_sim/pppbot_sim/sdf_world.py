@@ -26,9 +26,9 @@ from typing import Iterable
 import numpy as np
 from lxml import etree
 from transforms3d.axangles import axangle2mat
-from transforms3d.euler import euler2mat
 from transforms3d.quaternions import quat2mat
 
+from pppbot_description.kinematics import rpy_matrix
 from pppbot_sim.errors import WorldError
 
 SKIPPED = {"gui", "plugin", "light"}
@@ -102,7 +102,7 @@ def z_onto(direction: np.ndarray) -> np.ndarray:
 def pose_matrix(xyz: Iterable[float], rpy: Iterable[float]) -> np.ndarray:
     t = np.eye(4)
     roll, pitch, yaw = rpy
-    t[:3, :3] = euler2mat(roll, pitch, yaw, "sxyz")  # URDF/SDF rpy: about fixed x, then y, then z
+    t[:3, :3] = rpy_matrix(roll, pitch, yaw)
     t[:3, 3] = list(xyz)
     return t
 
