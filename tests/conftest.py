@@ -15,7 +15,7 @@ import os
 import sys
 from pathlib import Path
 from types import ModuleType
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Generator, Iterator
 
 import pytest
 
@@ -38,9 +38,23 @@ def pytest_report_header(config: pytest.Config) -> str:
 _started: list[ChildProcess] = []
 
 
+#: Lines of each spawned child's output a failed test shows (a launch's include its nodes').
+FAILED_OUTPUT_LINES = 80
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Generator[None, Any, None]:
+    """Keep each phase's report on the test item, for fixtures that act on a failure."""
+    outcome = yield
+    report = outcome.get_result()
+    setattr(item, f"report_{report.when}", report)
+
+
 @pytest.fixture
-def spawn() -> Iterator[Callable[..., ChildProcess]]:
-    """Start a child: ``spawn(cmd, name=..., timeouts=...)``; stopped after the test."""
+def spawn(request: pytest.FixtureRequest) -> Iterator[Callable[..., ChildProcess]]:
+    """Start a child: ``spawn(cmd, name=..., timeouts=...)``; stopped after the test. When the
+    test fails, the end of each child's output is printed (pytest shows it with the failure):
+    a wait that timed out says little of why."""
     mine: list[ChildProcess] = []
 
     def start(cmd: list[str], name: str | None = None, timeouts: StopTimeouts = StopTimeouts(3.0, 3.0),
@@ -53,6 +67,11 @@ def spawn() -> Iterator[Callable[..., ChildProcess]]:
     yield start
     for child in reversed(mine):
         child.stop()
+    report = getattr(request.node, "report_call", None)
+    if report is not None and report.failed:
+        for child in mine:
+            lines = child.output.splitlines()[-FAILED_OUTPUT_LINES:]
+            print(f"---- the last {len(lines)} lines of {child.name}'s output:\n" + "\n".join(lines))
 
 
 @pytest.fixture(scope="session")
