@@ -18,6 +18,9 @@ from pppbot_common.ros.lockstep import count_deliveries, create_timer, require_m
 from pppbot_common.ros.node_main import guarded, run_node
 from pppbot_control.mux import MuxConfigError, TwistMux, parse_config
 
+#: How often input timeouts are checked. In lockstep the check fires at the first sync time
+#: after its deadline (a scan's, 10 Hz, or another participant's timer) without making one:
+#: a timeout is noticed at most a scan period late, and adds no steps of its own.
 CHECK_RATE_HZ = 20.0
 
 
@@ -54,7 +57,7 @@ class TwistMuxNode(Node):
                                                             self._input_callback(spec.name), 10))
         for lock in locks:
             count_deliveries(self, self.create_subscription(Bool, lock.topic, self._lock_callback(lock.name), 10))
-        create_timer(self, 1.0 / CHECK_RATE_HZ, self.check)
+        create_timer(self, 1.0 / CHECK_RATE_HZ, self.check, wakes=False)
         summary = ", ".join(f"{s.name} ({s.topic}, priority {s.priority}, {s.timeout_s:g} s)" for s in inputs)
         self.get_logger().info(f"inputs: {summary}" + (f"; locks: {', '.join(l.name for l in locks)}" if locks else ""))
 

@@ -154,20 +154,19 @@ class Coordinator:
 
     # ------------------------------------------------------------------ steps
     def sync(self, process: Process, t_ns: int, readings: bool = True, timers: bool = True) -> None:
-        """Steps at ``t_ns`` until no participant has anything left to do at this time: first, when
-        ``readings`` (the simulator published what participants handle in steps, such as a scan),
-        rounds that handle them; then, when ``timers``, a round that runs the timers due and the
-        rounds their messages need. Timers thus never race the handling of this time's readings.
+        """Steps at ``t_ns`` until no participant has anything left to do at this time. The first
+        step has the simulator's readings (``readings``: it published what participants handle in
+        steps, such as a scan) and, when ``timers``, says so: each participant handles the
+        readings, then runs its timers due (one round for both: what either sends is held for the
+        next round anyway, so a timer never sees another participant's answer to this time's
+        readings). Rounds follow while anyone sends.
 
         Raises:
             LockstepTimeout: a participant did not answer within ``timeout_s`` wall seconds.
         """
         self.steps += 1
-        self._round_index = 0
-        if readings and not self._rounds(process, t_ns, timers=False):
-            return
-        if timers:
-            self._rounds(process, t_ns, timers=True)
+        if readings or timers:
+            self._rounds(process, t_ns, timers=timers)
 
     def _rounds(self, process: Process, t_ns: int, timers: bool) -> bool:
         """Steps at ``t_ns`` until nobody sends (the first with ``timers``); False when stopping."""
@@ -180,7 +179,7 @@ class Coordinator:
                 return True
             self.publications.want(self.deliveries.topics())
             topics = self.publications.next_topics()
-            values: dict[str, Any] = {"seq": seq, **stamp_values(t_ns, "stamp"), "round": self._round_index,
+            values: dict[str, Any] = {"seq": seq, **stamp_values(t_ns, "stamp"), "round": index,
                       "timers": timers and index == 0}
             # What was published before this step, participants' held sends included: they go out
             # as the participants get the step (see pppbot_common.ros.lockstep_counting.Outbox).
@@ -188,7 +187,6 @@ class Coordinator:
             if topics:
                 values["published"] = totals
             self.step_pub.publish(self._step_wire(topics).serialize(values))
-            self._round_index += 1
             sends = COUNTERS.sends
             self.rounds += 1
             self._wait_for_answers(process, seq, t_ns)
