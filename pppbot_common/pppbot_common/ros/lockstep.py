@@ -128,6 +128,8 @@ class Participant:
         self.steps = 0
         self._last_step_ns = 0
         self._timers_ns = -1  # the time timers last ran at
+        #: The current step's timers wait until the process is done with the step's readings.
+        self._timers_due = False
         install_counting()
         self.ack_pub = node.create_publisher(LockstepAck, ACK_TOPIC, PROTOCOL_QOS)
         self._step_topics: tuple[str, ...] = ()
@@ -277,18 +279,31 @@ class Participant:
         self.steps += 1
         t_ns = self._last_step_ns = stamp_ns(msg.stamp)
         self._set_clocks(t_ns)
-        # The step's time for timers (re)started now, before the timers round (a goal's).
+        # The step's time for timers (re)started now, before the timers run (a goal's).
         self.timers.now_ns = max(self.timers.now_ns, t_ns)
         if t_ns > 0:
             OUTBOX.holding = True  # from now on sends go out at the next step (at time 0 they need no order)
         self._run_deferred()
-        if msg.timers and t_ns > self._timers_ns:
+        timers_due = msg.timers and t_ns > self._timers_ns
+        if timers_due:
             self._timers_ns = t_ns
-            for timer in self.timers.advance(t_ns):
-                if not timer.canceled:
-                    self._fire(timer)
         with self._lock:
             self._pending_seq = msg.seq
+            # The timers run once the readings' work is done, a worker thread's included
+            # (:meth:`hold`): a timer sees what its own process made of this time's readings
+            # (SLAM's transform after the scan's match), on every machine.
+            self._timers_due = timers_due
+        self._post_idle_check()
+
+    def _fire_timers_due(self) -> None:
+        """Run the step's timers due (in the executor's thread), then answer once idle again."""
+        with self._lock:
+            if not self._timers_due or self._pending_seq is None or self._holds > 0:
+                return
+            self._timers_due = False
+        for timer in self.timers.advance(self._timers_ns):
+            if not timer.canceled:
+                self._fire(timer)
         self._post_idle_check()
 
     def defer(self, work: Callable[[], None]) -> None:
@@ -328,6 +343,9 @@ class Participant:
         if COUNTERS.tasks != self._task_mark:
             self._post_idle_check()
             return
+        if self._timers_due:
+            self._fire_timers_due()
+            return
         self._answer_if_free()
 
     def hold(self) -> None:
@@ -364,7 +382,12 @@ class Participant:
         with self._lock:
             if self._pending_seq is None or self._holds > 0:
                 return
-            seq, self._pending_seq = self._pending_seq, None
+            timers_due = self._timers_due
+            if not timers_due:
+                seq, self._pending_seq = self._pending_seq, None
+        if timers_due:  # released by a worker thread: the timers run in the executor's (a task is thread-safe)
+            self._executor.create_task(self._fire_timers_due)
+            return
         with OUTBOX.lock:  # the counts answered are those of the sends held so far
             OUTBOX.seal()
             sends = COUNTERS.sends

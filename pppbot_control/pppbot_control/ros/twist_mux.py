@@ -19,8 +19,8 @@ from pppbot_common.ros.node_main import guarded, run_node
 from pppbot_control.mux import MuxConfigError, TwistMux, parse_config
 
 #: How often input timeouts are checked. In lockstep the check fires at the first sync time
-#: after its deadline (a scan's, 10 Hz, or another participant's timer) without making one:
-#: a timeout is noticed at most a scan period late, and adds no steps of its own.
+#: after its deadline (a scan's, 10 Hz by default, or another participant's timer) without
+#: making one: a timeout is noticed at most a scan period late, and adds no steps of its own.
 CHECK_RATE_HZ = 20.0
 
 

@@ -157,9 +157,10 @@ class Coordinator:
         """Steps at ``t_ns`` until no participant has anything left to do at this time. The first
         step has the simulator's readings (``readings``: it published what participants handle in
         steps, such as a scan) and, when ``timers``, says so: each participant handles the
-        readings, then runs its timers due (one round for both: what either sends is held for the
-        next round anyway, so a timer never sees another participant's answer to this time's
-        readings). Rounds follow while anyone sends.
+        readings, its worker threads' work included, then runs its timers due. One round for both:
+        what a participant sends is held for the next round, so its timers see what it made of the
+        readings, and what the others made of them at the next sync time. Rounds follow while
+        anyone sends.
 
         Raises:
             LockstepTimeout: a participant did not answer within ``timeout_s`` wall seconds.

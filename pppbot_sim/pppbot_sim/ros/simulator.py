@@ -419,8 +419,8 @@ class Simulator(Node):
         return sync_s is not None and self.sim.time_s >= sync_s - 0.5 * self.sim.step_s
 
     def _sync(self, process: Process) -> None:
-        """Lockstep at the current time: /clock, then steps until the participants are done (first for
-        what was published since the last sync, if anything, then for the timers)."""
+        """Lockstep at the current time: /clock, then steps until the participants are done (the first
+        for what was published since the last sync, if anything, and for the timers due)."""
         assert self.coordinator is not None
         self._publish_clock()
         self.coordinator.sync(process, self.sim.time_ns, readings=self._published_since_sync)

@@ -1,0 +1,98 @@
+"""A participant's step: the readings' work (a worker thread's too) before the timers, then the answer."""
+from __future__ import annotations
+
+import threading
+from typing import Any, Callable, Iterator
+
+import pytest
+from builtin_interfaces.msg import Time as TimeMsg
+from pppbot_interfaces.msg import LockstepStep
+
+import pppbot_common.ros.lockstep as lockstep
+from pppbot_common.ros.lockstep import Participant
+from pppbot_common.ros.lockstep_counting import OUTBOX
+
+pytestmark = pytest.mark.ros
+
+
+class Tasks:
+    """Stands in for the executor: tasks wait until :meth:`run` (the executor's turn)."""
+
+    def __init__(self) -> None:
+        self.queue: list[Callable[[], None]] = []
+        self.lock = threading.Lock()
+
+    def create_task(self, work: Callable[[], None]) -> None:
+        with self.lock:
+            self.queue.append(work)
+
+    def run(self) -> None:
+        while True:
+            with self.lock:
+                if not self.queue:
+                    return
+                work = self.queue.pop(0)
+            work()
+
+
+@pytest.fixture
+def participant(ros_node: Any, monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[Participant, Tasks, list[Any]]]:
+    answers: list[Any] = []
+    monkeypatch.setattr(lockstep, "_ORIGINAL_PUBLISH", lambda publisher, msg: answers.append(msg))
+    p = Participant.for_node("p", ros_node)
+    tasks = Tasks()
+    p.start(tasks, [])
+    p.joined = True
+    try:
+        yield p, tasks, answers
+    finally:
+        Participant.clear_current()
+        OUTBOX.send_all()
+
+
+def step(seq: int, t_ns: int, timers: bool) -> LockstepStep:
+    return LockstepStep(seq=seq, stamp=TimeMsg(sec=t_ns // 10**9, nanosec=t_ns % 10**9), round=0, timers=timers)
+
+
+def test_timers_wait_for_the_work_a_reading_handed_to_a_worker_thread(
+        participant: tuple[Participant, Tasks, list[Any]]) -> None:
+    p, tasks, answers = participant
+    matched: list[str] = []
+    seen_by_timer: list[list[str]] = []
+    p.timers.create(0.05, lambda: seen_by_timer.append(list(matched)))
+
+    def match() -> None:  # SLAM's worker thread
+        matched.append("scan at 0.05 s")
+        p.release()
+
+    def scan_arrived() -> None:  # what SLAM's scan callback does at the step: hand the scan to its worker
+        p.hold()
+        threading.Timer(0.05, match).start()
+
+    p.defer(scan_arrived)
+    p._on_step(step(1, 50_000_000, timers=True))
+    tasks.run()
+    assert seen_by_timer == [] and answers == []  # the worker still has the scan: no timer, no answer
+    for _ in range(100):
+        if matched:
+            break
+        threading.Event().wait(0.01)
+    tasks.run()  # the worker's release asked the executor's thread to run the timers, then to answer
+    assert seen_by_timer == [["scan at 0.05 s"]]
+    assert len(answers) == 1
+
+
+def test_without_timers_due_the_step_is_answered_once_the_work_is_done(
+        participant: tuple[Participant, Tasks, list[Any]]) -> None:
+    p, tasks, answers = participant
+    fired: list[int] = []
+    p.timers.create(0.05, lambda: fired.append(1))
+    p._on_step(step(1, 50_000_000, timers=False))
+    tasks.run()
+    assert fired == [] and len(answers) == 1
+    p._on_step(step(2, 50_000_000, timers=True))  # the timers' round at the same time
+    tasks.run()
+    assert fired == [1] and len(answers) == 2
+    p._on_step(step(3, 50_000_000, timers=True))  # never twice at one time
+    tasks.run()
+    assert fired == [1] and len(answers) == 3
