@@ -169,15 +169,15 @@ class Coordinator:
         if readings or timers:
             self._rounds(process, t_ns, timers=timers)
 
-    def _rounds(self, process: Process, t_ns: int, timers: bool) -> bool:
-        """Steps at ``t_ns`` until nobody sends (the first with ``timers``); False when stopping."""
+    def _rounds(self, process: Process, t_ns: int, timers: bool) -> None:
+        """Steps at ``t_ns`` until nobody sends (the first with ``timers``) or the process stops."""
         for index in range(MAX_ROUNDS):
             before = set(self.barrier.members)
             seq, _ = self.barrier.start_step(t_ns)
             if self.barrier.members != before:
                 self.publish_status(t_ns)  # a joiner learns it is waited for before its first step
             if not self.barrier.members:
-                return True
+                return
             self.publications.want(self.deliveries.topics())
             topics = self.publications.next_topics()
             values: dict[str, Any] = {"seq": seq, **stamp_values(t_ns, "stamp"), "round": index,
@@ -192,16 +192,16 @@ class Coordinator:
             self.rounds += 1
             self._wait_for_answers(process, seq, t_ns)
             if not process.running():
-                return False
+                return
             self._wait_for_deliveries(process, t_ns, totals)
             # Every message published before this step has been handled here by now; what was
             # sent during it makes another round (the senders' answers say so).
             if not self.barrier.another_round() and COUNTERS.sends == sends:
-                return True
+                return
             self.extra_rounds += 1
         self.log(f"lockstep: still sending after {MAX_ROUNDS} rounds at t = {t_ns * 1e-9:.3f} s "
                  f"({', '.join(self.barrier.senders()) or 'the simulator'}); time moves on")
-        return True
+        return
 
     def _step_wire(self, topics: tuple[str, ...]) -> MessageTemplate:
         """The step's template for these counted topics (they change only as participants join)."""
