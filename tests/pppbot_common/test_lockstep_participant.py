@@ -6,7 +6,7 @@ from typing import Any, Callable, Iterator
 
 import pytest
 from builtin_interfaces.msg import Time as TimeMsg
-from pppbot_interfaces.msg import LockstepStep
+from pppbot_interfaces.msg import LockstepStatus, LockstepStep
 
 import pppbot_common.ros.lockstep as lockstep
 from pppbot_common.ros.lockstep import Participant
@@ -96,3 +96,29 @@ def test_without_timers_due_the_step_is_answered_once_the_work_is_done(
     p._on_step(step(3, 50_000_000, timers=True))  # never twice at one time
     tasks.run()
     assert fired == [1] and len(answers) == 3
+
+
+def test_a_repeated_step_is_taken_once_and_a_new_simulator_counts_from_one(
+        participant: tuple[Participant, Tasks, list[Any]]) -> None:
+    p, tasks, answers = participant
+    p._on_step(step(1, 0, timers=False))
+    p._on_step(step(1, 0, timers=False))  # the simulator repeats a step until all have answered
+    tasks.run()
+    assert p.steps == 1 and len(answers) == 1
+    p._on_status(LockstepStatus(participants=[]))  # the simulator went; a new one lists us again
+    p._on_status(LockstepStatus(participants=["p"]))
+    p._on_step(step(1, 0, timers=False))
+    tasks.run()
+    assert p.steps == 2 and len(answers) == 2
+
+
+def test_a_step_before_the_listing_is_taken_when_the_listing_comes(
+        participant: tuple[Participant, Tasks, list[Any]]) -> None:
+    p, tasks, answers = participant
+    p.joined = False
+    p._on_step(step(1, 0, timers=False))  # steps and the status come on different topics
+    tasks.run()
+    assert answers == []
+    p._on_status(LockstepStatus(participants=["p"]))
+    tasks.run()
+    assert p.joined and len(answers) == 1

@@ -1,6 +1,7 @@
 """The simulator's rounds at one sync time: readings and timers in one step, more while anyone sends."""
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import pytest
@@ -8,6 +9,7 @@ from pppbot_interfaces.msg import LockstepAck, LockstepStep
 from rclpy.serialization import deserialize_message
 
 from pppbot_common.ros.lockstep import time_msg
+import pppbot_sim.ros.coordinator as coordinator_module
 from pppbot_sim.ros.coordinator import Coordinator
 
 pytestmark = pytest.mark.ros
@@ -69,3 +71,21 @@ def test_a_time_without_timers_due_handles_its_readings_alone(ros_node: Any) -> 
     coordinator, replies = coordinator_with(ros_node, {"slam": [True]})
     coordinator.sync(Running(), 3_000_000_000, readings=True, timers=False)  # type: ignore[arg-type]
     assert [(s.round, s.timers) for s in replies.steps] == [(0, False), (1, False)]
+
+
+def test_a_step_a_participant_missed_is_repeated_until_it_answers(ros_node: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    # The simulator sends a step only to the readers it has discovered: a joiner's may be unknown yet.
+    coordinator, replies = coordinator_with(ros_node, {"navigation": []})
+    published = replies.publish
+    lost: list[Any] = []
+    replies.publish = lost.append  # type: ignore[method-assign,assignment]
+    monkeypatch.setattr(coordinator_module, "STEP_REPEAT_S", 0.01)
+    monkeypatch.setattr(coordinator_module, "_ORIGINAL_PUBLISH", lambda publisher, wire: published(wire))
+
+    class Waiting(Running):
+        def spin_once(self, timeout_s: float = 0.0) -> None:
+            time.sleep(0.005)
+
+    coordinator.sync(Waiting(), 0, readings=True, timers=False)  # type: ignore[arg-type]
+    assert len(lost) == 1 and coordinator.repeats >= 1
+    assert [s.seq for s in replies.steps] == [1] and coordinator.barrier.complete()

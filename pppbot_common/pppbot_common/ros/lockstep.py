@@ -20,7 +20,8 @@ What a participant does, on the protocol of :mod:`pppbot_common.lockstep`:
   action's goal), and no work held by a thread (:meth:`Participant.hold`). The answer
   says whether the process sent anything since its previous answer (topics, services,
   actions: counted by wrapping rclpy's send methods, so any node composed into the
-  process counts) and when its next timer is due.
+  process counts) and when its next timer is due. The simulator repeats a step until
+  everyone has answered (a joiner's reader may be unknown to it yet); each is taken once.
 
 DDS orders messages per writer only: a scan or a transform published before a step usually,
 not always, arrives before it (most often not on a busy machine). So every publish is
@@ -113,6 +114,7 @@ class Participant:
         self._holds = 0
         self._pending_seq: int | None = None
         self._early_step: LockstepStep | None = None
+        self._last_seq = 0  # the last step taken since joining (the simulator repeats a step until all answer)
         self.deliveries = Receiver.start(self._on_delivery).deliveries
         self._counted_topics: list[str] = []  # as last told to the simulator
         self._waiting_step: LockstepStep | None = None  # until the messages published before it are here
@@ -226,6 +228,7 @@ class Participant:
         joining = listed and not self.joined
         if joining:
             self.node.get_logger().info(f"lockstep: joined as '{self.name}'")
+            self._last_seq = 0  # a simulator started anew counts steps from 1 again
         self.joined = listed
         early, self._early_step = self._early_step, None
         if joining and early is not None:
@@ -249,6 +252,9 @@ class Participant:
         if not self.joined:
             self._early_step = msg  # the simulator may wait for us already (see _on_status)
             return
+        if msg.seq <= self._last_seq:
+            return  # a repeat, for a participant that missed it
+        self._last_seq = msg.seq
         OUTBOX.send_sealed()  # what this process sent in the last round (see Outbox)
         self._step_topics = tuple(msg.topics)
         self.deliveries.expect(msg.topics, msg.published)

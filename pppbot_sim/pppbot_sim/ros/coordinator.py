@@ -31,7 +31,7 @@ from pppbot_common.ros.lockstep import (
     stamp_ns,
     time_msg,
 )
-from pppbot_common.ros.lockstep_counting import COUNTERS, Receiver, install_counting
+from pppbot_common.ros.lockstep_counting import _ORIGINAL_PUBLISH, COUNTERS, Receiver, install_counting
 from pppbot_common.ros.node_main import Process
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 
@@ -44,6 +44,10 @@ HEARTBEAT_S = 0.5
 #: Wall seconds between the steps at time 0 that wait for everyone to settle, and their limit.
 SETTLE_PAUSE_S = 0.05
 SETTLE_TIMEOUT_S = 20.0
+#: Wall seconds between repeats of a step not everyone has answered. A step goes only to the
+#: participants' readers the simulator has discovered: a joiner's may still be unknown to it
+#: (discovery matches each side on its own). Participants ignore a step they have had.
+STEP_REPEAT_S = 1.0
 
 
 class LockstepTimeout(LockstepError):
@@ -59,6 +63,7 @@ class Coordinator:
         self.rounds = 0
         self.steps = 0
         self.extra_rounds = 0
+        self.repeats = 0
         install_counting()  # a reply by one of this process's nodes may need another round too
         self.step_pub = node.create_publisher(LockstepStep, STEP_TOPIC, PROTOCOL_QOS)
         self.publications = Publications()
@@ -187,10 +192,11 @@ class Coordinator:
             totals = self.publications.totals(COUNTERS.published) if topics else []
             if topics:
                 values["published"] = totals
-            self.step_pub.publish(self._step_wire(topics).serialize(values))
+            wire = self._step_wire(topics).serialize(values)
+            self.step_pub.publish(wire)
             sends = COUNTERS.sends
             self.rounds += 1
-            self._wait_for_answers(process, seq, t_ns)
+            self._wait_for_answers(process, seq, t_ns, wire)
             if not process.running():
                 return
             self._wait_for_deliveries(process, t_ns, totals)
@@ -212,9 +218,15 @@ class Coordinator:
                 LockstepStep(topics=list(topics), published=[0] * len(topics)), fields)
         return wire
 
-    def _wait_for_answers(self, process: Process, seq: int, t_ns: int) -> None:
+    def _wait_for_answers(self, process: Process, seq: int, t_ns: int, wire: Any) -> None:
+        """Until every member has answered step ``seq`` (repeated every :data:`STEP_REPEAT_S`)."""
         deadline = time.monotonic() + self.timeout_s
+        repeat = time.monotonic() + STEP_REPEAT_S
         while not self.barrier.complete():
+            if time.monotonic() > repeat:
+                repeat = time.monotonic() + STEP_REPEAT_S
+                self.repeats += 1
+                _ORIGINAL_PUBLISH(self.step_pub, wire)  # not a send of the round's (see _rounds)
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 missing = self.barrier.missing()

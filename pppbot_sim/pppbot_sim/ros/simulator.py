@@ -470,7 +470,8 @@ class Simulator(Node):
         extra = ""
         if self.coordinator is not None:
             c = self.coordinator
-            extra = f"; lockstep: {c.steps} steps, {c.rounds} rounds with {len(c.barrier.members)} participant(s)"
+            extra = (f"; lockstep: {c.steps} steps, {c.rounds} rounds with {len(c.barrier.members)} participant(s)"
+                     + (f", a step repeated {c.repeats} time(s)" if c.repeats else ""))
         self.get_logger().info(f"real-time factor {sim_s / wall_s:.1f}x ({target}), t = {self.sim.time_s:.1f} s"
                                + extra)
 
