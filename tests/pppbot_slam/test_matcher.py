@@ -124,3 +124,29 @@ def test_branch_and_bound_finds_the_exhaustive_best():
     all_scores = np.concatenate([r for _, r in exhaustive])
     assert scores.max() == pytest.approx(all_scores.max())
     assert np.hypot(*(best[:2] - truth[:2])) < 0.15
+
+
+def test_the_refinement_climbs_a_sharper_field_and_finds_the_wall_a_wide_smear_blurs_with_its_double():
+    # The running map holds every wall twice: once where it is, once (half as dense) 4 cm off,
+    # as a keyframe placed 4 cm wrong draws it. At the search's 10 cm smear the two merge into
+    # one peak between them; the refinement's 5 cm field keeps them apart.
+    truth = np.array([0.3, -0.4, 0.7])
+    walls = wall_points(SEGMENTS)
+    drawn_twice = np.vstack([walls, walls[::2] + np.array([0.0, 0.04])])
+    scan = cast(SEGMENTS, truth, noise=0.005)
+    prior = truth + np.array([0.03, 0.02, 0.01])
+    blurred = ScanMatcher(drawn_twice, MatcherSettings(refine_smear_m=0.1)).match(scan, prior)
+    matcher = ScanMatcher(drawn_twice)  # refine_smear_m 0.05 by default
+    sharp = matcher.match(scan, prior)
+    assert np.hypot(*(blurred.pose[:2] - truth[:2])) > 0.01
+    assert np.hypot(*(sharp.pose[:2] - truth[:2])) < 0.003 and abs(sharp.pose[2] - truth[2]) < 0.002
+    # The response stays the search's (the thresholds on it keep their meaning); the sharper
+    # field covers the scan, not the whole map.
+    assert sharp.raw_response == pytest.approx(matcher.response(scan, sharp.pose))
+    field = matcher.refine_field(scan, sharp.pose)
+    assert field.smear_m == 0.05 and field is not matcher.fine
+    near_part = scan[np.hypot(scan[:, 0], scan[:, 1]) < 2.0]
+    assert matcher.refine_field(near_part, sharp.pose).values.size < field.values.size
+    assert ScanMatcher(drawn_twice, MatcherSettings(refine_smear_m=0.2)).refine_field(scan, sharp.pose).smear_m == 0.1
+    with pytest.raises(MatcherError, match="refine_smear_m must be a positive number"):
+        MatcherSettings(refine_smear_m=-0.05)
