@@ -89,6 +89,19 @@ class SlamDataset:
     def scan_period_s(self) -> float:
         return float(np.median(np.diff(self.stamps))) if len(self.stamps) > 1 else 0.1
 
+    def scan_rays(self, i: int) -> Any:
+        """Scan ``i`` as the slam node hands it to the mapper."""
+        from pppbot_slam.occupancy import ScanRays
+
+        return ScanRays.from_laser(self.angle_min, self.angle_increment, self.ranges[i].astype(float),
+                                   self.range_min, self.range_max)
+
+    def truth_in_map(self, first: int) -> np.ndarray:
+        """The true poses (N, 3) in SLAM's map frame: the odom frame at scan ``first``, SLAM's first keyframe."""
+        from pppbot_common.se2 import se2_compose, se2_inverse
+
+        return np.asarray(se2_compose(self.odom[first], se2_compose(se2_inverse(self.truth[first]), self.truth)))
+
 
 def dataset_path(world: str, route: str, seed: int, wheel_slip: float, speed_mps: float = DEFAULT_SPEED_MPS) -> Path:
     speed = "" if speed_mps == DEFAULT_SPEED_MPS else f"_v{speed_mps:g}"

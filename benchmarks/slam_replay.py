@@ -58,9 +58,7 @@ def matcher_overrides(items: list[str]) -> dict[str, float]:
 
 
 def replay(ds: SlamDataset, matcher: dict[str, float]) -> dict[str, Any]:
-    from pppbot_common.se2 import se2_compose, se2_inverse
     from pppbot_slam.mapper import Mapper
-    from pppbot_slam.occupancy import ScanRays
     from pppbot_slam.ros.slam import SlamParameters
 
     settings = SlamParameters().mapper_settings()
@@ -72,9 +70,7 @@ def replay(ds: SlamDataset, matcher: dict[str, float]) -> dict[str, Any]:
     keyframe_scans: list[int] = []
     online: list[np.ndarray] = []
     for i, stamp in enumerate(ds.stamps):
-        rays = ScanRays.from_laser(ds.angle_min, ds.angle_increment, ds.ranges[i].astype(float), ds.range_min,
-                                   ds.range_max)
-        keyframe = mapper.process(float(stamp), ds.odom[i], rays)
+        keyframe = mapper.process(float(stamp), ds.odom[i], ds.scan_rays(i))
         if keyframe is not None:
             keyframe_scans.append(i)
             if settings.do_loop_closing:
@@ -82,7 +78,7 @@ def replay(ds: SlamDataset, matcher: dict[str, float]) -> dict[str, Any]:
         if keyframe_scans:
             online.append(np.asarray(mapper.predict(ds.odom[i]), dtype=float))
     first = keyframe_scans[0]
-    truth = se2_compose(ds.odom[first], se2_compose(se2_inverse(ds.truth[first]), ds.truth))[first:]
+    truth = ds.truth_in_map(first)[first:]
     errors = np.linalg.norm(np.array(online)[:, :2] - truth[:, :2], axis=1)
     final = np.array([mapper.map_pose(k) for k in range(len(keyframe_scans))])
     final_errors = np.linalg.norm(final[:, :2] - truth[np.array(keyframe_scans) - first, :2], axis=1)

@@ -117,16 +117,8 @@ def _stats(values_ms: list[float]) -> dict[str, float]:
             "p95_ms": round(float(np.percentile(a, 95)), 2), "max_ms": round(float(a.max()), 2)}
 
 
-def _rays(ds: SlamDataset, i: int) -> Any:
-    from pppbot_slam.occupancy import ScanRays
-
-    return ScanRays.from_laser(ds.angle_min, ds.angle_increment, ds.ranges[i].astype(float),
-                               ds.range_min, ds.range_max)
-
-
 def run_core(ds: SlamDataset, sim_seconds: float = math.inf) -> CoreResult:
     """Feed the scans of the first ``sim_seconds`` through the mapper; time each keyframe."""
-    from pppbot_common.se2 import se2_compose, se2_inverse
     from pppbot_slam.mapper import Mapper
     from pppbot_slam.ros.slam import SlamParameters
 
@@ -138,7 +130,7 @@ def run_core(ds: SlamDataset, sim_seconds: float = math.inf) -> CoreResult:
         if stamp > ds.stamps[0] + sim_seconds:
             break
         t0 = time.perf_counter()
-        rays = _rays(ds, i)
+        rays = ds.scan_rays(i)
         closures = len(mapper.loop_closures)
         t1 = time.perf_counter()
         keyframe = mapper.process(float(stamp), ds.odom[i], rays)
@@ -164,7 +156,7 @@ def run_core(ds: SlamDataset, sim_seconds: float = math.inf) -> CoreResult:
     result.loop_closures = len(mapper.loop_closures)
     # Final keyframe poses against the truth; the map frame is the odom frame at the first keyframe.
     first = result.keyframes[0].scan
-    truth_in_map = se2_compose(ds.odom[first], se2_compose(se2_inverse(ds.truth[first]), ds.truth))
+    truth_in_map = ds.truth_in_map(first)
     final = np.array([mapper.map_pose(k) for k in range(len(result.keyframes))])
     errors = np.linalg.norm(final[:, :2] - truth_in_map[[k.scan for k in result.keyframes], :2], axis=1)
     result.ate_rms_m, result.ate_max_m = float(np.sqrt(np.mean(errors ** 2))), float(errors.max())

@@ -16,11 +16,11 @@ def replay(load_benchmark):
     return load_benchmark("slam_replay")
 
 
-def ring_drive(dataset_module, truth: np.ndarray, odom: np.ndarray):
+def ring_drive(replay, truth: np.ndarray, odom: np.ndarray):
     angles = beam_angles()
     ranges = np.array([cast_ranges(RING, pose, noise=0.01, seed=k) for k, pose in enumerate(truth)], dtype=np.float32)
     stamps = 0.1 * np.arange(len(truth))
-    return dataset_module.SlamDataset(
+    return replay.SlamDataset(
         world="ring", route="loop", seed=0, wheel_slip=0.0, stamps=stamps, odom=odom, truth=truth, ranges=ranges,
         angle_min=float(angles[0]), angle_increment=float(angles[1] - angles[0]), range_min=0.08, range_max=20.0,
         sensor_offset=np.zeros(3), lidar_frame="lidar", odom_stream_stamps=stamps, odom_stream=odom,
@@ -30,7 +30,7 @@ def ring_drive(dataset_module, truth: np.ndarray, odom: np.ndarray):
 def test_the_slam_pose_is_scored_against_the_truth_while_odometry_drifts(replay):
     truth = ring_path(step_m=0.1)
     odom = drifting_odometry(truth, yaw_per_m=0.01, scale=1.02)
-    result = replay.replay(ring_drive(sys.modules["slam_dataset"], truth, odom), {})
+    result = replay.replay(ring_drive(replay, truth, odom), {})
     odometry_error = np.linalg.norm(odom[-1, :2] - truth[-1, :2])
     assert odometry_error > 0.5
     assert result["online_rms_cm"] < 5.0 and result["online_max_cm"] < 15.0
