@@ -176,6 +176,7 @@ class Slam(Node):
         if p.map_file_name:
             self.mapper = self._load(p.map_file_name)
         self.lock = threading.Lock()  # the mapper: scans write it, the map thread reads it
+        self._diagnostics_lock = threading.Lock()  # one health reading published at a time
         self.paused = False
         self._warn = Warnings(self, WARN_PERIOD_S)
         self.scans = ScanOdometry(self, p.odom_frame, p.base_frame, self._queue, self._warn, p.tf_buffer_duration)
@@ -409,7 +410,15 @@ class Slam(Node):
 
     def publish_diagnostics(self, stamp: Any) -> None:
         """The mapper's health as one DiagnosticStatus (level WARN while lost or when a closure
-        had to be undone, as rqt_robot_monitor and the diagnostic aggregator read it)."""
+        had to be undone, as rqt_robot_monitor and the diagnostic aggregator read it).
+
+        The scan worker and the map thread both publish: reading the health and publishing it
+        under one lock keeps an older reading from going out after a newer one (a "lost" lost
+        behind a stale "mapping", with no later message to correct it while the clock stands)."""
+        with self._diagnostics_lock:
+            self._publish_diagnostics(stamp)
+
+    def _publish_diagnostics(self, stamp: Any) -> None:
         with self.lock:
             health = self.mapper.health()
         status = DiagnosticStatus(name=f"{self.get_name()}: mapping", hardware_id=self.params.scan_topic)
