@@ -20,7 +20,8 @@ The flow of slam_toolbox's (Karto's) mapper, with its parameter names:
 * Along a direction its scan cannot pin (a corridor's length) a keyframe keeps odometry
   (:func:`observable_only`); hits near the range limit are not matched
   (:meth:`Mapper.within_reach`); five unmatched keyframes in a row and it is lost
-  (:data:`LOST_KEYFRAMES`), and says so in :meth:`Mapper.health`.
+  (:data:`LOST_KEYFRAMES`), says so in :meth:`Mapper.health`, and is found again only by a
+  match as good as a loop closure's (``loop_match_minimum_response_fine``).
 * ``map → odom`` is the latest keyframe's map pose composed with the inverse of its
   odometry pose; the grid is rebuilt from the optimised poses on request.
 
@@ -66,6 +67,10 @@ ODOMETRY_STD_PER_M = 0.05
 #: This many keyframes in a row whose scans had something to match but did not match (response
 #: below ``link_match_minimum_response_fine``) and the mapper is lost: it says so, and the
 #: keyframes it places by odometry alone are left out of the map until a scan matches again.
+#: Once lost, a match must reach ``loop_match_minimum_response_fine``: odometry no longer
+#: vouches for the prediction, so finding the robot again is a relocalisation, and the best
+#: pose of a window over scans of clutter can reach the running threshold by chance (a ring
+#: of random hits matched a pillar 0.4 m away at 0.10).
 LOST_KEYFRAMES = 5
 #: Keyframes whose match responses the health report averages.
 HEALTH_WINDOW = 20
@@ -179,6 +184,12 @@ class Mapper:
         """Whether the last :data:`LOST_KEYFRAMES` keyframes found nothing they matched."""
         return self.unmatched >= LOST_KEYFRAMES
 
+    @property
+    def required_response(self) -> float:
+        """The response a running match needs to be taken (see :data:`LOST_KEYFRAMES`)."""
+        s = self.settings
+        return s.loop_match_minimum_response_fine if self.lost else s.link_match_minimum_response_fine
+
     def health(self) -> dict[str, float | int | bool]:
         """How mapping goes: match responses, closures accepted, rejected and undone, the largest
         correction a closure made, whether the mapper is lost (the node's diagnostics)."""
@@ -277,7 +288,7 @@ class Mapper:
         continuing = self._last_of_session() is None  # the first keyframe of a continued map's new run
         near = self.within_reach(points, rays)
         result = self._match_running(points[near], normals[near], predicted)
-        accepted = result is not None and result.response >= self.settings.link_match_minimum_response_fine
+        accepted = result is not None and result.response >= self.required_response
         pose, covariance = predicted, ODOMETRY_ONLY_COVARIANCE
         if accepted and result is not None:
             travel = float(np.hypot(*(predicted[:2] - self.map_pose(index - 1)[:2])))

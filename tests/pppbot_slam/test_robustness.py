@@ -201,6 +201,30 @@ def test_a_mapper_that_matches_nothing_says_it_is_lost_and_leaves_those_scans_ou
     assert keyframe is not None and keyframe.drawn and not mapper.lost
 
 
+def test_a_lost_mapper_is_not_found_again_by_a_chance_match_of_clutter():
+    angles = beam_angles()
+
+    def rays(ranges: np.ndarray) -> ScanRays:
+        return ScanRays.from_laser(float(angles[0]), float(angles[1] - angles[0]), ranges, 0.08, 20.0)
+
+    mapper = Mapper(MapperSettings(do_loop_closing=False))
+    mapper.sensor_offset = np.array([0.05, 0.0, 0.0])
+    for k in range(60):  # the slam node test's drive: 2 m along the room
+        x = min(0.04 * k, 2.0) - 1.0
+        mapper.process(1.0 + 0.1 * k, (x, 0.0, 0.0), rays(cast_ranges(ROOM, np.array([x + 0.05, 0.0, 0.0]))))
+    mapper.start_session()  # mapping on from the saved graph, at its first keyframe (near the pillar)
+    clutter = np.random.default_rng(0)
+    responses = []
+    for k in range(8):
+        mapper.process(41.0 + 0.5 * k, (0.0, -0.3, 0.6 * k + 0.3), rays(clutter.uniform(0.3, 0.5, len(angles))))
+        responses.append(mapper.last_response)
+    # The last ring of clutter fits the pillar 0.3 m off the prediction just above the running
+    # threshold: enough for a keyframe whose odometry vouches for it, not to be found again.
+    assert responses[-1] >= mapper.settings.link_match_minimum_response_fine
+    assert mapper.lost and mapper.unmatched == 8 and not mapper.keyframes[-1].drawn
+    np.testing.assert_allclose(mapper.map_pose(len(mapper.keyframes) - 1)[:2], mapper.map_pose(0)[:2], atol=1e-9)
+
+
 def test_hits_near_the_range_limit_are_not_matched_so_a_long_corridor_does_not_bend(monkeypatch):
     mapper, truth = corridor_run()
     sideways = np.abs(np.array(mapper.graph.poses)[:, 1] - truth[:, 1])

@@ -405,7 +405,8 @@ class Slam(Node):
                 f"around where odometry put them (response below {mapper.settings.link_match_minimum_response_fine}); "
                 "keyframes are placed by odometry alone and left out of the map until a scan matches again")
         else:
-            self.get_logger().info(f"found again at keyframe {index} (t = {stamp:.2f} s): the scan matched the map")
+            self.get_logger().info(f"found again at keyframe {index} (t = {stamp:.2f} s): the scan matched the map "
+                                   f"(response {mapper.last_response:.2f})")
         self.publish_diagnostics(self.get_clock().now().to_msg())
 
     def publish_diagnostics(self, stamp: Any) -> None:
