@@ -43,6 +43,7 @@ from pppbot_slam.loops import LoopChain, LoopSearch, LoopSolution, in_frame_of, 
 from pppbot_slam.matcher import MatcherSettings, MatchResult, ScanMatcher, rotate, scan_normals
 from pppbot_slam.occupancy import LogOddsGrid, OccupancySettings, ScanRays
 from pppbot_slam.pose_graph import PoseGraph
+from pppbot_slam.visibility import view_of
 
 #: Covariance of an edge whose scan could not be matched: odometry alone (m², m², rad²).
 ODOMETRY_ONLY_COVARIANCE = np.diag([0.1 ** 2, 0.1 ** 2, 0.05 ** 2])
@@ -389,12 +390,13 @@ class Mapper:
                 continue  # searched a moment ago without a match: the next keyframes will see more
             self.tried[chain[0]] = index
             world, world_normals = self._world_points(chain)
-            chains.append(LoopChain(np.array(chain), np.array([self.map_pose(i) for i in chain]), world,
-                                    world_normals))
+            poses = np.array([self.map_pose(i) for i in chain])
+            views = tuple(view_of(pose, self.sensor_offset, self.keyframes[i].rays) for i, pose in zip(chain, poses))
+            chains.append(LoopChain(np.array(chain), poses, world, world_normals, views))
         if not chains:
             return None
         return LoopSearch(index, self.map_pose(index).copy(), keyframe.points[near], keyframe.normals[near],
-                          tuple(chains))
+                          tuple(chains), keyframe.rays, self.sensor_offset.copy())
 
     def close_loops(self, index: int) -> None:
         """Search, match and add keyframe ``index``'s loop closures, and optimise (all at once)."""
