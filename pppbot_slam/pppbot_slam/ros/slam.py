@@ -54,7 +54,7 @@ from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.qos import LATCHED, SENSOR
 from pppbot_common.ros.scan_odometry import ScanOdometry
 from pppbot_common.se2 import quaternion_from_yaw
-from pppbot_slam.loops import solve_loops
+from pppbot_slam.loops import LOOP_SEE_THROUGH_MAX, solve_loops
 from pppbot_slam.mapper import LOST_KEYFRAMES, Mapper, MapperError, MapperSettings
 from pppbot_slam.matcher import MatcherError, MatcherSettings
 from pppbot_slam.occupancy import LogOddsGrid, OccupancyError, ScanRays
@@ -331,8 +331,11 @@ class Slam(Node):
             self.get_logger().info(f"the graph solved with keyframe {index}'s closures moved the newest keyframe "
                                    f"{float(np.hypot(moved[0], moved[1])):.3f} m, {float(moved[2]):+.4f} rad")
         if rejected:
+            taken = {id(match) for match in accepted}
+            through = sum(1 for m in matches if id(m) not in taken and m.see_through > LOOP_SEE_THROUGH_MAX)
+            why = f" ({through} whose scans saw through each other's walls)" if through else ""
             self.get_logger().info(f"keyframe {index} (t = {stamp:.2f} s): {rejected} loop match(es) the pose graph "
-                                   "could not agree with, dropped")
+                                   f"could not agree with{why}, dropped")
         for source, target in sorted(solution.undone):
             self.get_logger().warning(f"loop closure of keyframe {target} with {source} undone: the closures since "
                                       "show it was wrong (a place that looks like another)")
