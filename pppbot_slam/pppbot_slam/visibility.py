@@ -8,8 +8,8 @@ A true match has next to none of these (a wall seen from both sides is both seen
 
 :func:`see_through_fraction` counts them both ways between one scan and a set of others, each
 placed in the map. Only beams that returned are believed (a beam without a return may have
-missed a dark or glassy surface), and a beam counts only against a surface it crosses, not one
-it grazes. No ROS here.
+missed a dark or glassy surface), a beam counts only against a surface it crosses, not one
+it grazes, and only surfaces half a metre long or more count (walls, not people). No ROS here.
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from typing import Sequence
 import numpy as np
 
 from pppbot_common.se2 import PoseLike, se2_apply, se2_compose
-from pppbot_slam.matcher import rotate
+from pppbot_slam.matcher import rotate, scan_normals
 from pppbot_slam.occupancy import ScanRays
 
 #: A beam passed a surface when it returned this much beyond it (m): a few cells of the map,
@@ -29,6 +29,9 @@ SEE_THROUGH_TOLERANCE_M = 0.15
 #: A beam crosses a surface (rather than grazing along it) when its direction and the surface
 #: normal are within 60° (|cos| above this): along a wall a beam's path brushes the wall's cells.
 CROSSING_COS = 0.5
+#: Only hits on surfaces this long (m) count: runs of hits less than SURFACE_GAP_M apart.
+MIN_SURFACE_M = 0.5
+SURFACE_GAP_M = 0.3
 #: A beam stands for the directions within this many of its spacings (the edge of a 180° scan).
 BEAM_REACH = 0.75
 
@@ -39,6 +42,26 @@ class View:
 
     sensor_pose: np.ndarray  # (x, y, yaw) in the map
     rays: ScanRays
+
+    def surfaces(self, limit_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """The scan's hits (within ``limit_m``) on surfaces at least :data:`MIN_SURFACE_M` long,
+        in the map, with their normals: runs of consecutive hits less than :data:`SURFACE_GAP_M`
+        apart. A person's legs or a chair's are shorter: they may have moved between the scans."""
+        classes = self.rays.classify(limit_m)
+        order = np.argsort(np.arctan2(self.rays.directions[:, 1], self.rays.directions[:, 0]))
+        hit = order[classes.hit[order]]
+        local = self.rays.directions[hit] * self.rays.ranges_m[hit, None]
+        if len(local) < 3:
+            return np.zeros((0, 2)), np.zeros((0, 2))
+        normals = scan_normals(local, max_gap_m=SURFACE_GAP_M)
+        breaks = np.flatnonzero(np.hypot(*np.diff(local, axis=0).T) >= SURFACE_GAP_M) + 1
+        long_enough = np.zeros(len(local), dtype=bool)
+        for start, stop in zip(np.r_[0, breaks], np.r_[breaks, len(local)]):
+            run = local[start:stop]
+            long_enough[start:stop] = float(np.hypot(*(run[-1] - run[0]))) >= MIN_SURFACE_M
+        yaw = float(self.sensor_pose[2])
+        return (np.asarray(rotate(local[long_enough], yaw)) + self.sensor_pose[:2],
+                np.asarray(rotate(normals[long_enough], yaw)))
 
     def passed(self, points: np.ndarray, normals: np.ndarray, limit_m: float) -> tuple[int, int]:
         """Of ``points`` (map frame, with unit surface ``normals``): how many this scan had in view
@@ -90,12 +113,14 @@ def view_of(base_pose: PoseLike, sensor_offset: PoseLike, rays: ScanRays) -> Vie
     return View(np.asarray(se2_compose(base_pose, sensor_offset), dtype=float), rays)
 
 
-def see_through_fraction(view: View, points: np.ndarray, normals: np.ndarray, others: Sequence[View],
-                         other_points: np.ndarray, other_normals: np.ndarray, limit_m: float) -> float:
-    """The share of hits one side saw that the other side's beams passed through: ``view``
-    against the hits of ``others`` (map frame), and each of ``others`` against ``view``'s hits
-    (``points``, map frame). 0 when nothing was in view of the other."""
-    through, visible = view.passed(other_points, other_normals, limit_m)
+def see_through_fraction(view: View, others: Sequence[View], limit_m: float) -> float:
+    """The share of surface hits one side saw that the other side's beams passed through:
+    ``view`` against the surfaces of ``others``, and each of ``others`` against ``view``'s.
+    0 when nothing was in view of the other."""
+    points, normals = view.surfaces(limit_m)
+    other_surfaces = [other.surfaces(limit_m) for other in others]
+    through, visible = view.passed(np.vstack([p for p, _ in other_surfaces] + [np.zeros((0, 2))]),
+                                   np.vstack([n for _, n in other_surfaces] + [np.zeros((0, 2))]), limit_m)
     for other in others:
         t, v = other.passed(points, normals, limit_m)
         through, visible = through + t, visible + v

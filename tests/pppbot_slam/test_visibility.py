@@ -12,7 +12,7 @@ from pppbot_slam.mapper import MapperSettings
 from pppbot_slam.matcher import rotate, scan_normals
 from pppbot_slam.occupancy import ScanRays
 from pppbot_slam.pose_graph import PoseGraph
-from pppbot_slam.visibility import SEE_THROUGH_TOLERANCE_M, View, view_of
+from pppbot_slam.visibility import SEE_THROUGH_TOLERANCE_M, View, see_through_fraction, view_of
 from slam_synthetic import beam_angles, box, cast_ranges
 
 ANGLES = beam_angles()
@@ -64,6 +64,21 @@ def test_a_point_at_a_walls_end_is_not_passed_by_the_beam_beside_it():
     end = np.array([[1.0, -0.005]])
     through, visible = view.passed(end, np.array([[-1.0, 0.0]]), 20.0)
     assert visible == 1 and through == 0
+
+
+def test_only_surfaces_half_a_metre_long_count_so_a_person_who_walked_off_is_no_wall():
+    # The same room seen twice from the same place; in the first a person (two legs, 12 cm
+    # each) stood 1 m in front of the lidar. The second scan's beams pass where the legs were.
+    legs = np.vstack([box(1.0, -0.2, 1.12, -0.08), box(1.0, 0.08, 1.12, 0.2)])
+    with_person = View(np.zeros(3), rays_at(np.vstack([ROOM4, legs]), np.zeros(3)))
+    without = View(np.zeros(3), rays_at(ROOM4, np.zeros(3)))
+    points, _ = with_person.surfaces(20.0)
+    assert len(points) and not (np.hypot(points[:, 0] - 1.06, points[:, 1]) < 0.3).any()  # no legs
+    assert see_through_fraction(without, [with_person], 20.0) == 0.0
+    # A wall 1 m long where the legs were is one: the empty room's beams pass through it.
+    wall = np.array([[1.0, -0.5, 1.0, 0.5]])
+    with_wall = View(np.zeros(3), rays_at(np.vstack([ROOM4, wall]), np.zeros(3)))
+    assert see_through_fraction(without, [with_wall], 20.0) > 0.05
 
 
 def test_a_half_circle_scan_sees_nothing_behind_it():
