@@ -43,7 +43,7 @@ from pppbot_slam.loops import LoopChain, LoopSearch, LoopSolution, in_frame_of, 
 from pppbot_slam.matcher import MatcherSettings, MatchResult, ScanMatcher, rotate, scan_normals
 from pppbot_slam.occupancy import LogOddsGrid, OccupancySettings, ScanRays
 from pppbot_slam.pose_graph import PoseGraph
-from pppbot_slam.visibility import placed, view_of
+from pppbot_slam.visibility import view_of
 
 #: Covariance of an edge whose scan could not be matched: odometry alone (m², m², rad²).
 ODOMETRY_ONLY_COVARIANCE = np.diag([0.1 ** 2, 0.1 ** 2, 0.05 ** 2])
@@ -313,8 +313,8 @@ class Mapper:
 
     def _world_points(self, indices: list[int]) -> tuple[np.ndarray, np.ndarray]:
         """The keyframes' hits and normals in the map."""
-        each = [placed(self.map_pose(i), self.keyframes[i].points, self.keyframes[i].normals) for i in indices]
-        return np.vstack([points for points, _ in each]), np.vstack([normals for _, normals in each])
+        return (np.vstack([se2_apply(self.map_pose(i), self.keyframes[i].points) for i in indices]),
+                np.vstack([rotate(self.keyframes[i].normals, float(self.map_pose(i)[2])) for i in indices]))
 
     def _distance(self, index: int, pose: np.ndarray) -> float:
         return float(np.hypot(*(self.map_pose(index)[:2] - pose[:2])))

@@ -19,9 +19,9 @@ from typing import Sequence
 
 import numpy as np
 
-from pppbot_common.se2 import PoseLike, se2_apply, se2_compose
+from pppbot_common.se2 import PoseLike, se2_compose
 from pppbot_slam.matcher import rotate, scan_normals
-from pppbot_slam.occupancy import ScanRays
+from pppbot_slam.occupancy import BeamClasses, ScanRays
 
 #: A beam passed a surface when it returned this much beyond it (m): a few cells of the map,
 #: more than a refined match is off by.
@@ -43,12 +43,17 @@ class View:
     sensor_pose: np.ndarray  # (x, y, yaw) in the map
     rays: ScanRays
 
+    def _beams(self, limit_m: float) -> tuple[np.ndarray, np.ndarray, BeamClasses]:
+        """The beams' directions as angles in increasing order, that order, and what each beam does."""
+        angles = np.arctan2(self.rays.directions[:, 1], self.rays.directions[:, 0])
+        order = np.argsort(angles)
+        return angles[order], order, self.rays.classify(limit_m)
+
     def surfaces(self, limit_m: float) -> tuple[np.ndarray, np.ndarray]:
         """The scan's hits (within ``limit_m``) on surfaces at least :data:`MIN_SURFACE_M` long,
         in the map, with their normals: runs of consecutive hits less than :data:`SURFACE_GAP_M`
         apart. A person's legs or a chair's are shorter: they may have moved between the scans."""
-        classes = self.rays.classify(limit_m)
-        order = np.argsort(np.arctan2(self.rays.directions[:, 1], self.rays.directions[:, 0]))
+        _, order, classes = self._beams(limit_m)
         hit = order[classes.hit[order]]
         local = self.rays.directions[hit] * self.rays.ranges_m[hit, None]
         if len(local) < 3:
@@ -72,10 +77,8 @@ class View:
         points = np.asarray(points, dtype=float).reshape(-1, 2)
         if len(points) == 0:
             return 0, 0
-        classes = self.rays.classify(limit_m)
-        angles = np.arctan2(self.rays.directions[:, 1], self.rays.directions[:, 0])
-        order = np.argsort(angles)
-        angles, lengths = angles[order], np.where(classes.hit, classes.length_m, np.nan)[order]
+        angles, order, classes = self._beams(limit_m)
+        lengths = np.where(classes.hit, classes.length_m, np.nan)[order]
         beams = len(angles)
         if beams < 3:
             return 0, 0
@@ -126,8 +129,3 @@ def see_through_fraction(view: View, others: Sequence[View], limit_m: float) -> 
         through, visible = through + t, visible + v
     return through / visible if visible else 0.0
 
-
-def placed(pose: PoseLike, points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Hits and normals of the base frame placed at ``pose`` in the map."""
-    pose = np.asarray(pose, dtype=float)
-    return np.asarray(se2_apply(pose, points)), np.asarray(rotate(normals, float(pose[2])))
