@@ -11,7 +11,7 @@ goes, and one accepted earlier is undone (:class:`LoopSolution`). No ROS here.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -87,7 +87,9 @@ class LoopSearch:
     def run(self, settings: MapperSettings) -> list[LoopMatch]:
         """Each chain matched in the large window (coarse response ≥
         ``loop_match_minimum_response_coarse``, variance ≤ ``loop_match_maximum_variance_coarse``),
-        then finely (response ≥ ``loop_match_minimum_response_fine``)."""
+        then finely (response ≥ ``loop_match_minimum_response_fine``), unpolished: a closure
+        keeps the pose the search found, on which its checks were measured (polished, on the
+        real logs, the closures that got in changed, and no better)."""
         matches = []
         for chain in self.chains:
             coarse = ScanMatcher(chain.points, settings.loop_matcher, chain.normals).match(
@@ -95,8 +97,8 @@ class LoopSearch:
             if (coarse.response < settings.loop_match_minimum_response_coarse
                     or max(coarse.covariance[0, 0], coarse.covariance[1, 1]) > settings.loop_match_maximum_variance_coarse):
                 continue
-            fine = ScanMatcher(chain.points, settings.matcher, chain.normals).match(self.points, coarse.pose,
-                                                                                    self.normals)
+            fine = ScanMatcher(chain.points, replace(settings.matcher, polish_iterations=0), chain.normals).match(
+                self.points, coarse.pose, self.normals)
             if fine.response < settings.loop_match_minimum_response_fine:
                 continue
             k = int(np.argmin(np.hypot(*(chain.poses[:, :2] - fine.pose[:2]).T)))

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from pppbot_common.se2 import se2_apply
-from pppbot_slam.matcher import MatcherError, MatcherSettings, ScanMatcher, normal_classes, scan_normals
+from pppbot_slam.matcher import MatcherError, MatcherSettings, ScanMatcher, normal_classes, rotate, scan_normals
 from slam_synthetic import CORRIDOR, ROOM, cast, wall_points
 
 SEGMENTS = ROOM
@@ -150,3 +150,49 @@ def test_the_refinement_climbs_a_sharper_field_and_finds_the_wall_a_wide_smear_b
     assert ScanMatcher(drawn_twice, MatcherSettings(refine_smear_m=0.2)).refine_field(scan, sharp.pose).smear_m == 0.1
     with pytest.raises(MatcherError, match="refine_smear_m must be a positive number"):
         MatcherSettings(refine_smear_m=-0.05)
+
+
+def seen_map(segments: np.ndarray, poses: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """A running map's points and surface normals: the scans (5 mm noise) of lidars at ``poses``."""
+    points, normals = [], []
+    for seed, pose in enumerate(poses):
+        scan = cast(segments, pose, noise=0.005, seed=10 + seed)
+        points.append(se2_apply(pose, scan))
+        normals.append(rotate(scan_normals(scan), pose[2]))
+    return np.vstack(points), np.vstack(normals)
+
+
+@pytest.mark.parametrize("seed", [0, 2, 4])
+def test_the_polish_fits_the_walls_closer_than_the_likelihood_field(seed):
+    room, room_normals = seen_map(ROOM, [np.zeros(3), np.array([1.0, 0.5, 1.0]), np.array([-1.0, -0.5, 2.0])])
+    truth = np.array([0.3, -0.4, 0.7])
+    scan = cast(ROOM, truth, noise=0.005, seed=seed)
+    prior = truth + np.array([0.03, 0.02, 0.01])
+    errors = []
+    for iterations in (0, 10):
+        result = ScanMatcher(room, MatcherSettings(polish_iterations=iterations), room_normals).match(
+            scan, prior, scan_normals(scan))
+        errors.append((np.hypot(*(result.pose[:2] - truth[:2])), abs(result.pose[2] - truth[2])))
+    (field_m, _), (polished_m, polished_rad) = errors
+    assert field_m > 0.0015 and polished_m < field_m / 2 and polished_rad < 0.0005
+
+
+def test_the_polish_moves_no_further_than_a_fine_step_from_the_search():
+    room, room_normals = seen_map(ROOM, [np.zeros(3), np.array([1.0, 0.5, 1.0])])
+    truth = np.array([0.3, -0.4, 0.7])
+    scan = cast(ROOM, truth, noise=0.005)
+    matcher = ScanMatcher(room, MatcherSettings(fine_resolution_m=0.01), room_normals)
+    # Given a pose 3 cm off, it goes 1 cm (fine_resolution_m) toward the walls and stops.
+    polished = matcher.polish(scan, scan_normals(scan), truth + np.array([0.03, 0.0, 0.0]))
+    assert polished[0] - truth[0] == pytest.approx(0.02, abs=1e-9)
+    assert abs(polished[1] - truth[1]) < 0.002 and abs(polished[2] - truth[2]) < 0.002
+
+
+def test_the_polish_does_not_slide_along_a_featureless_corridor():
+    corridor, corridor_normals = seen_map(CORRIDOR, [np.array([-2.0, 0.0, 0.0]), np.array([2.0, 0.1, 0.0])])
+    truth = np.array([0.0, 0.1, 0.0])
+    scan = cast(CORRIDOR, truth, noise=0.005, max_range=8.0)
+    start = truth + np.array([0.006, 0.006, 0.0])
+    polished = ScanMatcher(corridor, MatcherSettings(), corridor_normals).polish(scan, scan_normals(scan), start)
+    assert polished[0] == pytest.approx(start[0], abs=1e-4)  # along: nothing pins it, it stays
+    assert abs(polished[1] - truth[1]) < 0.002  # across: the walls decide
