@@ -103,6 +103,8 @@ def test_overlap_pairs_are_places_seen_twice(carmen):
 def test_the_parameter_file_describes_the_laser_and_bad_names_are_refused(carmen, tmp_path):
     params = carmen.slam_parameters(carmen.DEFAULT_PARAMS)
     assert params.max_laser_range == 30.0 and params.minimum_travel_distance == 0.0
+    # loop chains as long in metres as the defaults' (10 keyframes 0.5 m apart) at the logs' ~1 m
+    assert params.mapper_settings().loop_match_minimum_chain_size == 5
     bad = tmp_path / "bad.yaml"
     bad.write_text("slam_toolbox:\n  ros__parameters:\n    max_laser_rnage: 30.0\n")
     with pytest.raises(carmen.ParameterError, match="max_laser_rnage"):
