@@ -45,13 +45,14 @@ def matcher_overrides(items: list[str]) -> dict[str, float]:
     from pppbot_slam.matcher import MatcherSettings
 
     names = {f.name for f in dataclasses.fields(MatcherSettings)}
+    counts = {f.name for f in dataclasses.fields(MatcherSettings) if f.type in (int, "int")}
     out: dict[str, float] = {}
     for item in items:
         name, sep, value = item.partition("=")
         if not sep or name not in names:
             raise ValueError(f"--matcher {item!r}: give NAME=VALUE with NAME one of {', '.join(sorted(names))}")
         try:
-            out[name] = int(value) if name == "coarse_points" else float(value)
+            out[name] = int(value) if name in counts else float(value)
         except ValueError:
             raise ValueError(f"--matcher {item!r}: {value!r} is not a number") from None
     return out

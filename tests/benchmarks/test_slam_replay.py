@@ -42,6 +42,8 @@ def test_the_slam_pose_is_scored_against_the_truth_while_odometry_drifts(replay)
 def test_matcher_overrides_name_what_is_wrong(replay):
     assert replay.matcher_overrides(["refine_smear_m=0.1", "coarse_points=50"]) == {"refine_smear_m": 0.1,
                                                                                    "coarse_points": 50}
+    polish = replay.matcher_overrides(["polish_iterations=0"])["polish_iterations"]
+    assert polish == 0 and isinstance(polish, int)  # a count, as range() takes it
     with pytest.raises(ValueError, match="NAME one of"):
         replay.matcher_overrides(["smear=0.1"])
     with pytest.raises(ValueError, match="'x' is not a number"):
