@@ -409,7 +409,7 @@ class ScanMatcher:
         Newton steps only along what the walls pin (so a corridor's length stays put).
 
         The likelihood field's optimum is blurred by its smear and cells; this one is not (a
-        maze drive's keyframe-to-keyframe heading error: 3.3–4.9 → 1.4–2.1 mrad). The search
+        maze drive's keyframe-to-keyframe heading error: 3.3–4.9 → 1.5–2.6 mrad). The search
         has found the optimum to within its fine step (``fine_resolution_m``,
         ``fine_angle_step_rad``), so the polish moves no further than that from ``pose``: where
         it wants to, it follows pairs the search did not see (on the real CARMEN logs, with
