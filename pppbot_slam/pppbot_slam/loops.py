@@ -91,14 +91,13 @@ class LoopSearch:
         keeps the pose the search found, on which its checks were measured (polished, on the
         real logs, the closures that got in changed, and no better)."""
         matches = []
+        wide, near = (replace(m, polish_iterations=0) for m in (settings.loop_matcher, settings.matcher))
         for chain in self.chains:
-            coarse = ScanMatcher(chain.points, settings.loop_matcher, chain.normals).match(
-                self.points, self.pose, self.normals)
+            coarse = ScanMatcher(chain.points, wide, chain.normals).match(self.points, self.pose, self.normals)
             if (coarse.response < settings.loop_match_minimum_response_coarse
                     or max(coarse.covariance[0, 0], coarse.covariance[1, 1]) > settings.loop_match_maximum_variance_coarse):
                 continue
-            fine = ScanMatcher(chain.points, replace(settings.matcher, polish_iterations=0), chain.normals).match(
-                self.points, coarse.pose, self.normals)
+            fine = ScanMatcher(chain.points, near, chain.normals).match(self.points, coarse.pose, self.normals)
             if fine.response < settings.loop_match_minimum_response_fine:
                 continue
             k = int(np.argmin(np.hypot(*(chain.poses[:, :2] - fine.pose[:2]).T)))

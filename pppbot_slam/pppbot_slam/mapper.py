@@ -103,7 +103,7 @@ class MapperSettings:
     matcher: MatcherSettings = MatcherSettings()
     # loop_search_space_dimension 8.0 and its smear 0.03; searched coarsely at 0.1 m
     loop_matcher: MatcherSettings = MatcherSettings(search_size_m=8.0, coarse_resolution_m=0.1, smear_m=0.03,
-                                                    coarse_points=100, polish_iterations=0)
+                                                    coarse_points=100)
     # after a poor running match: every heading, ±0.75 m (see RECOVERY_RESPONSE)
     recovery_matcher: MatcherSettings = MatcherSettings(search_size_m=1.5, search_angle_rad=math.pi)
 

@@ -152,8 +152,7 @@ class SlamParameters:
         loop = MatcherSettings(search_size_m=self.loop_search_space_dimension,
                                fine_resolution_m=self.loop_search_space_resolution,
                                coarse_resolution_m=max(self.loop_search_space_resolution, 0.1),
-                               smear_m=self.loop_search_space_smear_deviation, coarse_points=100, polish_iterations=0,
-                               **common)
+                               smear_m=self.loop_search_space_smear_deviation, coarse_points=100, **common)
         return MapperSettings(
             resolution=self.resolution, max_laser_range=self.max_laser_range,
             minimum_travel_distance=self.minimum_travel_distance, minimum_travel_heading=self.minimum_travel_heading,
