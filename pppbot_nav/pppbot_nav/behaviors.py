@@ -4,7 +4,10 @@ Each behaviour is started at the robot's pose and then stepped with the current 
 time; a step returns the velocity to command, (v m/s, ω rad/s), or None when the behaviour
 has finished. :class:`Spin` turns by ``spin_dist`` (ramping its speed down near the end, as
 Nav2's spin), :class:`BackUp` drives ``backup_dist`` backwards at ``backup_speed``,
-:class:`Wait` stands still; each gives up after ``time_allowance_s``.
+:class:`Wait` stands still; each gives up after ``time_allowance_s``. :func:`collision_ahead`
+says, from the local costmap, when a behaviour must stop short as Nav2's collision check
+would: a spin on a cell within ``robot_radius`` of an obstacle (the footprint circle touches
+it), backing up onto such a cell.
 :class:`RecoveryRoundRobin` is the default tree's RoundRobin: clear the costmaps, spin, wait,
 back up, then again from the start.
 """
@@ -14,6 +17,9 @@ import enum
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+
+from pppbot_common.maps import OccupancyGrid
 from pppbot_common.se2 import wrap_angle
 
 Pose = tuple[float, float, float]
@@ -81,6 +87,38 @@ class Wait:
 
     def step(self, pose: Pose, now_s: float) -> Velocity | None:
         return None if now_s - self._start_s >= self.wait_duration_s else (0.0, 0.0)
+
+
+#: Occupancy values of the published costmap (nav_msgs/OccupancyGrid, 0–100) from which a cell
+#: is inscribed (the robot's centre there puts its footprint circle on an obstacle) or lethal.
+INSCRIBED_OCCUPANCY = 99
+#: How far behind the robot's centre backing up looks (m): about a control period's travel ahead.
+BACKUP_LOOK_BEHIND_M = 0.1
+
+
+def collision_ahead(behavior: Spin | BackUp | Wait, costmap: OccupancyGrid | None, pose: Pose) -> str | None:
+    """Why ``behavior`` must stop at ``pose`` (in the costmap's frame), or None to go on.
+
+    A spin is refused on an inscribed or lethal cell: the footprint circle touches an obstacle,
+    and the body's corners sweep close to it (Nav2's spin fails there with "Collision Ahead").
+    Backing up stops when the cell :data:`BACKUP_LOOK_BEHIND_M` behind the centre is inscribed
+    or lethal. Unknown cells, cells off the costmap and a missing costmap are no reason to stop.
+    """
+    if costmap is None or isinstance(behavior, Wait):
+        return None
+    x, y, yaw = pose
+    where = "at the robot"
+    if isinstance(behavior, BackUp):
+        x, y = x - BACKUP_LOOK_BEHIND_M * math.cos(yaw), y - BACKUP_LOOK_BEHIND_M * math.sin(yaw)
+        where = f"{BACKUP_LOOK_BEHIND_M:g} m behind the robot"
+    row, col = (int(i) for i in costmap.cell_of(np.array(x), np.array(y)))
+    if not (0 <= row < costmap.height and 0 <= col < costmap.width):
+        return None
+    value = int(costmap.data[row, col])
+    if value < INSCRIBED_OCCUPANCY:
+        return None
+    kind = "lethal" if value > INSCRIBED_OCCUPANCY else "inscribed"
+    return f"collision ahead: the cell {where} ({x:.2f}, {y:.2f}) is {kind} (occupancy {value})"
 
 
 class RecoveryRoundRobin:

@@ -176,6 +176,32 @@ def test_a_robot_inside_the_inscribed_zone_may_leave_it_but_not_hit_a_lethal_cel
     assert turn.linear_mps == 0.0 and turn.angular_radps != 0.0
 
 
+def wall_along_x(y_m: float) -> Costmap:
+    """A lethal wall along x at ``y_m`` with its inscribed zone (cell centres within 0.3 m)."""
+    costmap = free_costmap()
+    _, ys = costmap.cell_centres()
+    row, _ = costmap.cell_of(0.0, y_m)
+    wall_y = ys[int(row), 0]
+    costmap.costs[np.abs(ys - wall_y) < DEFAULTS.robot_radius] = INSCRIBED_INFLATED_OBSTACLE
+    costmap.costs[int(row), :] = LETHAL_OBSTACLE
+    return costmap
+
+
+@pytest.mark.parametrize("slope, allowed", [(0.0, True), (-0.2, True), (0.2, False)],
+                         ids=["along-the-wall", "away-from-it", "towards-it"])
+def test_inside_the_inscribed_zone_the_robot_never_drives_nearer_the_obstacle(slope: float, allowed: bool):
+    costmap = wall_along_x(0.26)  # the robot at y = 0 is 0.26 m from the wall's cells: in the zone
+    path = straight(3.0)
+    path[:, 1] = slope * path[:, 0]  # the line meets the wall at x = 1.3 m, beyond the check's reach
+    pp = PurePursuit(DEFAULTS)
+    if allowed:
+        assert pp.compute((0.0, 0.0, math.atan(slope)), (0.3, 0.0), path, costmap, DT).linear_mps > 0.0
+    else:
+        with pytest.raises(CollisionAhead, match=r"inside the inscribed zone, would come nearer an obstacle: "
+                                                 r"0\.2\d\d → 0\.2\d\d m"):
+            pp.compute((0.0, 0.0, math.atan(slope)), (0.3, 0.0), path, costmap, DT)
+
+
 # ---------------------------------------------------------------------------- approach and goal
 def test_approaching_the_end_slows_down_to_no_less_than_the_approach_minimum():
     path = straight(2.0)

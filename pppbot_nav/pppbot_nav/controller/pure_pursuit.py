@@ -33,7 +33,8 @@ Each control period, :meth:`PurePursuit.compute` does what the plugin's
    closer (half way to ``min_lookahead_dist``, then at it), each checked as far ahead as the
    first: a far carrot cuts corners that the path itself keeps clear of. Turning
    in place is never a collision (the footprint is a circle), and a robot that is already in
-   the inscribed zone may drive on as long as it meets no lethal cell (so it can leave it).
+   the inscribed zone may drive on as long as it comes no nearer the closest lethal cell (so
+   it can leave the zone, or follow the path along it, but not drive its corners into a wall).
 
 Where this differs from Nav2:
 
@@ -45,6 +46,8 @@ Where this differs from Nav2:
   point and the path carries a yaw ((N, 3)); Nav2 measures to the carrot and always has one.
 * The collision check steps half a cell, not one: a one-cell wall cannot fall between poses.
 * A command that would collide is retried with closer carrots before it fails (Nav2 fails).
+* A robot inside the inscribed zone may drive out of it or along it, never nearer the closest
+  lethal cell (Nav2's footprint check fails every command there).
 * The approach constraint starts when the path remaining from the closest point, not the
   cropped local plan, is shorter than ``approach_velocity_scaling_dist``.
 * A robot farther than the costmap's half extent from every path point follows the closest
@@ -76,6 +79,9 @@ _STILL_VEL = 0.01
 #: Poses per cell of travel in the collision check: Nav2 takes one, which can step over a
 #: one-cell obstacle when the poses fall on cell borders.
 _CELL_SUBSTEPS = 2
+#: Inside the inscribed zone a command may bring the robot this much (in cells) nearer the closest
+#: lethal cell: the distance to cell centres ripples by about this much along a straight wall.
+_LEAVE_TOLERANCE_CELLS = 0.1
 #: Forward-simulated poses of one collision check at most (a bound on work, never reached at sane speeds).
 _MAX_SIM_STEPS = 2000
 
@@ -414,13 +420,39 @@ def _check_collision(costmap: Costmap, pose: tuple[float, float, float], linear:
         xs, ys, t = xs[:keep], ys[:keep], t[:keep]
     costs = costmap.cost_at(xs, ys, NO_INFORMATION)
     # A robot already inside the inscribed zone (it drifted close to a wall: the zone is the
-    # conservative circle round a smaller body) may drive out of it; only lethal cells stop it then.
-    floor = LETHAL_OBSTACLE if costs[0] == INSCRIBED_INFLATED_OBSTACLE else INSCRIBED_INFLATED_OBSTACLE
+    # conservative circle round a smaller body) may drive out of it, or along it, but not
+    # nearer the obstacle: the body's corners would reach it.
+    inside = costs[0] == INSCRIBED_INFLATED_OBSTACLE
+    floor = LETHAL_OBSTACLE if inside else INSCRIBED_INFLATED_OBSTACLE
     hit = (costs >= floor) & (costs != NO_INFORMATION)
+    command = f"command v={linear:.3f} m/s, ω={angular:.3f} rad/s from ({x0:.3f}, {y0:.3f})"
     if hit.any():
         k = int(np.argmax(hit))
         kind = "lethal" if costs[k] > INSCRIBED_INFLATED_OBSTACLE else "inscribed"
         raise CollisionAhead(
-            f"command v={linear:.3f} m/s, ω={angular:.3f} rad/s from ({x0:.3f}, {y0:.3f}) would reach "
-            f"({xs[k]:.3f}, {ys[k]:.3f}) in {t[k]:.2f} s, a {kind} cell (cost {int(costs[k])}) in "
-            f"frame {costmap.frame_id!r}")
+            f"{command} would reach ({xs[k]:.3f}, {ys[k]:.3f}) in {t[k]:.2f} s, a {kind} cell "
+            f"(cost {int(costs[k])}) in frame {costmap.frame_id!r}")
+    if inside:
+        clearance = _lethal_clearance(costmap, xs, ys, s.robot_radius)
+        nearer = clearance < clearance[0] - _LEAVE_TOLERANCE_CELLS * costmap.resolution
+        if nearer.any():
+            k = int(np.argmax(nearer))
+            raise CollisionAhead(
+                f"{command}, inside the inscribed zone, would come nearer an obstacle: "
+                f"{clearance[0]:.3f} → {clearance[k]:.3f} m from the closest lethal cell at "
+                f"({xs[k]:.3f}, {ys[k]:.3f}) in {t[k]:.2f} s, frame {costmap.frame_id!r}")
+
+
+def _lethal_clearance(costmap: Costmap, xs: np.ndarray, ys: np.ndarray, radius_m: float) -> np.ndarray:
+    """Distance (m) from each point to the closest lethal cell's centre, at most ``radius_m``."""
+    lo = costmap.cell_of(xs.min() - radius_m, ys.min() - radius_m)
+    hi = costmap.cell_of(xs.max() + radius_m, ys.max() + radius_m)
+    row_lo, col_lo = max(int(lo[0]), 0), max(int(lo[1]), 0)
+    row_hi, col_hi = min(int(hi[0]) + 1, costmap.height), min(int(hi[1]) + 1, costmap.width)
+    rows, cols = np.nonzero(costmap.costs[row_lo:row_hi, col_lo:col_hi] == LETHAL_OBSTACLE)
+    if rows.size == 0:
+        return np.full(xs.shape, radius_m)
+    cx = costmap.origin[0] + (cols + col_lo + 0.5) * costmap.resolution
+    cy = costmap.origin[1] + (rows + row_lo + 0.5) * costmap.resolution
+    distance = np.hypot(xs[:, None] - cx[None, :], ys[:, None] - cy[None, :]).min(axis=1)
+    return np.minimum(distance, radius_m)

@@ -15,8 +15,10 @@ running one, cancel stops the robot. It runs Nav2's default tree
 
 Feedback: the robot's pose in ``global_frame``, the navigation time, the distance left along
 the path, an estimated time remaining, and the recoveries so far. A goal that fails carries
-the failing server's error code and message. Behaviours command ``cmd_vel`` themselves;
-backing up stops short of an inscribed cell of ``/local_costmap/costmap``.
+the failing server's error code and message. Behaviours command ``cmd_vel`` themselves and
+stop where Nav2's collision check would stop them on ``/local_costmap/costmap``: no spin on a
+cell within ``robot_radius`` of an obstacle, no backing up onto one
+(:func:`pppbot_nav.behaviors.collision_ahead`).
 """
 from __future__ import annotations
 
@@ -47,10 +49,7 @@ from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.tf_listener import TfListener
 from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_common.transforms import TransformError
-from pppbot_nav.behaviors import BackUp, Recovery, RecoveryRoundRobin, Spin, Wait
-
-#: Occupancy values of the published costmap from which a cell is inscribed or lethal.
-INSCRIBED_OCCUPANCY = 99
+from pppbot_nav.behaviors import BackUp, Recovery, RecoveryRoundRobin, Spin, Wait, collision_ahead
 
 
 @dataclass(frozen=True)
@@ -370,7 +369,12 @@ class Navigator(Node):
                     yield self._sleep(TICK_S)
                     continue
                 command = behavior.step(pose, self._now_s())
-                if command is None or (command[0] < 0 and self._blocked_behind(pose)):
+                if command is None:
+                    return
+                costmap = grid_from_message(self._local_costmap) if self._local_costmap is not None else None
+                stop = collision_ahead(behavior, costmap, pose)
+                if stop is not None:
+                    self._warn("behavior", f"{recovery.value} stopped: {stop}")
                     return
                 twist = Twist()
                 twist.linear.x, twist.angular.z = command
@@ -378,20 +382,6 @@ class Navigator(Node):
                 yield self._sleep(TICK_S)
         finally:
             self.stop()
-
-    def _blocked_behind(self, pose: tuple[float, float, float]) -> bool:
-        """Whether the local costmap is inscribed or lethal just behind the robot (odom frame)."""
-        msg = self._local_costmap
-        if msg is None:
-            return False
-        grid = grid_from_message(msg)
-        distance = 0.1
-        x, y = pose[0] - distance * math.cos(pose[2]), pose[1] - distance * math.sin(pose[2])
-        row, col = grid.cell_of(np.array([x]), np.array([y]))
-        h, w = grid.data.shape
-        if not (0 <= row[0] < h and 0 <= col[0] < w):
-            return False
-        return bool(grid.data[row[0], col[0]] >= INSCRIBED_OCCUPANCY)
 
 
 class _Progress:
