@@ -17,7 +17,7 @@ setup(
     zip_safe=True,
     maintainer='pppbot developers',
     maintainer_email='dev@pppbot.dev',
-    description='pppbot bringup (launch_sim), process supervisor, rosbag2 tools and the pppbot command line.',
+    description='pppbot bringup (launch_sim), process supervisor, evaluation and the pppbot command line.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

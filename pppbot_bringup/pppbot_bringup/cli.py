@@ -20,7 +20,7 @@ VERBS: dict[str, tuple[str, str]] = {
     "topic": ("pppbot_bringup.ros.topic", "inspect topics: list, info, echo, hz (like `ros2 topic`)"),
     "teleop": ("pppbot_bringup.teleop", "drive with the keyboard in this terminal (teleop_twist_keyboard's keys)"),
     "launch_sim": ("pppbot_bringup.ros.launch_sim", "the simulation bringup (name:=value arguments; --show-args)"),
-    "bag": ("pppbot_bringup.bag.cli", "record, play, inspect and reindex rosbag2 (MCAP) bags (like `ros2 bag`)"),
+    "bag": ("pppbot_bag.cli", "record, play, inspect and reindex rosbag2 (MCAP) bags (like `ros2 bag`)"),
     "eval": ("pppbot_bringup.ros.eval", "run a headless scenario and measure it against ground truth"),
     "nav": ("pppbot_nav.ros.nav_cli", "send a navigation goal and print its feedback: nav goto X Y [YAW]"),
     "map_saver": ("pppbot_nav.ros.map_saver_cli",

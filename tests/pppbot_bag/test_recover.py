@@ -10,12 +10,12 @@ from rclpy.serialization import serialize_message
 from rosbags.rosbag2 import Reader
 from std_msgs.msg import String
 
-from pppbot_bringup.bag.definitions import type_definition
-from pppbot_bringup.bag.errors import BagError
-from pppbot_bringup.bag.metadata import qos
-from pppbot_bringup.bag.reader import open_bag
-from pppbot_bringup.bag.recover import reindex
-from pppbot_bringup.bag.writer import BagWriter, CompressionMode, WriterOptions
+from pppbot_bag.definitions import type_definition
+from pppbot_bag.errors import BagError
+from pppbot_bag.metadata import qos
+from pppbot_bag.reader import open_bag
+from pppbot_bag.recover import reindex
+from pppbot_bag.writer import BagWriter, CompressionMode, WriterOptions
 
 
 def killed_bag(tmp_path: Path, options: WriterOptions, flushed: int, unflushed: int) -> Path:

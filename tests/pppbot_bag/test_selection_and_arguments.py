@@ -6,9 +6,9 @@ import re
 
 import pytest
 
-from pppbot_bringup.bag import cli
-from pppbot_bringup.bag.errors import BagError
-from pppbot_bringup.bag.selection import Remapping, TopicSelection, compile_regex
+from pppbot_bag import cli
+from pppbot_bag.errors import BagError
+from pppbot_bag.selection import Remapping, TopicSelection, compile_regex
 
 
 def test_selection_by_name_regex_exclusion_and_hidden():

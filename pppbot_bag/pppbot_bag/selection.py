@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
-from pppbot_bringup.bag.errors import BagError
+from pppbot_bag.errors import BagError
 
 
 def compile_regex(pattern: str, option: str) -> re.Pattern[str] | None:

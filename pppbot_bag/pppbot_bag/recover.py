@@ -24,9 +24,9 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import Writer as McapWriter
 from rosbags.rosbag2.metadata import parse_qos
 
-from pppbot_bringup.bag.errors import BagError
-from pppbot_bringup.bag.metadata import BagMetadata, FileInfo, Topic
-from pppbot_bringup.bag.writer import LIBRARY, RECORDING_RECORD, compress_file
+from pppbot_bag.errors import BagError
+from pppbot_bag.metadata import BagMetadata, FileInfo, Topic
+from pppbot_bag.writer import LIBRARY, RECORDING_RECORD, compress_file
 
 
 @dataclass

@@ -16,7 +16,7 @@ What rosbag2 does, and pppbot's recorder relies on:
 
 Chunks are also closed whenever :meth:`BagWriter.flush` is called, so a recorder that
 flushes every second loses at most about a second of data if it is killed; the file
-can then be recovered with :func:`pppbot_bringup.bag.recover.reindex`.
+can then be recovered with :func:`pppbot_bag.recover.reindex`.
 """
 from __future__ import annotations
 
@@ -32,9 +32,9 @@ from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 from rosbags.interfaces import Qos
 
-from pppbot_bringup.bag.definitions import TypeDefinition
-from pppbot_bringup.bag.errors import BagError
-from pppbot_bringup.bag.metadata import BagMetadata, FileInfo, Topic, qos_yaml
+from pppbot_bag.definitions import TypeDefinition
+from pppbot_bag.errors import BagError
+from pppbot_bag.metadata import BagMetadata, FileInfo, Topic, qos_yaml
 
 #: rosbag2_storage_mcap refuses smaller split sizes.
 MIN_SPLIT_SIZE = 1024

@@ -1,8 +1,8 @@
 """``pppbot bag record|play|info|reindex``: ``ros2 bag``'s verbs and flags.
 
 Arguments are parsed and checked here (no rclpy), so a bad flag is refused before any
-node starts; recording and playing run in ``pppbot_bringup.ros.bag_record`` and
-``pppbot_bringup.ros.bag_play``.
+node starts; recording and playing run in ``pppbot_bag.ros.record`` and
+``pppbot_bag.ros.play``.
 """
 from __future__ import annotations
 
@@ -14,10 +14,10 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from pppbot_bringup.bag.errors import BagError
-from pppbot_bringup.bag.reader import format_info, summarize
-from pppbot_bringup.bag.selection import Remapping, TopicSelection, compile_regex
-from pppbot_bringup.bag.writer import STORAGE_PRESETS, CompressionMode, WriterOptions
+from pppbot_bag.errors import BagError
+from pppbot_bag.reader import format_info, summarize
+from pppbot_bag.selection import Remapping, TopicSelection, compile_regex
+from pppbot_bag.writer import STORAGE_PRESETS, CompressionMode, WriterOptions
 
 
 @dataclass(frozen=True)
@@ -201,16 +201,16 @@ def main(args: argparse.Namespace) -> int:
             print(format_info(summarize(args.bag_path)))
             return 0
         if args.bag_verb == "reindex":
-            from pppbot_bringup.bag.recover import reindex
+            from pppbot_bag.recover import reindex
             report = reindex(Path(args.bag_path))
             print(report)
             return 0
         if args.bag_verb == "record":
             options: RecordOptions | PlayOptions = record_options(args)
-            module = "pppbot_bringup.ros.bag_record"
+            module = "pppbot_bag.ros.record"
         else:
             options = play_options(args)
-            module = "pppbot_bringup.ros.bag_play"
+            module = "pppbot_bag.ros.play"
     except BagError as exc:
         print(f"pppbot bag {args.bag_verb}: {exc}", file=sys.stderr)
         return 1

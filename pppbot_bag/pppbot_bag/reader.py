@@ -12,7 +12,7 @@ from rosbags.interfaces import Connection
 from rosbags.rosbag2 import Reader
 from rosbags.rosbag2.errors import ReaderError
 
-from pppbot_bringup.bag.errors import BagError
+from pppbot_bag.errors import BagError
 
 
 @contextmanager

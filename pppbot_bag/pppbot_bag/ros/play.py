@@ -25,10 +25,10 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 
-from pppbot_bringup.bag.cli import PlayOptions
-from pppbot_bringup.bag.errors import BagError
-from pppbot_bringup.bag.reader import open_bag
-from pppbot_bringup.ros.bag_common import playback_qos
+from pppbot_bag.cli import PlayOptions
+from pppbot_bag.errors import BagError
+from pppbot_bag.reader import open_bag
+from pppbot_bag.ros.qos import playback_qos
 from pppbot_common.errors import MessageTypeError
 from pppbot_common.ros.messages import get_interface
 

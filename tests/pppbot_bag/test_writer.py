@@ -17,11 +17,11 @@ from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
-from pppbot_bringup.bag.definitions import type_definition
-from pppbot_bringup.bag.errors import BagError
-from pppbot_bringup.bag.metadata import qos
-from pppbot_bringup.bag.reader import format_info, summarize
-from pppbot_bringup.bag.writer import BagWriter, CompressionMode, WriterOptions
+from pppbot_bag.definitions import type_definition
+from pppbot_bag.errors import BagError
+from pppbot_bag.metadata import qos
+from pppbot_bag.reader import format_info, summarize
+from pppbot_bag.writer import BagWriter, CompressionMode, WriterOptions
 
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
 LATCHED = qos(durability="transient_local", depth=1)
