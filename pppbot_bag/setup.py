@@ -16,4 +16,8 @@ setup(
     maintainer_email='dev@pppbot.dev',
     description='rosbag2 (MCAP) bags without rosbag2: core, record and play nodes, `pppbot bag`.',
     license='Apache-2.0',
+    entry_points={
+        # `pppbot bag`: found by pppbot_bringup.cli (a module with add_arguments and main).
+        'pppbot.verbs': ['bag = pppbot_bag.cli'],
+    },
 )

@@ -24,5 +24,13 @@ setup(
             'pppbot = pppbot_bringup.cli:main',
             'launch_sim = pppbot_bringup.ros.launch_sim:main',
         ],
+        # `pppbot <verb>`: found by pppbot_bringup.cli (a module with add_arguments and main).
+        'pppbot.verbs': [
+            'run = pppbot_bringup.run',
+            'topic = pppbot_bringup.ros.topic',
+            'teleop = pppbot_bringup.teleop',
+            'launch_sim = pppbot_bringup.ros.launch_sim',
+            'eval = pppbot_bringup.ros.eval',
+        ],
     },
 )

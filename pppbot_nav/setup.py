@@ -28,5 +28,10 @@ setup(
             'navigation = pppbot_nav.ros.navigation:main',
             'localization = pppbot_nav.ros.localization:main',
         ],
+        # `pppbot <verb>`: found by pppbot_bringup.cli (a module with add_arguments and main).
+        'pppbot.verbs': [
+            'nav = pppbot_nav.ros.nav_cli',
+            'map_saver = pppbot_nav.ros.map_saver_cli',
+        ],
     },
 )

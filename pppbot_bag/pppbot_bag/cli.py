@@ -1,4 +1,4 @@
-"""``pppbot bag record|play|info|reindex``: ``ros2 bag``'s verbs and flags.
+"""``pppbot bag record|play|info|reindex``: record, play, inspect and reindex rosbag2 (MCAP) bags, like ``ros2 bag``.
 
 Arguments are parsed and checked here (no rclpy), so a bad flag is refused before any
 node starts; recording and playing run in ``pppbot_bag.ros.record`` and

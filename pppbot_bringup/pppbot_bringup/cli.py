@@ -2,30 +2,61 @@
 
 ``./pppbot`` at the repository root sets the environment up and calls this; with
 an installed ROS 2 Jazzy, ``ros2 run pppbot_bringup pppbot <verb>`` does the same.
-Each verb is a module with ``add_arguments(parser)`` and ``main(args) -> int``,
-imported only when named, so ``pppbot --help`` stays quick.
+Verbs are found as ``ros2`` finds ``ros2 bag``: each package declares its own in its
+``setup.py`` as entry points of the group ``pppbot.verbs`` (``bag = pppbot_bag.cli``).
+A verb is a module with ``add_arguments(parser)`` and ``main(args) -> int`` (or
+``main_argv(argv) -> int``), imported only when named; its help line is the first line
+of its docstring, read without importing it, so ``pppbot --help`` stays quick.
 """
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib
+import importlib.util
 import os
 import sys
+from importlib.metadata import entry_points
+from pathlib import Path
 
 from pppbot_common.dds_isolation import domain_id_problem
 
-# verb → (module, one-line help)
-VERBS: dict[str, tuple[str, str]] = {
-    "run": ("pppbot_bringup.run", "run one node, like `ros2 run <package> <executable>`"),
-    "topic": ("pppbot_bringup.ros.topic", "inspect topics: list, info, echo, hz (like `ros2 topic`)"),
-    "teleop": ("pppbot_bringup.teleop", "drive with the keyboard in this terminal (teleop_twist_keyboard's keys)"),
-    "launch_sim": ("pppbot_bringup.ros.launch_sim", "the simulation bringup (name:=value arguments; --show-args)"),
-    "bag": ("pppbot_bag.cli", "record, play, inspect and reindex rosbag2 (MCAP) bags (like `ros2 bag`)"),
-    "eval": ("pppbot_bringup.ros.eval", "run a headless scenario and measure it against ground truth"),
-    "nav": ("pppbot_nav.ros.nav_cli", "send a navigation goal and print its feedback: nav goto X Y [YAW]"),
-    "map_saver": ("pppbot_nav.ros.map_saver_cli",
-                  "save /map as a Nav2 map, YAML + PGM (like nav2_map_server's map_saver_cli)"),
-}
+#: The entry point group of ``pppbot`` verbs.
+VERB_GROUP = "pppbot.verbs"
+
+
+class VerbConflict(Exception):
+    """Two installed packages declare the same verb."""
+
+
+def find_verbs() -> dict[str, str]:
+    """Verb → module, from the installed packages' ``pppbot.verbs`` entry points.
+
+    Raises:
+        VerbConflict: one verb declared by two packages with different modules.
+    """
+    verbs: dict[str, str] = {}
+    for point in entry_points(group=VERB_GROUP):
+        if verbs.get(point.name, point.module) != point.module:
+            raise VerbConflict(f"verb {point.name!r} is declared twice: by {verbs[point.name]} and by "
+                               f"{point.module} (entry points '{VERB_GROUP}'); uninstall one of them")
+        verbs[point.name] = point.module
+    return dict(sorted(verbs.items()))
+
+
+def verb_help(module: str) -> str:
+    """The first line of ``module``'s docstring after its usage (``pppbot bag ...``: …), unimported."""
+    try:
+        spec = importlib.util.find_spec(module)
+    except ModuleNotFoundError:  # its package is missing
+        spec = None
+    if spec is None or spec.origin is None:
+        return f"({module} is not installed)"
+    doc = ast.get_docstring(ast.parse(Path(spec.origin).read_text(encoding="utf-8"))) or ""
+    first = doc.strip().splitlines()[0] if doc.strip() else module
+    usage, colon, rest = first.partition("``: ")
+    return (rest if colon else first).replace("``", "`")
+
 
 # Verbs of DESIGN.md that this checkout does not have yet: named, never faked.
 NOT_YET: dict[str, str] = {}
@@ -37,9 +68,9 @@ SHELL_VERBS: dict[str, str] = {
 }
 
 
-def _top_parser() -> argparse.ArgumentParser:
-    width = max(map(len, [*VERBS, *SHELL_VERBS]))
-    rows = [*(f"  {n:<{width}}  {h}" for n, (_, h) in VERBS.items()),
+def _top_parser(verbs: dict[str, str]) -> argparse.ArgumentParser:
+    width = max(map(len, [*verbs, *SHELL_VERBS]))
+    rows = [*(f"  {n:<{width}}  {verb_help(m)}" for n, m in verbs.items()),
             *(f"  {n:<{width}}  {h}" for n, h in SHELL_VERBS.items())]
     parser = argparse.ArgumentParser(
         prog="pppbot",
@@ -48,7 +79,7 @@ def _top_parser() -> argparse.ArgumentParser:
         epilog="verbs:\n" + "\n".join(rows) + "\n\n`pppbot <verb> --help` describes a verb.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("verb", choices=sorted(VERBS), metavar="<verb>", help=argparse.SUPPRESS)
+    parser.add_argument("verb", choices=sorted(verbs), metavar="<verb>", help=argparse.SUPPRESS)
     parser.add_argument("arguments", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
     return parser
 
@@ -59,16 +90,21 @@ def main(argv: list[str] | None = None) -> int:
         print(f"pppbot {argv[0]}: {NOT_YET[argv[0]]} is not built yet in this checkout "
               "(README.md, 'Status', says what is)", file=sys.stderr)
         return 2
-    top = _top_parser().parse_args(argv)
+    try:
+        verbs = find_verbs()
+    except VerbConflict as exc:
+        print(f"pppbot: {exc}", file=sys.stderr)
+        return 2
+    top = _top_parser(verbs).parse_args(argv)
     problem = domain_id_problem(os.environ.get("ROS_DOMAIN_ID"))
     if problem is not None:  # DDS would fail later with a port error on stdout
         print(f"pppbot {top.verb}: {problem}", file=sys.stderr)
         return 2
-    module_name, help_text = VERBS[top.verb]
+    module_name = verbs[top.verb]
     module = importlib.import_module(module_name)
     if hasattr(module, "main_argv"):  # verbs with ros2-launch-style name:=value arguments
         return int(module.main_argv(list(top.arguments)))
-    parser = argparse.ArgumentParser(prog=f"pppbot {top.verb}", description=help_text)
+    parser = argparse.ArgumentParser(prog=f"pppbot {top.verb}", description=verb_help(module_name))
     module.add_arguments(parser)
     args = parser.parse_args(top.arguments)
     try:

@@ -28,7 +28,7 @@ def talker(spawn, python_script):
 def test_help_lists_verbs():
     result = pppbot("--help")
     assert result.returncode == 0
-    for verb in ("run", "topic", "teleop", "launch_sim", "map_saver", "setup", "env"):
+    for verb in ("run", "topic", "teleop", "launch_sim", "bag", "eval", "nav", "map_saver", "setup", "env"):
         assert re.search(rf"^\s+{verb}\s", result.stdout, re.M), verb
 
 

@@ -1,4 +1,4 @@
-"""``launch_sim``: ppp_bot's ``launch_sim.launch.py`` with pppbot's nodes, no ``launch`` package.
+"""``launch_sim``: the simulation bringup, ppp_bot's ``launch_sim.launch.py`` (``name:=value`` arguments).
 
     ./pppbot launch_sim [world:=cones] [localization:=false] [use_teleop:=true] ...
     ./pppbot launch_sim --show-args

@@ -1,4 +1,4 @@
-"""``pppbot topic list|info|echo|hz``: graph inspection with ``ros2 topic``'s flags and output.
+"""``pppbot topic list|info|echo|hz``: inspect topics with ``ros2 topic``'s flags and output.
 
 There is no ROS 2 daemon here, so each call starts a hidden node and waits for
 DDS discovery: ``--spin-time`` bounds that wait.
