@@ -36,7 +36,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from slam_dataset import SlamDataset, ensure_dataset, load_dataset  # noqa: E402
 
-from pppbot_bringup.eval.scenarios import world_truth  # noqa: E402
+from pppbot_eval.scenarios import world_truth  # noqa: E402
 from pppbot_common.se2 import se2_compose, wrap_angle  # noqa: E402
 from pppbot_nav.amcl.filter import FilterSettings  # noqa: E402
 from pppbot_nav.amcl.laser import laser_scans  # noqa: E402

@@ -43,7 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from worldgen import SETS, WorldSpec, write_world  # noqa: E402  (a sibling script)
 
-from pppbot_bringup.eval.routes import load_routes, routes_file  # noqa: E402
+from pppbot_eval.routes import load_routes, routes_file  # noqa: E402
 from pppbot_common.dds_isolation import isolate_dds  # noqa: E402
 from pppbot_sim.worldgen.families import generate  # noqa: E402
 

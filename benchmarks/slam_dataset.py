@@ -4,7 +4,7 @@ The robot drives a route of ``worlds/<world>.routes.yaml`` the way ``./pppbot ev
 drives it, with every piece of the ROS stack's control loop replayed in-process at
 the same sim-time rates, so nothing depends on DDS timing:
 
-* the route driver (:class:`pppbot_bringup.eval.driver.RouteDriver`, pure pursuit on
+* the route driver (:class:`pppbot_eval.driver.RouteDriver`, pure pursuit on
   ground truth) is asked for a command on ``/ground_truth/odom`` ticks (50 Hz) once
   :data:`COMMAND_PERIOD_S` has passed, as the eval node does;
 * twist_mux passes the teleop input through (one input, never timed out);
@@ -132,7 +132,7 @@ def load_dataset(path: Path | str) -> SlamDataset:
 def ensure_dataset(world: str, route: str | None = None, seed: int = 0, wheel_slip: float = 0.01,
                    speed_mps: float = DEFAULT_SPEED_MPS) -> Path:
     """The cached dataset of (world, route, seed, wheel_slip), generated first when missing."""
-    from pppbot_bringup.eval.routes import load_routes, routes_file, select_route
+    from pppbot_eval.routes import load_routes, routes_file, select_route
     from pppbot_sim.worlds import find_world
 
     world_file = find_world(world)
@@ -178,8 +178,8 @@ def generate(world: str, route_name: str | None, seed: int, wheel_slip: float, o
     Raises:
         RuntimeError: the route was not completed within 2.5 × its time + 60 s (nothing written).
     """
-    from pppbot_bringup.eval.driver import DriverSettings, RouteDriver
-    from pppbot_bringup.eval.routes import load_routes, routes_file, select_route
+    from pppbot_eval.driver import DriverSettings, RouteDriver
+    from pppbot_eval.routes import load_routes, routes_file, select_route
     from pppbot_common.se2 import se2_compose, se2_inverse, se2_relative, wrap_angles
     from pppbot_control.kinematics import Odometry
     from pppbot_control.limits import SpeedLimiter
@@ -345,7 +345,7 @@ def main() -> None:
     parser.add_argument("--force", action="store_true", help="generate again even when cached")
     args = parser.parse_args()
     if args.force:
-        from pppbot_bringup.eval.routes import load_routes, routes_file, select_route
+        from pppbot_eval.routes import load_routes, routes_file, select_route
         from pppbot_sim.worlds import find_world
 
         world_file = find_world(args.world)

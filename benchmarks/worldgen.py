@@ -2,7 +2,7 @@
 
 Each world is ``<out>/<name>.sdf`` (:mod:`pppbot_sim.worldgen.families`: maze, looped_maze,
 office, corridor, hall, symmetric, cones) and ``<out>/<name>.routes.yaml`` holding its
-``coverage`` route (:mod:`pppbot_bringup.eval.coverage`), so ``launch_sim world:=<out>/<name>.sdf``
+``coverage`` route (:mod:`pppbot_eval.coverage`), so ``launch_sim world:=<out>/<name>.sdf``
 and ``./pppbot eval slam --world <out>/<name>.sdf`` take it like a shipped world. A
 family and a seed give the same world on every machine.
 
@@ -24,8 +24,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pppbot_bringup.eval.coverage import Coverage, coverage_route
-from pppbot_bringup.eval.routes import routes_file, save_routes
+from pppbot_eval.coverage import Coverage, coverage_route
+from pppbot_eval.routes import routes_file, save_routes
 from pppbot_sim.worldgen.families import Family, Layout, WorldGenError, family_of, generate
 
 DEFAULT_OUT = Path(__file__).resolve().parent / ".cache" / "worlds"

@@ -17,7 +17,7 @@ setup(
     zip_safe=True,
     maintainer='pppbot developers',
     maintainer_email='dev@pppbot.dev',
-    description='pppbot bringup (launch_sim), process supervisor, evaluation and the pppbot command line.',
+    description='pppbot bringup (launch_sim), process supervisor and the pppbot command line.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
@@ -30,7 +30,6 @@ setup(
             'topic = pppbot_bringup.ros.topic',
             'teleop = pppbot_bringup.teleop',
             'launch_sim = pppbot_bringup.ros.launch_sim',
-            'eval = pppbot_bringup.ros.eval',
         ],
     },
 )

@@ -3,7 +3,7 @@
 
 The outputs (``worlds/<world>.routes.yaml``) are committed; this script documents
 how they were made and remakes them identically (no randomness). Each world gets a
-``coverage`` route (:mod:`pppbot_bringup.eval.coverage`) with the lattice spacing and
+``coverage`` route (:mod:`pppbot_eval.coverage`) with the lattice spacing and
 wall clearance below; the empty world gets a square.
 """
 from __future__ import annotations
@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path[:0] = [str(ROOT / "pppbot_bringup"), str(ROOT / "pppbot_common"), str(ROOT / "pppbot_sim"),
+sys.path[:0] = [str(ROOT / "pppbot_eval"), str(ROOT / "pppbot_common"), str(ROOT / "pppbot_sim"),
                 str(ROOT / "pppbot_description")]
 
-from pppbot_bringup.eval.coverage import Coverage, coverage_route  # noqa: E402
-from pppbot_bringup.eval.routes import Route, routes_file, save_routes  # noqa: E402
+from pppbot_eval.coverage import Coverage, coverage_route  # noqa: E402
+from pppbot_eval.routes import Route, routes_file, save_routes  # noqa: E402
 from pppbot_sim.worlds import find_world  # noqa: E402
 
 WORLDS = ROOT / "worlds"

@@ -1,1 +1,1 @@
-"""pppbot bringup (launch_sim), process supervisor, evaluation and the pppbot command line."""
+"""pppbot bringup (launch_sim), process supervisor and the pppbot command line."""

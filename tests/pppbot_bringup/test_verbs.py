@@ -10,7 +10,7 @@ from pppbot_bringup import cli
 
 #: ../shared/DESIGN.md's verbs, and the package that declares each.
 DESIGN_VERBS = {"run": "pppbot_bringup", "topic": "pppbot_bringup", "teleop": "pppbot_bringup",
-                "launch_sim": "pppbot_bringup", "eval": "pppbot_bringup", "bag": "pppbot_bag",
+                "launch_sim": "pppbot_bringup", "eval": "pppbot_eval", "bag": "pppbot_bag",
                 "nav": "pppbot_nav", "map_saver": "pppbot_nav"}
 
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from pppbot_bringup.eval.routes import load_routes, routes_file
-from pppbot_bringup.eval.scenarios import world_truth
+from pppbot_eval.routes import load_routes, routes_file
+from pppbot_eval.scenarios import world_truth
 from pppbot_sim.worldgen import mazes
 from pppbot_sim.worldgen.families import Family, WorldGenError, generate
 from pppbot_sim.worlds import find_world

@@ -19,7 +19,7 @@ free space with at least 0.45 m around it. Families:
 * ``cones`` — outdoor ground with traffic cones (ppp_bot's cones world), no walls.
 
 A layout also carries its coverage route's settings; the route itself is computed from
-the world by :func:`pppbot_bringup.eval.coverage.coverage_route`.
+the world by :func:`pppbot_eval.coverage.coverage_route`.
 """
 from __future__ import annotations
 
@@ -73,7 +73,7 @@ class Pillar:
 @dataclass(frozen=True)
 class RouteSettings:
     """The coverage route's lattice spacing, wall clearance, inset from the outer bounds and
-    planning resolution (m), as :class:`pppbot_bringup.eval.coverage.Coverage` takes them."""
+    planning resolution (m), as :class:`pppbot_eval.coverage.Coverage` takes them."""
 
     spacing_m: float
     clearance_m: float

@@ -32,13 +32,13 @@ from typing import Any
 import numpy as np
 import yaml
 
-from pppbot_bringup.eval.driver import DriverSettings, RouteDriver
-from pppbot_bringup.eval.progress import Progress
-from pppbot_bringup.eval.report import write_json
-from pppbot_bringup.eval.errors import GoalSamplingError, MapQualityError, RouteError
-from pppbot_bringup.eval.goals import sample_goals
-from pppbot_bringup.eval.routes import Route, load_routes, routes_file, select_route
-from pppbot_bringup.eval.scenarios import (
+from pppbot_eval.driver import DriverSettings, RouteDriver
+from pppbot_eval.progress import Progress
+from pppbot_eval.report import write_json
+from pppbot_eval.errors import GoalSamplingError, MapQualityError, RouteError
+from pppbot_eval.goals import sample_goals
+from pppbot_eval.routes import Route, load_routes, routes_file, select_route
+from pppbot_eval.scenarios import (
     CONVERGED_M,
     CONVERGED_RAD,
     CONVERGED_TRAVEL_M,
@@ -55,8 +55,8 @@ from pppbot_bringup.eval.scenarios import (
 )
 from pppbot_bringup.launch_sim import ARGUMENTS, controllers_file, plan
 from pppbot_bringup.paths import config_directory
-from pppbot_bringup.ros.eval_behaviors import Behavior, Chain, DriveRoute, NavigateGoals, StartLocalization
-from pppbot_bringup.ros.eval_node import PARTICIPANT, EvalNode
+from pppbot_eval.ros.behaviors import Behavior, Chain, DriveRoute, NavigateGoals, StartLocalization
+from pppbot_eval.ros.node import PARTICIPANT, EvalNode
 from pppbot_bringup.ros.graph_probe import GraphProbe
 from pppbot_bringup.run import RunError, find_executable
 from pppbot_bringup.supervisor import Output, Supervisor
@@ -83,7 +83,7 @@ class Run:
 
     A route scenario drives ``route`` from its start; navigation starts at ``--start`` and
     sends ``goals`` (world frame) instead. What the eval node does is a chain of behaviours
-    acting on its ticks (:mod:`pppbot_bringup.ros.eval_behaviors`); this thread spins it and
+    acting on its ticks (:mod:`pppbot_eval.ros.behaviors`); this thread spins it and
     watches the wall clock (interrupts, a stack that stopped or stalled).
     """
 

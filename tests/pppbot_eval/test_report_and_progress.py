@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from pppbot_bringup.eval.map_quality import compare_maps
-from pppbot_bringup.eval.progress import Progress
-from pppbot_bringup.eval.report import (
+from pppbot_eval.map_quality import compare_maps
+from pppbot_eval.progress import Progress
+from pppbot_eval.report import (
     FALSE_WALL,
     MAPPED_WALL,
     TRUE_WALL,

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from pppbot_bringup.eval.map_quality import occupied_cells
-from pppbot_bringup.eval.routes import load_routes
+from pppbot_eval.map_quality import occupied_cells
+from pppbot_eval.routes import load_routes
 from pppbot_sim.ground_truth import ground_truth_map
 from pppbot_sim.simulation import load_world
 from pppbot_sim.worlds import model_paths
 
-WORLDS = Path(__file__).resolve().parents[3] / "worlds"
+WORLDS = Path(__file__).resolve().parents[2] / "worlds"
 #: ppp_bot's chassis corners are 0.25 m from base_link; the routes keep this much more.
 MIN_CLEARANCE_M = 0.25 + 0.02
 

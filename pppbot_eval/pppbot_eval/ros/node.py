@@ -1,9 +1,9 @@
 """The evaluation's own node: records ground truth, the estimate and collisions, and acts on its ticks.
 
-What it does is its behaviour's (:mod:`pppbot_bringup.ros.eval_behaviors`): drive a route on
+What it does is its behaviour's (:mod:`pppbot_eval.ros.behaviors`): drive a route on
 ground truth through ``/cmd_vel_teleop`` (twist_mux's teleop input), put AMCL off, send
 navigation goals to ``navigate_to_pose`` as RViz's Nav2 panel does. It acts only on its
-ticks (every :data:`~pppbot_bringup.ros.eval_behaviors.TICK_S` of sim time). In lockstep it
+ticks (every :data:`~pppbot_eval.ros.behaviors.TICK_S` of sim time). In lockstep it
 is a participant (``pppbot_eval``): time waits for it, so every tick happens at the same
 sim time on every run, and it joins only once the nodes it talks to listen.
 """
@@ -26,8 +26,8 @@ from rclpy.task import Future
 from std_srvs.srv import Empty, Trigger
 from tf2_msgs.msg import TFMessage
 
-from pppbot_bringup.eval.scenarios import Estimate, Recording
-from pppbot_bringup.ros.eval_behaviors import TICK_S, Behavior
+from pppbot_eval.scenarios import Estimate, Recording
+from pppbot_eval.ros.behaviors import TICK_S, Behavior
 from pppbot_common.ros.action_client import ActionClient
 from pppbot_common.ros.lockstep import Participant, create_timer, require_match
 from pppbot_common.ros.maps import grid_from_message

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pppbot_bringup.eval.scenarios import localization_metrics
-from pppbot_bringup.eval.trajectory import PoseSeries, absolute_trajectory_error
+from pppbot_eval.scenarios import localization_metrics
+from pppbot_eval.trajectory import PoseSeries, absolute_trajectory_error
 
 
 def straight_run(offset_of_travel) -> tuple[PoseSeries, PoseSeries]:
@@ -39,7 +39,7 @@ def test_a_later_spike_shows_in_the_maximum_and_never_settling_is_reported():
 
 
 def test_map_to_odom_stamped_ahead_is_taken_back_to_the_scan_it_came_from():
-    from pppbot_bringup.eval.scenarios import ESTIMATES, Recording, Scenario, estimate_series
+    from pppbot_eval.scenarios import ESTIMATES, Recording, Scenario, estimate_series
     from pppbot_common.se2 import se2_compose, se2_inverse
 
     t = np.arange(0.0, 20.0, 0.1)

@@ -18,8 +18,8 @@ import numpy as np
 from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 
-from pppbot_bringup.eval.map_quality import cell_centers_xy, cells_of, free_cells, in_grid, occupied_cells
-from pppbot_bringup.eval.errors import GoalBlocked, NoPath, PathError, StartBlocked
+from pppbot_eval.map_quality import cell_centers_xy, cells_of, free_cells, in_grid, occupied_cells
+from pppbot_eval.errors import GoalBlocked, NoPath, PathError, StartBlocked
 from pppbot_common.maps import OccupancyGrid
 
 #: Samples along a line-of-sight check are at most this many cells apart.

@@ -26,9 +26,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from pppbot_bringup.eval.map_quality import compare_maps
-from pppbot_bringup.eval.errors import PathError, PoseSeriesError
-from pppbot_bringup.eval.navigation import (
+from pppbot_eval.map_quality import compare_maps
+from pppbot_eval.errors import PathError, PoseSeriesError
+from pppbot_eval.navigation import (
     PPP_BOT_FOOTPRINT,
     GoalOutcome,
     clearance_along,
@@ -36,10 +36,10 @@ from pppbot_bringup.eval.navigation import (
     pose_error,
     summarize_navigation,
 )
-from pppbot_bringup.eval.report import plot_errors, plot_map_overlay, plot_trajectories
-from pppbot_bringup.eval.routes import Route
-from pppbot_bringup.eval.shortest_path import shortest_path
-from pppbot_bringup.eval.trajectory import (
+from pppbot_eval.report import plot_errors, plot_map_overlay, plot_trajectories
+from pppbot_eval.routes import Route
+from pppbot_eval.shortest_path import shortest_path
+from pppbot_eval.trajectory import (
     PoseSeries,
     TrajectoryError,
     absolute_trajectory_error,

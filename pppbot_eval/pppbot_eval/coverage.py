@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 from shapely.geometry import LineString
 
-from pppbot_bringup.eval.routes import Route
-from pppbot_bringup.eval.scenarios import world_truth
-from pppbot_bringup.eval.shortest_path import cell_centers_xy, cell_path, distances_from, free_space, string_pull
+from pppbot_eval.routes import Route
+from pppbot_eval.scenarios import world_truth
+from pppbot_eval.shortest_path import cell_centers_xy, cell_path, distances_from, free_space, string_pull
 from pppbot_common.maps import OccupancyGrid
 
 #: Douglas–Peucker tolerance of the final polyline (m).

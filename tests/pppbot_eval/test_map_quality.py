@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from pppbot_bringup.eval.map_quality import MapQualityError, compare_maps
+from pppbot_eval.map_quality import MapQualityError, compare_maps
 from pppbot_common.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 
 RES = 0.1

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from pppbot_bringup.eval.trajectory import (
+from pppbot_eval.trajectory import (
     NoOverlapError,
     PoseSeries,
     PoseSeriesError,
@@ -211,7 +211,7 @@ def test_rpe_segment_must_be_positive():
 
 
 def test_compose_chain_interpolates_the_outer_transform_at_inner_stamps():
-    from pppbot_bringup.eval.trajectory import compose_chain
+    from pppbot_eval.trajectory import compose_chain
     # map → odom drifts from (0, 0, 0) at t=1 to (1, 0, π/2) at t=3 (published rarely).
     outer = PoseSeries.from_rows([(1.0, 0.0, 0.0, 0.0), (3.0, 1.0, 0.0, math.pi / 2)])
     # odom → base_link: the robot 1 m ahead in odom, at 10 Hz from t=0 to t=4.

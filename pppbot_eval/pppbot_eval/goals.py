@@ -16,9 +16,9 @@ from collections.abc import Sequence
 import numpy as np
 from scipy import ndimage
 
-from pppbot_bringup.eval.errors import GoalSamplingError
-from pppbot_bringup.eval.map_quality import cell_centers_xy, cells_of, in_grid
-from pppbot_bringup.eval.shortest_path import free_space
+from pppbot_eval.errors import GoalSamplingError
+from pppbot_eval.map_quality import cell_centers_xy, cells_of, in_grid
+from pppbot_eval.shortest_path import free_space
 from pppbot_common.maps import OccupancyGrid
 
 

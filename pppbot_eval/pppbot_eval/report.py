@@ -22,7 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402  (after choosing the backend)
 import numpy as np  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
-from pppbot_bringup.eval.trajectory import PoseSeries, TrajectoryError  # noqa: E402
+from pppbot_eval.trajectory import PoseSeries, TrajectoryError  # noqa: E402
 from pppbot_common.maps import OCCUPIED, OccupancyGrid  # noqa: E402
 
 TRUE_WALL = (0.55, 0.55, 0.55)

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from pppbot_bringup.eval.errors import RouteError
+from pppbot_eval.errors import RouteError
 
 
 

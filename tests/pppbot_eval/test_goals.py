@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from pppbot_bringup.eval.errors import GoalSamplingError
-from pppbot_bringup.eval.goals import reachable_region, sample_goals
-from pppbot_bringup.eval.map_quality import cells_of
-from pppbot_bringup.eval.scenarios import (
+from pppbot_eval.errors import GoalSamplingError
+from pppbot_eval.goals import reachable_region, sample_goals
+from pppbot_eval.map_quality import cells_of
+from pppbot_eval.scenarios import (
     GOAL_XY_TOLERANCE_M,
     GoalRecord,
     Recording,
@@ -20,7 +20,7 @@ from pppbot_bringup.eval.scenarios import (
     shortest_path_m,
     turning_in_place_s,
 )
-from pppbot_bringup.eval.trajectory import PoseSeries
+from pppbot_eval.trajectory import PoseSeries
 from pppbot_common.maps import FREE, OCCUPIED, OccupancyGrid
 
 RES = 0.05

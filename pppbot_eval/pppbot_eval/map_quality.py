@@ -24,7 +24,7 @@ import numpy as np
 from scipy import ndimage
 
 from pppbot_common.se2 import PoseLike, se2_apply, se2_compose, se2_inverse
-from pppbot_bringup.eval.errors import MapQualityError
+from pppbot_eval.errors import MapQualityError
 from pppbot_common.maps import OccupancyGrid
 
 #: A cell is occupied when its value (percent) is at least this (Nav2's occupied_thresh 0.65).

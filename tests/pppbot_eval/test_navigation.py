@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from pppbot_bringup.eval.navigation import (
+from pppbot_eval.navigation import (
     PPP_BOT_FOOTPRINT,
     Footprint,
     GoalOutcome,
@@ -16,7 +16,7 @@ from pppbot_bringup.eval.navigation import (
     goal_reached,
     summarize_navigation,
 )
-from pppbot_bringup.eval.trajectory import PoseSeries
+from pppbot_eval.trajectory import PoseSeries
 from pppbot_common.maps import FREE, OCCUPIED, OccupancyGrid
 
 RES = 0.05

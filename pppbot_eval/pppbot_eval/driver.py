@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pppbot_bringup.eval.errors import RouteError
+from pppbot_eval.errors import RouteError
 from pppbot_common.se2 import wrap_angle
 
 

@@ -13,8 +13,8 @@ from typing import Any, Protocol, Sequence
 
 from action_msgs.msg import GoalStatus
 
-from pppbot_bringup.eval.driver import RouteDriver
-from pppbot_bringup.eval.scenarios import GoalRecord, Recording, shortest_path_m
+from pppbot_eval.driver import RouteDriver
+from pppbot_eval.scenarios import GoalRecord, Recording, shortest_path_m
 from pppbot_common.maps import OccupancyGrid
 from pppbot_common.ros.lockstep import Arrival, hold_until
 from pppbot_common.se2 import se2_compose, se2_inverse

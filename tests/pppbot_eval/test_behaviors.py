@@ -6,8 +6,8 @@ from typing import Any
 import numpy as np
 from rclpy.task import Future
 
-from pppbot_bringup.eval.scenarios import Recording
-from pppbot_bringup.ros.eval_behaviors import GoalLimits, NavigateGoals
+from pppbot_eval.scenarios import Recording
+from pppbot_eval.ros.behaviors import GoalLimits, NavigateGoals
 from pppbot_common.maps import OccupancyGrid
 
 FREE_ROOM = OccupancyGrid(np.zeros((100, 100), dtype=np.int8), 0.05, (-2.5, -2.5, 0.0))

@@ -14,7 +14,7 @@ from pppbot_sim.ground_truth import ground_truth_map
 from pppbot_sim.simulation import load_world
 from pppbot_sim.worlds import model_paths
 
-BOX_ROOM = Path(__file__).resolve().parents[2] / "pppbot_sim" / "data" / "box_room.sdf"
+BOX_ROOM = Path(__file__).resolve().parents[1] / "pppbot_sim" / "data" / "box_room.sdf"
 
 
 def truth_grid() -> OccupancyGrid:

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pppbot_bringup.eval.driver import DriverSettings, RouteDriver
-from pppbot_bringup.eval.routes import Route, RouteError, load_routes, routes_file, save_routes, select_route
+from pppbot_eval.driver import DriverSettings, RouteDriver
+from pppbot_eval.routes import Route, RouteError, load_routes, routes_file, save_routes, select_route
 
 
 def drive(driver: RouteDriver, pose: tuple[float, float, float], dt: float = 0.02,

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.sparse.csgraph import dijkstra
 
-from pppbot_bringup.eval.shortest_path import (
+from pppbot_eval.shortest_path import (
     GoalBlocked,
     NoPath,
     PathError,

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pppbot_bringup.eval.errors import NoOverlapError, PoseSeriesError
+from pppbot_eval.errors import NoOverlapError, PoseSeriesError
 from pppbot_common.se2 import PoseLike, se2_compose, se2_inverse, se2_relative, wrap_angles
 
 

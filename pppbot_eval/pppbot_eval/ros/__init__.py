@@ -1,0 +1,1 @@
+"""The evaluation node, its behaviours (drive a route, start AMCL, send goals) and ``pppbot eval`` (rclpy)."""
