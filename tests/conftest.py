@@ -4,7 +4,8 @@
   test runs on one machine never share one) and ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST;
   both are set before any test, so in-process rclpy and child processes inherit them.
 - ``spawn`` starts children in their own process groups and stops every one of them
-  after the test (SIGINT → SIGTERM → SIGKILL); the session fails if one survives.
+  after the test (SIGINT → SIGTERM → SIGKILL); ``module_spawn`` does the same for a
+  module's shared fixture; the session fails if one survives.
 - ``ros_node`` gives a test an rclpy node in a context of its own.
 - ``load_benchmark`` imports a ``benchmarks/`` script for tests of its pieces.
 """
@@ -13,6 +14,7 @@ from __future__ import annotations
 import importlib.util
 import os
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
 from typing import Any, Callable, Generator, Iterator
@@ -50,11 +52,10 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     setattr(item, f"report_{report.when}", report)
 
 
-@pytest.fixture
-def spawn(request: pytest.FixtureRequest) -> Iterator[Callable[..., ChildProcess]]:
-    """Start a child: ``spawn(cmd, name=..., timeouts=...)``; stopped after the test. When the
-    test fails, the end of each child's output is printed (pytest shows it with the failure):
-    a wait that timed out says little of why."""
+@contextmanager
+def _children(failed: Callable[[], bool]) -> Iterator[Callable[..., ChildProcess]]:
+    """``start(cmd, name=..., timeouts=...)`` for the block; its children stopped at the end,
+    and the end of each one's output printed when ``failed()`` says so."""
     mine: list[ChildProcess] = []
 
     def start(cmd: list[str], name: str | None = None, timeouts: StopTimeouts = StopTimeouts(3.0, 3.0),
@@ -64,14 +65,37 @@ def spawn(request: pytest.FixtureRequest) -> Iterator[Callable[..., ChildProcess
         _started.append(child)
         return child
 
-    yield start
-    for child in reversed(mine):
-        child.stop()
-    report = getattr(request.node, "report_call", None)
-    if report is not None and report.failed:
-        for child in mine:
-            lines = child.output.splitlines()[-FAILED_OUTPUT_LINES:]
-            print(f"---- the last {len(lines)} lines of {child.name}'s output:\n" + "\n".join(lines))
+    try:
+        yield start
+    finally:
+        for child in reversed(mine):
+            child.stop()
+        if failed():
+            for child in mine:
+                lines = child.output.splitlines()[-FAILED_OUTPUT_LINES:]
+                print(f"---- the last {len(lines)} lines of {child.name}'s output:\n" + "\n".join(lines))
+
+
+@pytest.fixture
+def spawn(request: pytest.FixtureRequest) -> Iterator[Callable[..., ChildProcess]]:
+    """Start a child: ``spawn(cmd, name=..., timeouts=...)``; stopped after the test. When the
+    test fails, the end of each child's output is printed (pytest shows it with the failure):
+    a wait that timed out says little of why."""
+    def failed() -> bool:
+        report = getattr(request.node, "report_call", None)
+        return report is not None and report.failed
+
+    with _children(failed) as start:
+        yield start
+
+
+@pytest.fixture(scope="module")
+def module_spawn(request: pytest.FixtureRequest) -> Iterator[Callable[..., ChildProcess]]:
+    """``spawn`` for a module's shared fixture: children run until the module's last test; the
+    end of their output is printed when a test of the module failed."""
+    failures_before = request.session.testsfailed
+    with _children(lambda: request.session.testsfailed > failures_before) as start:
+        yield start
 
 
 @pytest.fixture(scope="session")
