@@ -14,9 +14,9 @@ run:
 test: check
 	./pppbot env python -m pytest $(PYTEST_ARGS)
 
-# Static checks: pyflakes-class errors (ruff) and types (mypy) across packages, tools and tests.
+# Static checks: lint (ruff, rules in pyproject.toml) and types (mypy) across packages, tools and tests.
 check:
-	./pppbot env ruff check --select F,E9 --quiet pppbot_common pppbot_description pppbot_sim \
+	./pppbot env ruff check --quiet pppbot_common pppbot_description pppbot_sim \
 		pppbot_control pppbot_slam pppbot_nav pppbot_bag pppbot_bringup pppbot_eval tools tests benchmarks
 	./pppbot env python -m mypy
 

@@ -36,8 +36,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from slam_dataset import SlamDataset, ensure_dataset, load_dataset  # noqa: E402
 
-from pppbot_eval.scenarios import world_truth  # noqa: E402
 from pppbot_common.se2 import se2_compose, wrap_angle  # noqa: E402
+from pppbot_eval.scenarios import world_truth  # noqa: E402
 from pppbot_nav.amcl.filter import FilterSettings  # noqa: E402
 from pppbot_nav.amcl.laser import laser_scans  # noqa: E402
 from pppbot_nav.amcl.localizer import Localizer  # noqa: E402
@@ -50,7 +50,7 @@ def run(data: SlamDataset, localizer: Localizer, start: np.ndarray) -> dict[str,
     laser = localizer.settings.laser
     sensor = tuple(float(v) for v in data.sensor_offset)
     update_ms, track_ms, errors, particles = [], [], [], []
-    for odom, truth, ranges in zip(data.odom, data.truth, data.ranges):
+    for odom, truth, ranges in zip(data.odom, data.truth, data.ranges, strict=True):
         t0 = time.perf_counter()
         scan, full = laser_scans(ranges, data.angle_min, data.angle_increment, data.range_min, data.range_max,
                                  sensor, laser)

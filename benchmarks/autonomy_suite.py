@@ -36,15 +36,16 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable, NoReturn
+from typing import Any, NoReturn
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from worldgen import SETS, WorldSpec, write_world  # noqa: E402  (a sibling script)
 
-from pppbot_eval.routes import load_routes, routes_file  # noqa: E402
 from pppbot_common.dds_isolation import isolate_dds  # noqa: E402
+from pppbot_eval.routes import load_routes, routes_file  # noqa: E402
 from pppbot_sim.worldgen.families import generate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -174,7 +175,7 @@ def aggregate(worlds: list[dict[str, Any]]) -> dict[str, Any]:
     reached = sum(_get(w, "navigation", "reached") or 0 for w in worlds)
     collisions = sum((_get(w, s, "collisions") or 0) for w in worlds for s in STAGES)
     ate_max = [_get(w, "slam", "ate_max_m") for w in worlds]
-    over = [w["world"] for w, a in zip(worlds, ate_max) if a is None or a > ATE_MAX_LIMIT_M]
+    over = [w["world"] for w, a in zip(worlds, ate_max, strict=True) if a is None or a > ATE_MAX_LIMIT_M]
     figures: dict[str, Any] = {
         "worlds": n,
         "map_good_fraction": _fraction(sum(map(map_good, worlds)), n),

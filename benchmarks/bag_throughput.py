@@ -92,8 +92,8 @@ def main() -> None:
     isolate_dds()
     results: dict[str, object] = {}
     with tempfile.TemporaryDirectory(prefix="bag_bench_") as tmp:
-        for kind, (type_name, rate) in KINDS.items():
-            best, steps = 0.0, []
+        for kind, (type_name, first_rate) in KINDS.items():
+            best, steps, rate = 0.0, [], first_rate
             while True:
                 run = one_run(kind, rate, args.seconds, Path(tmp))
                 steps.append(run)

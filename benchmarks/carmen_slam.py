@@ -1,4 +1,5 @@
-"""SLAM on real laser logs: the CARMEN logs of the Intel Research Lab, ACES and MIT CSAIL, replayed through the mapper core.
+"""SLAM on real laser logs: the CARMEN logs of the Intel Research Lab, ACES and MIT CSAIL,
+replayed through the mapper core.
 
 Input: ``../shared/datasets/carmen/<name>.log.gz`` (``--datasets`` to point elsewhere).
 The logs are the "corrected" versions from Radish, the Robotics Data Set Repository
@@ -130,7 +131,7 @@ def synthesize_odometry(poses: np.ndarray, alphas: tuple[float, float, float, fl
     starting at the first reference pose."""
     a1, a2, a3, a4 = alphas
     odom = [poses[0].copy()]
-    for previous, current in zip(poses[:-1], poses[1:]):
+    for previous, current in zip(poses[:-1], poses[1:], strict=True):
         dx, dy = current[0] - previous[0], current[1] - previous[1]
         trans = math.hypot(dx, dy)
         rot1 = float(wrap_angles(math.atan2(dy, dx) - previous[2])) if trans > 1e-4 else 0.0

@@ -91,7 +91,6 @@ def core_rtf(world: str, sim_seconds: float) -> float:
 
 def ros_rtf(world: str, sim_seconds: float, with_subscriber: bool) -> tuple[float, int]:
     import rclpy
-
     from rclpy.executors import SingleThreadedExecutor
 
     from pppbot_common.ros.node_main import Process

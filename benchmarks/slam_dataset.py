@@ -178,14 +178,14 @@ def generate(world: str, route_name: str | None, seed: int, wheel_slip: float, o
     Raises:
         RuntimeError: the route was not completed within 2.5 × its time + 60 s (nothing written).
     """
-    from pppbot_eval.driver import DriverSettings, RouteDriver
-    from pppbot_eval.routes import load_routes, routes_file, select_route
     from pppbot_common.se2 import se2_compose, se2_inverse, se2_relative, wrap_angles
     from pppbot_control.kinematics import Odometry
     from pppbot_control.limits import SpeedLimiter
     from pppbot_description.kinematics import KinematicTree
     from pppbot_description.urdf_model import parse_urdf
     from pppbot_description.xacro_model import process_xacro
+    from pppbot_eval.driver import DriverSettings, RouteDriver
+    from pppbot_eval.routes import load_routes, routes_file, select_route
     from pppbot_sim.mj_build import SpawnPose
     from pppbot_sim.simulation import Event, EventKind, Simulation, load_world
     from pppbot_sim.wheel_slip import SlipModel
@@ -248,13 +248,13 @@ def generate(world: str, route_name: str | None, seed: int, wheel_slip: float, o
                 wheels = sim.wheel_state()
         truth = sim.ground_truth()
         truth_pose = se2_compose(np.array([truth.position[0], truth.position[1], truth.yaw]), footprint_in_root)
-        if EventKind.GROUND_TRUTH in kinds and now >= SETTLE_S and finished_s is None:
-            # The eval node: a command on a ground-truth tick once COMMAND_PERIOD_S has passed.
-            if now >= next_command_s or driver.finished:
-                next_command_s = now + COMMAND_PERIOD_S
-                target = driver.command(truth.position[0], truth.position[1], truth.yaw)
-                if driver.finished:
-                    finished_s, target = now, (0.0, 0.0)
+        # The eval node: a command on a ground-truth tick once COMMAND_PERIOD_S has passed.
+        if (EventKind.GROUND_TRUTH in kinds and now >= SETTLE_S and finished_s is None
+                and (now >= next_command_s or driver.finished)):
+            next_command_s = now + COMMAND_PERIOD_S
+            target = driver.command(truth.position[0], truth.position[1], truth.yaw)
+            if driver.finished:
+                finished_s, target = now, (0.0, 0.0)
         if wheels is not None:
             # The controller's update (100 Hz, on the same ticks as /joint_states).
             dt = 0.0 if last_control_s is None else now - last_control_s

@@ -178,7 +178,8 @@ class NodeRun:
     def summary(self, sim_seconds: float) -> dict[str, Any]:
         stamps = [s for s, _, _ in self.poses]
         expected = [k.stamp_s for k in self.expected]
-        same = len(stamps) == len(expected) and all(abs(a - b) < STAMP_TOLERANCE_S for a, b in zip(stamps, expected))
+        same = len(stamps) == len(expected) and all(abs(a - b) < STAMP_TOLERANCE_S
+                                                    for a, b in zip(stamps, expected, strict=True))
         matched = sum(1 for s in stamps if any(abs(s - e) < STAMP_TOLERANCE_S for e in expected))
         lags = [(wall - self.published_wall[_ns(s)]) * 1000.0 for s, wall, _ in self.poses
                 if _ns(s) in self.published_wall]
@@ -309,8 +310,8 @@ def replay(replayer: Replayer, ds: SlamDataset, run: NodeRun, sim_seconds: float
     tf_period = 1.0 / ODOM_TF_RATE_HZ
     next_tf = t_first + tf_period
     wall0 = time.monotonic()
-    for t, odom in zip(ds.odom_stream_stamps, ds.odom_stream):
-        t = float(t)
+    for stamp, odom in zip(ds.odom_stream_stamps, ds.odom_stream, strict=True):
+        t = float(stamp)
         if t <= t_first + STAMP_TOLERANCE_S:
             continue
         if t > end_s:
@@ -442,7 +443,8 @@ def main() -> None:
         "loop_search_p95_ms": searches["p95_ms"], "loop_search_max_ms": searches["max_ms"],
         "loop_closing_keyframes": closing["count"], "loop_closing_median_ms": closing["median_ms"],
         "loop_closing_p95_ms": closing["p95_ms"], "loop_closing_max_ms": closing["max_ms"],
-        "core_sim_seconds": round(duration_s, 1), "core_processing_s": round(core.total_s, 2), "core_real_time_factor": round(core_rtf, 1),
+        "core_sim_seconds": round(duration_s, 1), "core_processing_s": round(core.total_s, 2),
+        "core_real_time_factor": round(core_rtf, 1),
         "map_rebuild_ms": round(core.map_rebuild_ms, 1),
         "keyframe_ate_rms_m": round(core.ate_rms_m, 3), "keyframe_ate_max_m": round(core.ate_max_m, 3),
         "meets_p95_target": bool(all_kf["p95_ms"] <= TARGET_P95_MS),

@@ -14,7 +14,8 @@ setup(
     zip_safe=True,
     maintainer='pppbot developers',
     maintainer_email='dev@pppbot.dev',
-    description='Shared pure-Python helpers for pppbot: SE(2) math, map file I/O, grid ray casting, process control, and thin ROS helpers (QoS, message types, graph waits).',
+    description=('Shared pure-Python helpers for pppbot: SE(2) math, map file I/O, grid ray '
+                 'casting, process control, and thin ROS helpers (QoS, message types, graph waits).'),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [],

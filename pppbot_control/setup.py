@@ -14,7 +14,8 @@ setup(
     zip_safe=True,
     maintainer='pppbot developers',
     maintainer_email='dev@pppbot.dev',
-    description='Differential-drive controller, twist_mux and keyboard teleop for ppp_bot, with a ROS-free kinematics and odometry core.',
+    description=('Differential-drive controller, twist_mux and keyboard teleop for ppp_bot, with '
+                 'a ROS-free kinematics and odometry core.'),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

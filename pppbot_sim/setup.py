@@ -28,7 +28,8 @@ setup(
     zip_safe=True,
     maintainer='pppbot developers',
     maintainer_email='dev@pppbot.dev',
-    description='MuJoCo simulator node for ppp_bot: Gazebo-style SDF worlds, spawning, lidar, IMU, clock, ground-truth maps.',
+    description=('MuJoCo simulator node for ppp_bot: Gazebo-style SDF worlds, spawning, lidar, '
+                 'IMU, clock, ground-truth maps.'),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

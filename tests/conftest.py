@@ -14,10 +14,11 @@ from __future__ import annotations
 import importlib.util
 import os
 import sys
+from collections.abc import Callable, Generator, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
-from typing import Any, Callable, Generator, Iterator
+from typing import Any
 
 import pytest
 

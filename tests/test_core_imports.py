@@ -17,7 +17,7 @@ ROS_SUFFIXES = ("_msgs", "_srvs", "_interfaces")
 
 
 def is_ros_module(name: str) -> bool:
-    top = name.split(".")[0]
+    top = name.split(".", maxsplit=1)[0]
     return top in ROS_MODULES or top.endswith(ROS_SUFFIXES)
 
 
@@ -120,7 +120,8 @@ def test_checker_catches_a_transitive_import(tmp_path):
 
 def test_checker_follows_import_cycles(tmp_path):
     """a ↔ b in a cycle, b → c → rclpy: both a and b are caught."""
-    files = {"pkg.a": "from pkg import b\n", "pkg.b": "from pkg import a\nfrom pkg import c\n", "pkg.c": "import rclpy\n"}
+    files = {"pkg.a": "from pkg import b\n", "pkg.b": "from pkg import a\nfrom pkg import c\n",
+             "pkg.c": "import rclpy\n"}
     modules = {}
     for name, text in files.items():
         path = tmp_path / f"{name.split('.')[1]}.py"

@@ -28,10 +28,9 @@ import trimesh
 ROOT = Path(__file__).resolve().parent.parent
 sys.path[:0] = [str(ROOT / "pppbot_sim")]
 
-from pppbot_sim.worldgen.sdf import (  # noqa: E402
-    FOOTER, WALL_H, WALL_T, Segment, box, cylinder, include, model, wall_segments, world)
-from pppbot_sim.worldgen.sdf import door_wall as sdf_door_wall  # noqa: E402
 from pppbot_sim.worldgen.mazes import maze_edges, merge_collinear  # noqa: E402
+from pppbot_sim.worldgen.sdf import FOOTER, WALL_H, WALL_T, Segment, box, cylinder, include, model, wall_segments, world  # noqa: E402
+from pppbot_sim.worldgen.sdf import door_wall as sdf_door_wall  # noqa: E402
 
 WORLDS = ROOT / "worlds"
 GENERATOR = "tools/make_worlds.py"
@@ -95,7 +94,8 @@ def make_office() -> str:
     size, corridor = 44.0, 2.4
     half = size / 2
     c = corridor / 2
-    segments = [(-half, -half, half, -half), (half, -half, half, half), (half, half, -half, half), (-half, half, -half, -half)]
+    segments = [(-half, -half, half, -half), (half, -half, half, half),
+                (half, half, -half, half), (-half, half, -half, -half)]
     # A cross of corridors splits the floor into four quadrants; each quadrant has five
     # offices along the corridor and an open hall with pillars behind them.
     room_w = (half - c) / 5

@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 from pppbot_common.type_names import split_type_name
@@ -48,7 +48,7 @@ def _read(path: Path) -> str:
     return path.read_text(encoding="utf-8")
 
 
-@lru_cache(maxsize=None)
+@cache
 def type_definition(type_name: str) -> TypeDefinition:
     """The complete definition and hash of an installed type (cached).
 

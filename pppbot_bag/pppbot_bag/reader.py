@@ -3,10 +3,10 @@ file- and message-compressed) and ``ros2 bag info``'s summary."""
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
 
 from rosbags.interfaces import Connection
 from rosbags.rosbag2 import Reader

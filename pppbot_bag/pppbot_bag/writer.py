@@ -21,10 +21,11 @@ can then be recovered with :func:`pppbot_bag.recover.reindex`.
 from __future__ import annotations
 
 import enum
+from collections.abc import Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any, Sequence
+from typing import IO, Any
 
 import yaml
 import zstandard

@@ -14,9 +14,10 @@ it has joined (time starts when all have).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Protocol, Sequence
+from typing import Any, Protocol
 
 from pppbot_bringup.paths import config_directory, maps_directory
 from pppbot_bringup.supervisor import NodeSpec, ReadyCheck
@@ -110,7 +111,7 @@ def controllers_file() -> Path:
     return config_directory() / "my_controllers.yaml"
 
 
-def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Resolver, probes: Probes,
+def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Resolver, probes: Probes,  # noqa: C901
          terminal: bool, rviz: str | None, extra_participants: Sequence[str] = ()) -> Plan:
     """The nodes to start, in ppp_bot's order, and notes for the user. ``extra_participants``:
     lockstep participants outside the launch that time must wait for from its start (the

@@ -22,6 +22,7 @@ ROS graph) or a regular expression on the node's output.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
@@ -29,9 +30,10 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Callable, Mapping, Protocol, Sequence
+from typing import IO, Protocol
 
 from pppbot_common.process import STACK_DUMP_SIGNAL, block_stop_signals, die_with_parent
 
@@ -108,7 +110,8 @@ class Output:
         with self._lock:
             log = self._files.get(label)
             if log is None:
-                log = self._files[label] = open(self.log_dir / f"{label}.log", "a", buffering=1)
+                # open until close(): one log file a node, written line by line as it prints
+                log = self._files[label] = open(self.log_dir / f"{label}.log", "a", buffering=1)  # noqa: SIM115
             log.write(text + "\n")
         if _LEVEL.search(text):
             self._write(f"[{label}] {text}")
@@ -270,9 +273,9 @@ class Supervisor:
             check = running.spec.ready
             if running.ready or check is None:
                 continue
-            if check.output_pattern is not None and any(re.search(check.output_pattern, l) for l in running.lines):
-                self._mark_ready(running)
-            elif check.probe is not None and check.probe():
+            pattern = check.output_pattern
+            printed = pattern is not None and any(re.search(pattern, line) for line in running.lines)
+            if printed or (check.probe is not None and check.probe()):
                 self._mark_ready(running)
             elif self.clock() - running.started_s > check.timeout_s:
                 self.output.event("ERROR", running.label,
@@ -335,10 +338,8 @@ class Supervisor:
         self.output.event("WARNING", "launch", f"{', '.join(r.label for r in hung)} still running "
                                                f"{self.sigint_timeout_s:g} s after SIGINT; their stacks follow")
         for running in hung:
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 os.kill(running.proc.pid, STACK_DUMP_SIGNAL)
-            except ProcessLookupError:
-                pass
         deadline = time.monotonic() + STACK_DUMP_WAIT_S
         while time.monotonic() < deadline:
             self._report_repeats()
@@ -370,10 +371,8 @@ class Supervisor:
             if running.proc.poll() is None:
                 running.proc.wait()
             if not running.spec.terminal:
-                try:  # whatever the node left in its group
+                with contextlib.suppress(ProcessLookupError, PermissionError):  # whatever the node left in its group
                     os.killpg(running.proc.pid, signal.SIGKILL)
-                except (ProcessLookupError, PermissionError):
-                    pass
             if running.reader is not None:
                 running.reader.join(timeout=2.0)
             self._report_exit(running, running.proc.returncode)

@@ -42,7 +42,8 @@ def claim_domain_id() -> int:
     start = os.getpid() % len(DOMAIN_IDS)
     for i in range(len(DOMAIN_IDS)):
         domain = DOMAIN_IDS[(start + i) % len(DOMAIN_IDS)]
-        lock = open(Path(tempfile.gettempdir()) / f"pppbot-ros-domain-{domain}.lock", "w")
+        # held open (and locked) for the whole process: the lock is the claim on the domain
+        lock = open(Path(tempfile.gettempdir()) / f"pppbot-ros-domain-{domain}.lock", "w")  # noqa: SIM115
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

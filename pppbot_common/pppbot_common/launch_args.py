@@ -5,8 +5,9 @@ values are text, converted by the declared default's type (bool, int, float, str
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 from pppbot_common.errors import PppbotError
 
@@ -43,7 +44,8 @@ class Argument:
             try:
                 return kind(text)
             except ValueError:
-                raise ArgumentError(f"{self.name}:={text}: must be {'an integer' if kind is int else 'a number'}") from None
+                what = "an integer" if kind is int else "a number"
+                raise ArgumentError(f"{self.name}:={text}: must be {what}") from None
         return text
 
 

@@ -19,8 +19,8 @@ import enum
 import heapq
 import itertools
 import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Mapping, Sequence
 
 from pppbot_common.errors import PppbotError
 
@@ -268,8 +268,8 @@ class Publications:
     def report(self, name: str, counts: Sequence[int]) -> None:
         """``name``'s cumulative counts, aligned with :attr:`topics` (a shorter list: those first)."""
         last = self._last.setdefault(name, {})
-        for topic, count in zip(self.topics, counts):
-            count = int(count)
+        for topic, reported in zip(self.topics, counts, strict=False):  # counts may be shorter
+            count = int(reported)
             delta = count - last.get(topic, 0)
             if delta > 0:
                 self._others[topic] = self._others.get(topic, 0) + delta
@@ -313,7 +313,7 @@ class Deliveries:
     def expect(self, topics: Sequence[str], totals: Sequence[int]) -> None:
         """A step's totals. A subscription that learns its topic's total for the first time takes
         what it has not received by then as published before it listened."""
-        self.totals.update(zip(topics, (int(t) for t in totals)))
+        self.totals.update(zip(topics, (int(t) for t in totals), strict=False))
         for counted in self.subscriptions:
             if counted.offset is None and counted.topic in self.totals:
                 counted.offset = self.totals[counted.topic] - counted.received

@@ -235,9 +235,8 @@ def load_map_image(path: str | Path, meta: MapMetadata) -> OccupancyGrid:
     path = Path(path)
     image_path = Path(meta.image) if Path(meta.image).is_absolute() else path.parent / meta.image
     try:
-        with Image.open(image_path) as image:
-            if image.mode == "P" and "transparency" in image.info:
-                image = image.convert("RGBA")
+        with Image.open(image_path) as opened:
+            image = opened.convert("RGBA") if opened.mode == "P" and "transparency" in opened.info else opened
             pixels = _grey_levels(image)
             alpha = np.asarray(image.getchannel("A")) if "A" in image.getbands() else None
     except FileNotFoundError:

@@ -15,8 +15,8 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Mapping, Sequence
 
 from pppbot_common.errors import TimeoutExpired
 
@@ -268,7 +268,7 @@ class ChildProcess:
         self._reader.join(timeout=5.0)
         return code
 
-    def __enter__(self) -> "ChildProcess":
+    def __enter__(self) -> ChildProcess:
         return self
 
     def __exit__(self, *exc_info: object) -> None:

@@ -55,7 +55,8 @@ class AxisLimits:
         for name in ("max_velocity", "min_velocity"):
             if math.isinf(getattr(self, name)):
                 out.append((f"{axis}.{name}", getattr(self, name), "must be finite (or NaN for unlimited)"))
-        if math.isfinite(self.max_velocity) and math.isfinite(self.min_velocity) and self.min_velocity > self.max_velocity:
+        both = math.isfinite(self.max_velocity) and math.isfinite(self.min_velocity)
+        if both and self.min_velocity > self.max_velocity:
             out.append((f"{axis}.min_velocity", self.min_velocity, f"must not exceed max_velocity {self.max_velocity}"))
         return out
 

@@ -9,8 +9,8 @@ inside, transforms3d's ``(w, x, y, z)``; :meth:`KinematicTree.link_poses` gives 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Iterable, Mapping
 
 import numpy as np
 from transforms3d.euler import euler2mat, euler2quat

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Iterator
 
 from lxml import etree
 
@@ -345,7 +345,7 @@ def _control_joints(robot: etree._Element, source: str) -> dict[str, ControlJoin
     return joints
 
 
-def parse_urdf(text: str, source: str = "<robot_description>") -> RobotModel:
+def parse_urdf(text: str, source: str = "<robot_description>") -> RobotModel:  # noqa: C901 (one check a field)
     """Parse URDF XML text into a :class:`RobotModel`.
 
     Raises:
@@ -423,8 +423,8 @@ def _check_tree(links: dict[str, Link], joints: dict[str, Joint], source: str) -
             f"{source}: links must form one tree with one root; roots found: {', '.join(roots) or 'none (a cycle)'}"
         )
     by_child = {j.child: j.parent for j in joints.values()}
-    for name in links:
-        seen = {name}
+    for link in links:
+        name, seen = link, {link}
         while name in by_child:
             name = by_child[name]
             if name in seen:

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import re
 import xml.parsers.expat
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import xacro
 

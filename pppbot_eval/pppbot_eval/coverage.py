@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 from shapely.geometry import LineString
 
+from pppbot_common.maps import OccupancyGrid
 from pppbot_eval.routes import Route
 from pppbot_eval.scenarios import world_truth
 from pppbot_eval.shortest_path import cell_centers_xy, cell_path, distances_from, free_space, string_pull
-from pppbot_common.maps import OccupancyGrid
 
 #: Douglas–Peucker tolerance of the final polyline (m).
 SIMPLIFY_M = 0.03

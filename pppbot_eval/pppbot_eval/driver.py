@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pppbot_eval.errors import RouteError
 from pppbot_common.se2 import wrap_angle
+from pppbot_eval.errors import RouteError
 
 
 @dataclass(frozen=True)

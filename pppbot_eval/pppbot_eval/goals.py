@@ -16,10 +16,10 @@ from collections.abc import Sequence
 import numpy as np
 from scipy import ndimage
 
+from pppbot_common.maps import OccupancyGrid
 from pppbot_eval.errors import GoalSamplingError
 from pppbot_eval.map_quality import cell_centers_xy, cells_of, in_grid
 from pppbot_eval.shortest_path import free_space
-from pppbot_common.maps import OccupancyGrid
 
 
 def reachable_region(truth: OccupancyGrid, start_xy: Sequence[float], robot_radius_m: float) -> np.ndarray:

@@ -23,9 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from pppbot_common.maps import OccupancyGrid
 from pppbot_common.se2 import PoseLike, se2_apply, se2_compose, se2_inverse
 from pppbot_eval.errors import MapQualityError
-from pppbot_common.maps import OccupancyGrid
 
 #: A cell is occupied when its value (percent) is at least this (Nav2's occupied_thresh 0.65).
 OCCUPIED_MIN = 65

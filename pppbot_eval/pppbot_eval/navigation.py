@@ -17,11 +17,11 @@ from scipy import ndimage
 from shapely.geometry import box
 from shapely.ops import unary_union
 
-from pppbot_eval.map_quality import cells_of, grid_coordinates, in_grid, occupied_cells
-from pppbot_eval.trajectory import PoseSeries
+from pppbot_common.maps import OccupancyGrid
 from pppbot_common.se2 import PoseLike, se2_apply, wrap_angles
 from pppbot_eval.errors import NavigationMetricError
-from pppbot_common.maps import OccupancyGrid
+from pppbot_eval.map_quality import cells_of, grid_coordinates, in_grid, occupied_cells
+from pppbot_eval.trajectory import PoseSeries
 
 #: Vertices of a circle footprint's polygon (its outline is within 4e-5·radius of the circle).
 CIRCLE_VERTICES = 360

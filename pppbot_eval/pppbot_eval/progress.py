@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import IO, Callable
+from collections.abc import Callable
+from typing import IO
 
 BAR_WIDTH = 30
 REDRAW_S = 0.2
@@ -50,7 +51,7 @@ class Progress:
             self._open_line = False
             self._drawn_at = -float("inf")
 
-    def lines(self) -> "_LinesAbove":
+    def lines(self) -> _LinesAbove:
         """A text stream for other output: each write ends the bar's line first, so lines never mix."""
         return _LinesAbove(self)
 

@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import matplotlib
 
@@ -22,8 +23,8 @@ import matplotlib.pyplot as plt  # noqa: E402  (after choosing the backend)
 import numpy as np  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
-from pppbot_eval.trajectory import PoseSeries, TrajectoryError  # noqa: E402
 from pppbot_common.maps import OCCUPIED, OccupancyGrid  # noqa: E402
+from pppbot_eval.trajectory import PoseSeries, TrajectoryError  # noqa: E402
 
 TRUE_WALL = (0.55, 0.55, 0.55)
 MAPPED_WALL = (0.10, 0.45, 0.85)

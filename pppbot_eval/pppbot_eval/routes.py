@@ -24,7 +24,6 @@ import yaml
 from pppbot_eval.errors import RouteError
 
 
-
 @dataclass(frozen=True)
 class Route:
     name: str

@@ -20,14 +20,16 @@ from __future__ import annotations
 
 import enum
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
-from pppbot_eval.map_quality import compare_maps
+from pppbot_common.maps import OccupancyGrid, load_map
 from pppbot_eval.errors import PathError, PoseSeriesError
+from pppbot_eval.map_quality import compare_maps
 from pppbot_eval.navigation import (
     PPP_BOT_FOOTPRINT,
     GoalOutcome,
@@ -46,7 +48,6 @@ from pppbot_eval.trajectory import (
     compose_chain,
     relative_pose_error,
 )
-from pppbot_common.maps import OccupancyGrid, load_map
 from pppbot_sim.ground_truth import Bounds, ground_truth_map
 from pppbot_sim.simulation import load_world
 from pppbot_sim.worlds import model_paths
@@ -84,7 +85,7 @@ class Estimate:
     topic: str | None = None
 
     def edges(self) -> list[tuple[str, str]]:
-        return list(zip(self.frames[:-1], self.frames[1:]))
+        return list(zip(self.frames[:-1], self.frames[1:], strict=True))
 
 
 #: The estimate each scenario measures. Wheel odometry is read from /odom, which carries
@@ -343,7 +344,7 @@ def navigation_metrics(recording: Recording, truth_map: OccupancyGrid, map_to_wo
                                    sum(o.shortest_path_m or 0.0 for o in rated)) if rated else None
     turning = [turning_in_place_s(truth.within(r.start_s, r.end_s)) for r in recording.goals]
     metrics["turning_in_place_s"] = round(sum(turning), 3)
-    rated_turning = [t for t, o in zip(turning, outcomes) if o.reached and o.shortest_path_m]
+    rated_turning = [t for t, o in zip(turning, outcomes, strict=True) if o.reached and o.shortest_path_m]
     metrics["total_time_ratio_without_turning"] = (
         (sum(o.time_s for o in rated) - sum(rated_turning)) * max_speed_mps /
         sum(o.shortest_path_m or 0.0 for o in rated)) if rated else None
@@ -362,7 +363,7 @@ def navigation_metrics(recording: Recording, truth_map: OccupancyGrid, map_to_wo
          "yaw_error_rad": round(o.yaw_error_rad, 3), "collisions": o.collisions,
          "min_clearance_m": round(o.min_clearance_m, 3), "recoveries": r.recoveries, "start_s": round(r.start_s, 3),
          "turning_in_place_s": round(t, 3)}
-        for r, o, t in zip(recording.goals, outcomes, turning)]
+        for r, o, t in zip(recording.goals, outcomes, turning, strict=True)]
     plot_trajectories(out / "trajectory.png", truth_map, truth, estimate.transformed(map_to_world),
                       ESTIMATE_LABELS[Scenario.NAVIGATION], [(x, y) for _, x, y in recording.collisions], title,
                       goals=[(o.goal[0], o.goal[1], o.reached) for o in outcomes])

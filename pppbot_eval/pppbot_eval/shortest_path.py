@@ -18,9 +18,9 @@ import numpy as np
 from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 
-from pppbot_eval.map_quality import cell_centers_xy, cells_of, free_cells, in_grid, occupied_cells
-from pppbot_eval.errors import GoalBlocked, NoPath, PathError, StartBlocked
 from pppbot_common.maps import OccupancyGrid
+from pppbot_eval.errors import GoalBlocked, NoPath, PathError, StartBlocked
+from pppbot_eval.map_quality import cell_centers_xy, cells_of, free_cells, in_grid, occupied_cells
 
 #: Samples along a line-of-sight check are at most this many cells apart.
 SIGHT_STEP_CELLS = 0.5

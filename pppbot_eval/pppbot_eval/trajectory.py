@@ -18,11 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pppbot_eval.errors import NoOverlapError, PoseSeriesError
 from pppbot_common.se2 import PoseLike, se2_compose, se2_inverse, se2_relative, wrap_angles
-
-
-
+from pppbot_eval.errors import NoOverlapError, PoseSeriesError
 
 
 def _pose_tuple(pose: PoseLike, name: str) -> np.ndarray:

@@ -10,8 +10,8 @@ subscribers, and a separate physics thread only added GIL hand-offs (measured sl
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Callable, Mapping, Union
 
 from pppbot_sim.errors import SimulationDiverged
 from pppbot_sim.simulation import (
@@ -73,8 +73,8 @@ class CollisionReading:
     collision: Collision
 
 
-Reading = Union[ClockTick, ControlTick, JointStatesReading, GroundTruthReading, LidarReading, ImuReadingAt,
-                CollisionReading]
+Reading = (ClockTick | ControlTick | JointStatesReading | GroundTruthReading | LidarReading | ImuReadingAt
+           | CollisionReading)
 
 #: Readings at one instant go out in this order: controllers first (their odometry at a scan's
 #: time is then out before the scan), then the rest.

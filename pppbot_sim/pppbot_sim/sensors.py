@@ -19,6 +19,7 @@ from pppbot_description.urdf_model import Sensor
 from pppbot_sim.errors import SpawnError
 from pppbot_sim.mj_build import ROBOT_GROUP
 
+
 def tag_pose(tag: Sensor) -> tuple[float, float, float, float, float, float]:
     """The sensor's ``<pose>`` in its link's frame: x y z roll pitch yaw (zeros when absent).
 
@@ -64,7 +65,7 @@ class LidarSpec:
         return self.angle_min + self.angle_increment * np.arange(self.samples)
 
     @classmethod
-    def from_tag(cls, tag: Sensor) -> "LidarSpec":
+    def from_tag(cls, tag: Sensor) -> LidarSpec:
         """Raises SpawnError on values a lidar cannot have."""
         base = "lidar" if tag.element.find("lidar") is not None else "ray"
         f = tag.find_float
@@ -141,7 +142,7 @@ class ImuSpec:
     pose: tuple[float, float, float, float, float, float] = (0.0,) * 6
 
     @classmethod
-    def from_tag(cls, tag: Sensor) -> "ImuSpec":
+    def from_tag(cls, tag: Sensor) -> ImuSpec:
         f = tag.find_float
         rate = tag.update_rate_hz or 100.0
         if rate <= 0:

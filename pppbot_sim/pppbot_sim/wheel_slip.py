@@ -17,7 +17,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
 #: Beyond this a wheel would now and then seem to turn backwards (1 + s < 0 at 5 sigma).
 MAX_SLIP_STDDEV = 0.2
 

@@ -94,8 +94,9 @@ class LoopSearch:
         wide, near = (replace(m, polish_iterations=0) for m in (settings.loop_matcher, settings.matcher))
         for chain in self.chains:
             coarse = ScanMatcher(chain.points, wide, chain.normals).match(self.points, self.pose, self.normals)
+            variance = max(coarse.covariance[0, 0], coarse.covariance[1, 1])
             if (coarse.response < settings.loop_match_minimum_response_coarse
-                    or max(coarse.covariance[0, 0], coarse.covariance[1, 1]) > settings.loop_match_maximum_variance_coarse):
+                    or variance > settings.loop_match_maximum_variance_coarse):
                 continue
             fine = ScanMatcher(chain.points, near, chain.normals).match(self.points, coarse.pose, self.normals)
             if fine.response < settings.loop_match_minimum_response_fine:
@@ -135,7 +136,7 @@ def plausible(graph: PoseGraph, matches: list[LoopMatch]) -> list[bool]:
     each other (:data:`LOOP_SEE_THROUGH_MAX`)."""
     covariances = graph.relative_covariances([(m.source, m.target) for m in matches])
     verdicts = []
-    for match, covariance in zip(matches, covariances):
+    for match, covariance in zip(matches, covariances, strict=True):
         error = se2_compose(se2_inverse(match.relative), graph.relative(match.source, match.target))
         error[2] = float(wrap_angles(error[2]))
         small = math.hypot(error[0], error[1]) <= LOOP_AGREE_M and abs(error[2]) <= LOOP_AGREE_RAD
@@ -157,7 +158,7 @@ def solve_loops(graph: PoseGraph, matches: list[LoopMatch]) -> LoopSolution:
     """
     copied_edges = tuple(graph.edges)
     before = [pose.copy() for pose in graph.poses]
-    kept = [m for m, ok in zip(matches, plausible(graph, matches)) if ok]
+    kept = [m for m, ok in zip(matches, plausible(graph, matches), strict=True) if ok]
     rejected = len(matches) - len(kept)
     added = [(graph.add_edge(m.source, m.target, m.relative, m.covariance, loop=True), m) for m in kept]
     undone: set[tuple[int, int]] = set()

@@ -31,8 +31,8 @@ No ROS here.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Iterable
 
 import numpy as np
 
@@ -391,7 +391,8 @@ class Mapper:
             self.tried[chain[0]] = index
             world, world_normals = self._world_points(chain)
             poses = np.array([self.map_pose(i) for i in chain])
-            views = tuple(view_of(pose, self.sensor_offset, self.keyframes[i].rays) for i, pose in zip(chain, poses))
+            views = tuple(view_of(pose, self.sensor_offset, self.keyframes[i].rays)
+                          for i, pose in zip(chain, poses, strict=True))
             chains.append(LoopChain(np.array(chain), poses, world, world_normals, views))
         if not chains:
             return None

@@ -122,7 +122,8 @@ class ScanRays:
                                  f"not shape {directions.shape}")
         norms = np.hypot(directions[:, 0], directions[:, 1])
         if not np.all(np.abs(norms - 1.0) < 1e-6):  # also rejects NaN and inf
-            raise OccupancyError(f"directions must be finite unit vectors; one has norm {norms[np.argmax(np.abs(norms - 1))]}")
+            worst = norms[np.argmax(np.abs(norms - 1))]
+            raise OccupancyError(f"directions must be finite unit vectors; one has norm {worst}")
         if not (math.isfinite(self.range_min_m) and self.range_min_m >= 0):
             raise OccupancyError(f"range_min_m must be a finite number >= 0, not {self.range_min_m}")
         if not self.range_max_m > self.range_min_m:  # also rejects NaN
@@ -203,7 +204,7 @@ class LogOddsGrid:
         if poses.shape != (len(scans), 3):
             raise OccupancyError(f"poses must be ({len(scans)}, 3) for {len(scans)} scans, not shape {poses.shape}")
         grid = cls(settings)
-        for pose, scan in zip(se2_compose(poses, sensor_in_base_xyyaw), scans):
+        for pose, scan in zip(se2_compose(poses, sensor_in_base_xyyaw), scans, strict=True):
             grid.add_scan(pose, scan)
         return grid
 

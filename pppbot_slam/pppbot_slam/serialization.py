@@ -114,7 +114,7 @@ def _field(path: Path, data: dict[str, np.ndarray], key: str, shape: tuple[int |
     if key not in data:
         raise PoseGraphFileError(f"{path}: field '{key}' is missing")
     value = data[key]
-    if value.ndim != len(shape) or any(s is not None and s != d for s, d in zip(shape, value.shape)):
+    if value.ndim != len(shape) or any(s is not None and s != d for s, d in zip(shape, value.shape, strict=True)):
         wanted = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
         raise PoseGraphFileError(f"{path}: field '{key}' has shape {value.shape}, expected {wanted}")
     if value.dtype.kind not in ("iu" if dtype == "i" else "b" if dtype == "b" else "fiu"):
@@ -160,7 +160,7 @@ def _mapper_from(path: Path, data: dict[str, np.ndarray], settings: MapperSettin
         for pose in poses:
             graph.add_node(pose)
         for (source, target), relative, covariance, loop in zip(edge_nodes, edge_relative, edge_covariance,
-                                                                 edge_loop):
+                                                                 edge_loop, strict=True):
             graph.add_edge(int(source), int(target), relative, covariance, loop=bool(loop))
     except PoseGraphError as exc:
         raise PoseGraphFileError(f"{path}: {exc}") from exc

@@ -14,8 +14,8 @@ it grazes, and only surfaces half a metre long or more count (walls, not people)
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -61,7 +61,7 @@ class View:
         normals = scan_normals(local, max_gap_m=SURFACE_GAP_M)
         breaks = np.flatnonzero(np.hypot(*np.diff(local, axis=0).T) >= SURFACE_GAP_M) + 1
         long_enough = np.zeros(len(local), dtype=bool)
-        for start, stop in zip(np.r_[0, breaks], np.r_[breaks, len(local)]):
+        for start, stop in zip(np.r_[0, breaks], np.r_[breaks, len(local)], strict=True):
             run = local[start:stop]
             long_enough[start:stop] = float(np.hypot(*(run[-1] - run[0]))) >= MIN_SURFACE_M
         yaw = float(self.sensor_pose[2])

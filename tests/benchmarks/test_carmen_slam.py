@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+
 @pytest.fixture(scope="module")
 def carmen(load_benchmark):
     return load_benchmark("carmen_slam")

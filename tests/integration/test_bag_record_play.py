@@ -12,8 +12,9 @@ import statistics
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 import pytest
@@ -145,10 +146,11 @@ def test_the_mcap_reader_decodes_the_same_messages(recording):
     theirs: dict[str, list[tuple[int, Any]]] = {}
     for path in sorted(bag.glob("*.mcap")):
         with path.open("rb") as f:
-            for _, channel, message, decoded in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            for _, channel, message, decoded in reader.iter_decoded_messages():
                 theirs.setdefault(channel.topic, []).append((message.log_time, decoded))
     assert {k: len(v) for k, v in theirs.items()} == {k: len(v) for k, v in ours.items()}
-    for (stamp_a, raw), (stamp_b, decoded) in zip(ours["/scan"], theirs["/scan"]):
+    for (stamp_a, raw), (stamp_b, decoded) in zip(ours["/scan"], theirs["/scan"], strict=True):
         mine = JAZZY.deserialize_cdr(raw, "sensor_msgs/msg/LaserScan")
         assert stamp_a == stamp_b
         assert list(mine.ranges) == list(decoded.ranges) and len(decoded.ranges) == 640
@@ -187,7 +189,7 @@ def test_play_publishes_the_recorded_bytes_into_a_subscriber(recording):
     finally:
         test.close()
     assert got == recorded
-    assert "published %d messages" % len(recorded) in player.output
+    assert f"published {len(recorded)} messages" in player.output
     # /clock carried the bag's time, which starts where the recording started.
     first_scan = read_all(bag)["/scan"][0][0] / 1e9
     assert clock and min(clock) >= first_scan - 0.5 and statistics.median(clock) > first_scan

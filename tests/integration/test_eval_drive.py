@@ -5,8 +5,9 @@ from __future__ import annotations
 import json
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -98,7 +99,8 @@ def test_slam_scenario_maps_the_room_and_tracks_the_robot(spawn, tmp_path: Path)
     # And its pose graph, as serialize_map writes it: every keyframe with its scan, for a replay.
     assert report["posegraph"] == str((out / "map.posegraph").resolve())
     graph = load_posegraph(out / "map.posegraph", MapperSettings())
-    assert len(graph.keyframes) == health["keyframes"] and all(np.isfinite(k.rays.ranges_m).sum() > 100 for k in graph.keyframes)
+    assert len(graph.keyframes) == health["keyframes"]
+    assert all(np.isfinite(k.rays.ranges_m).sum() > 100 for k in graph.keyframes)
 
 
 def box_room_map(spawn: Callable[..., ChildProcess], folder: Path) -> Path:

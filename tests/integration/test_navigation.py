@@ -16,7 +16,8 @@ import pytest
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, Twist
 from nav2_msgs.action import NavigateToPose
-from nav_msgs.msg import OccupancyGrid, Odometry, Path as PathMsg
+from nav_msgs.msg import OccupancyGrid, Odometry
+from nav_msgs.msg import Path as PathMsg
 from rclpy.action import ActionClient
 
 from pppbot_common.ros.qos import LATCHED
@@ -66,7 +67,7 @@ def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spaw
     handle = wait_until(lambda: sent.result() if sent.done() else None, 10, "the goal accepted", node=ros_node)
     assert handle.accepted
     done = handle.get_result_async()
-    wait_until(lambda: done.done(), 120, "the first goal's result", node=ros_node)
+    wait_until(done.done, 120, "the first goal's result", node=ros_node)
     assert done.result().status == GoalStatus.STATUS_SUCCEEDED, done.result().result.error_msg
     x, y, yaw = truth_pose(truths[-1])
     assert math.hypot(x - 1.5, y - 0.5) < 0.35 and abs(wrap_angle(yaw - 1.57)) < 0.35
@@ -88,9 +89,9 @@ def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spaw
     wait_until(lambda: math.hypot(truth_pose(truths[-1])[0] - start[0], truth_pose(truths[-1])[1] - start[1]) > 0.3,
                60, "the robot under way", node=ros_node)
     cancel = handle.cancel_goal_async()
-    wait_until(lambda: cancel.done(), 10, "the cancel answered", node=ros_node)
+    wait_until(cancel.done, 10, "the cancel answered", node=ros_node)
     result = handle.get_result_async()
-    wait_until(lambda: result.done(), 20, "the canceled goal's result", node=ros_node)
+    wait_until(result.done, 20, "the canceled goal's result", node=ros_node)
     assert result.result().status == GoalStatus.STATUS_CANCELED
     wait_until(lambda: abs(truths[-1].twist.twist.linear.x) < 0.02, 10, "the robot stopped", node=ros_node)
 

@@ -37,9 +37,9 @@ def killed_bag(tmp_path: Path, options: WriterOptions, flushed: int, unflushed: 
 @pytest.mark.parametrize("mode", [CompressionMode.NONE, CompressionMode.MESSAGE])
 def test_reindex_recovers_every_flushed_message(tmp_path, mode):
     bag = killed_bag(tmp_path, WriterOptions(compression_mode=mode, max_bag_size=20_000), 1500, 7)
-    with pytest.raises(BagError, match="bag reindex"):  # as killed: files lack their summaries
-        with open_bag(bag) as reader:
-            list(reader.messages())
+    # as killed: the files lack their summaries
+    with pytest.raises(BagError, match="bag reindex"), open_bag(bag) as reader:
+        list(reader.messages())
     report = reindex(bag)
     assert "finished the unfinished file" in report
     with Reader(bag) as reader:
@@ -88,6 +88,5 @@ def test_reindex_refuses_what_is_not_a_bag(tmp_path):
 def test_a_bag_without_metadata_says_how_to_recover(tmp_path):
     bag = killed_bag(tmp_path, WriterOptions(), 10, 0)
     (bag / "metadata.yaml").unlink()
-    with pytest.raises(BagError, match="bag reindex"):
-        with open_bag(bag):
-            pass
+    with pytest.raises(BagError, match="bag reindex"), open_bag(bag):
+        pass

@@ -10,9 +10,9 @@ import time
 from pathlib import Path
 
 import pytest
-from rosbags.rosbag2 import Reader
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+from rosbags.rosbag2 import Reader
 
 from pppbot_bringup.launch_sim import ARGUMENTS, plan, stop_timeouts
 from pppbot_common.launch_args import ArgumentError, describe, parse_assignments
@@ -59,7 +59,8 @@ def test_show_args_lists_every_argument_with_its_default():
 @pytest.mark.parametrize("argv, message", [
     (["world:=mars"], "unknown world 'mars'; known worlds: cones, empty, maze, maze_boxes, office, room, room_boxes"),
     (["wrld:=maze"], "unknown argument 'wrld'"),
-    (["localization:=true", "map:=/nowhere/map.yaml"], "localization:=true needs a map; /nowhere/map.yaml does not exist"),
+    (["localization:=true", "map:=/nowhere/map.yaml"],
+     "localization:=true needs a map; /nowhere/map.yaml does not exist"),
     (["sigkill_timeout:=-1"], "sigkill_timeout:=-1: must be a positive number of seconds"),
 ])
 def test_launch_refuses_bad_input_before_starting_anything(argv, message):
@@ -247,7 +248,8 @@ def test_end_to_end_headless_drive_record_and_clean_sigint(ros_node, spawn, tmp_
     assert launch.output.count("process has finished cleanly") == 5, \
         "\n".join(line for line in launch.output.splitlines() if "[launch]" in line or "process has" in line)
     for pid in pids:
-        assert not os.path.exists(f"/proc/{pid}") or open(f"/proc/{pid}/stat").read().rsplit(")", 1)[-1].split()[0] == "Z"
+        stat = Path(f"/proc/{pid}/stat")
+        assert not stat.exists() or stat.read_text().rsplit(")", 1)[-1].split()[0] == "Z"  # gone, or a zombie
     # Stopping the launch finished the bag: the drive and the latched description are in it.
     with Reader(bag) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}

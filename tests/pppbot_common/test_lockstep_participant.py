@@ -2,15 +2,16 @@
 from __future__ import annotations
 
 import threading
-from typing import Any, Callable, Iterator
+from collections.abc import Callable, Iterator
+from typing import Any
 
 import pytest
 from builtin_interfaces.msg import Time as TimeMsg
-from pppbot_interfaces.msg import LockstepStatus, LockstepStep
 
 import pppbot_common.ros.lockstep as lockstep
 from pppbot_common.ros.lockstep import Participant
 from pppbot_common.ros.lockstep_counting import OUTBOX
+from pppbot_interfaces.msg import LockstepStatus, LockstepStep
 
 pytestmark = pytest.mark.ros
 

@@ -108,13 +108,13 @@ def test_composed_nodes_share_one_tf_listener_and_each_hears_of_new_transforms()
     """TfListener: the nodes of one process share one buffer and one /tf subscription; each
     node's callback runs after a transform arrives; a node made after /tf_static arrived is
     told at once; after the first nodes are destroyed a new one listens again."""
-    from rclpy.executors import SingleThreadedExecutor
     from geometry_msgs.msg import TransformStamped
+    from rclpy.executors import SingleThreadedExecutor
     from tf2_msgs.msg import TFMessage
 
+    from pppbot_common.ros.node_main import Warnings
     from pppbot_common.ros.qos import LATCHED
     from pppbot_common.ros.tf_listener import _ATTRIBUTE, TfListener
-    from pppbot_common.ros.node_main import Warnings
     from pppbot_common.ros.wait import wait_until
 
     def transform(parent: str, child: str, x: float, sec: int = 0) -> TFMessage:

@@ -92,9 +92,9 @@ def test_wait_for_output_reports_early_exit():
 
 
 def test_wait_times_out_on_a_running_child():
-    with ChildProcess(python("import time; time.sleep(60)")) as child:
-        with pytest.raises(TimeoutExpired, match="still running"):
-            child.wait(0.2)
+    with ChildProcess(python("import time; time.sleep(60)")) as child, \
+            pytest.raises(TimeoutExpired, match="still running"):
+        child.wait(0.2)
     assert not child.running()
 
 

@@ -9,7 +9,7 @@ from pppbot_common.transforms import TransformBuffer, TransformError, compose, i
 
 
 def close(a: tuple[float, float, float], b: tuple[float, float, float], tol: float = 1e-9) -> bool:
-    return all(abs(x - y) < tol for x, y in zip(a, b))
+    return all(abs(x - y) < tol for x, y in zip(a, b, strict=True))
 
 
 def test_compose_and_inverse_cancel():

@@ -55,8 +55,9 @@ def test_fixed_length_arrays_and_integers_are_patched():
 
 def test_transforms_and_step_messages_round_trip_with_their_bools_and_integers():
     from geometry_msgs.msg import TransformStamped
-    from pppbot_interfaces.msg import LockstepAck, LockstepStep
     from tf2_msgs.msg import TFMessage
+
+    from pppbot_interfaces.msg import LockstepAck, LockstepStep
 
     tf = TFMessage(transforms=[TransformStamped(child_frame_id="base_link")])
     tf.transforms[0].header.frame_id = "odom"

@@ -58,7 +58,8 @@ def test_a_silent_watchdog_lock_locks():
 @pytest.mark.parametrize("topics, message", [
     ({"a": {"topic": "x", "timeout": 0.5}}, "topics.a: missing priority"),
     ({"a": {"topic": "x", "timeout": -1, "priority": 1}}, "topics.a.timeout = -1"),
-    ({"a": {"topic": "x", "timeout": 1, "priority": 300}}, r"topics.a.priority = 300: must be an integer in \[0, 255\]"),
+    ({"a": {"topic": "x", "timeout": 1, "priority": 300}},
+     r"topics.a.priority = 300: must be an integer in \[0, 255\]"),
     ({"a": {"topic": "x", "timeout": 1, "priority": 1}, "b": {"topic": "x", "timeout": 1, "priority": 2}},
      "'b' and 'a' both use topic 'x'"),
     ({}, "no input topics configured"),

@@ -84,7 +84,7 @@ def test_every_physical_link_has_visual_collision_and_inertial():
         assert link.visuals and link.collisions and link.inertial is not None, name
 
 
-@pytest.mark.parametrize("name", sorted(n for n, l in MODEL.links.items() if l.inertial is not None))
+@pytest.mark.parametrize("name", sorted(n for n, link in MODEL.links.items() if link.inertial is not None))
 def test_masses_positive_and_inertias_physical(name):
     inertial = MODEL.links[name].inertial
     assert inertial.mass > 0

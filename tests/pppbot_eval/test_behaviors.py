@@ -6,9 +6,9 @@ from typing import Any
 import numpy as np
 from rclpy.task import Future
 
-from pppbot_eval.scenarios import Recording
-from pppbot_eval.ros.behaviors import GoalLimits, NavigateGoals
 from pppbot_common.maps import OccupancyGrid
+from pppbot_eval.ros.behaviors import GoalLimits, NavigateGoals
+from pppbot_eval.scenarios import Recording
 
 FREE_ROOM = OccupancyGrid(np.zeros((100, 100), dtype=np.int8), 0.05, (-2.5, -2.5, 0.0))
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from pppbot_common.maps import FREE, OCCUPIED, OccupancyGrid
 from pppbot_eval.errors import GoalSamplingError
 from pppbot_eval.goals import reachable_region, sample_goals
 from pppbot_eval.map_quality import cells_of
@@ -21,7 +22,6 @@ from pppbot_eval.scenarios import (
     turning_in_place_s,
 )
 from pppbot_eval.trajectory import PoseSeries
-from pppbot_common.maps import FREE, OCCUPIED, OccupancyGrid
 
 RES = 0.05
 
@@ -87,7 +87,7 @@ def straight_drive(t0: float, t1: float, start: tuple[float, float, float], end:
     t = np.linspace(t0, t1, n)
     f = (t - t0) / (t1 - t0)
     return [(float(ti), start[0] + fi * (end[0] - start[0]), start[1] + fi * (end[1] - start[1]),
-             start[2] + fi * (end[2] - start[2])) for ti, fi in zip(t, f)]
+             start[2] + fi * (end[2] - start[2])) for ti, fi in zip(t, f, strict=True)]
 
 
 def test_a_goal_counts_when_the_navigator_succeeds_and_the_truth_is_there():

@@ -39,8 +39,8 @@ def test_a_later_spike_shows_in_the_maximum_and_never_settling_is_reported():
 
 
 def test_map_to_odom_stamped_ahead_is_taken_back_to_the_scan_it_came_from():
-    from pppbot_eval.scenarios import ESTIMATES, Recording, Scenario, estimate_series
     from pppbot_common.se2 import se2_compose, se2_inverse
+    from pppbot_eval.scenarios import ESTIMATES, Recording, Scenario, estimate_series
 
     t = np.arange(0.0, 20.0, 0.1)
     truth = np.column_stack([0.3 * t, np.zeros_like(t), 0.05 * t])
@@ -48,8 +48,8 @@ def test_map_to_odom_stamped_ahead_is_taken_back_to_the_scan_it_came_from():
     odom = se2_compose(drift, truth)
     correction = se2_compose(truth, se2_inverse(odom))  # map → odom that puts the base on the truth
     recording = Recording()
-    recording.edge_rows[("odom", "base_link")] = [(ti, *p) for ti, p in zip(t, odom)]
-    recording.edge_rows[("map", "odom")] = [(ti + 1.0, *c) for ti, c in zip(t, correction)]  # 1 s ahead
+    recording.edge_rows[("odom", "base_link")] = [(ti, *p) for ti, p in zip(t, odom, strict=True)]
+    recording.edge_rows[("map", "odom")] = [(ti + 1.0, *c) for ti, c in zip(t, correction, strict=True)]  # 1 s ahead
     at_scan = estimate_series(recording, ESTIMATES[Scenario.LOCALIZATION], outer_ahead_s=1.0)
     assert np.allclose(at_scan.xy, truth[: len(at_scan), :2], atol=1e-6)
     as_stamped = estimate_series(recording, ESTIMATES[Scenario.LOCALIZATION])

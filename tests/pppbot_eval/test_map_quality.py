@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from pppbot_eval.map_quality import MapQualityError, compare_maps
 from pppbot_common.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from pppbot_eval.map_quality import MapQualityError, compare_maps
 
 RES = 0.1
 

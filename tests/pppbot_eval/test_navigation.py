@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from pppbot_common.maps import FREE, OCCUPIED, OccupancyGrid
 from pppbot_eval.navigation import (
     PPP_BOT_FOOTPRINT,
     Footprint,
@@ -17,7 +18,6 @@ from pppbot_eval.navigation import (
     summarize_navigation,
 )
 from pppbot_eval.trajectory import PoseSeries
-from pppbot_common.maps import FREE, OCCUPIED, OccupancyGrid
 
 RES = 0.05
 

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from pppbot_common.maps import FREE, OCCUPIED, OccupancyGrid
 from pppbot_eval.map_quality import compare_maps
 from pppbot_eval.progress import Progress
 from pppbot_eval.report import (
@@ -20,7 +21,6 @@ from pppbot_eval.report import (
     plot_map_overlay,
     write_json,
 )
-from pppbot_common.maps import FREE, OCCUPIED, OccupancyGrid
 
 
 def box_room(size: int = 40) -> OccupancyGrid:

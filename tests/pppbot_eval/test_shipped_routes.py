@@ -20,7 +20,7 @@ MIN_CLEARANCE_M = 0.25 + 0.02
 
 def sampled(points: np.ndarray, step_m: float = 0.02) -> np.ndarray:
     pieces = [np.linspace(a, b, max(2, int(np.ceil(np.linalg.norm(b - a) / step_m)) + 1))
-              for a, b in zip(points[:-1], points[1:])]
+              for a, b in zip(points[:-1], points[1:], strict=True)]
     return np.vstack(pieces)
 
 

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from scipy.sparse.csgraph import dijkstra
 
+from pppbot_common.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from pppbot_eval.shortest_path import (
     GoalBlocked,
     NoPath,
@@ -18,7 +19,6 @@ from pppbot_eval.shortest_path import (
     segments_free,
     shortest_path,
 )
-from pppbot_common.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 
 RES = 0.1
 
@@ -43,7 +43,7 @@ def enclosed_goal() -> OccupancyGrid:
 
 
 def assert_polyline_in_free_space(grid: OccupancyGrid, free: np.ndarray, points: np.ndarray, skip_first: bool = False):
-    for a, b in zip(points[int(skip_first):-1], points[int(skip_first) + 1:]):
+    for a, b in zip(points[int(skip_first):-1], points[int(skip_first) + 1:], strict=True):
         assert segments_free(grid, free, a, b[None, :])[0], f"segment {a} → {b} leaves free space"
 
 

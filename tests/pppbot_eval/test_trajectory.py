@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from pppbot_common.se2 import se2_apply, se2_compose, se2_inverse, wrap_angles
 from pppbot_eval.trajectory import (
     NoOverlapError,
     PoseSeries,
@@ -14,7 +15,6 @@ from pppbot_eval.trajectory import (
     absolute_trajectory_error,
     relative_pose_error,
 )
-from pppbot_common.se2 import se2_apply, se2_compose, se2_inverse, wrap_angles
 
 
 def straight_line(speed_mps: float = 0.5, duration_s: float = 10.0, dt_s: float = 0.05) -> PoseSeries:

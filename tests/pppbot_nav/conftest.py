@@ -3,8 +3,9 @@ this folder's synthetic AMCL world (``amcl_synthetic``) on the import path."""
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pytest

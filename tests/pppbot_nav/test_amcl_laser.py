@@ -5,8 +5,8 @@ import math
 
 import numpy as np
 import pytest
-
 from amcl_synthetic import grid, scan
+
 from pppbot_common.maps import OccupancyGrid
 from pppbot_nav.amcl.laser import (
     BeamModel,

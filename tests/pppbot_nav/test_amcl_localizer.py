@@ -5,11 +5,11 @@ import math
 
 import numpy as np
 import pytest
-
 from amcl_synthetic import BEAMS, LIDAR, RANGE_MAX, box, drive, grid, ranges, scan
+
 from pppbot_common.se2 import se2_compose
-from pppbot_nav.amcl.laser import LaserSettings, Scan
 from pppbot_nav.amcl.filter import FilterSettings
+from pppbot_nav.amcl.laser import LaserSettings, Scan
 from pppbot_nav.amcl.localizer import (
     Localizer,
     LocalizerSettings,
@@ -156,7 +156,7 @@ def test_resample_interval_skips_resampling_between_updates():
     _, truth, odom = drive()[0]
     loc.set_initial_pose(truth, NAV2_INITIAL_COVARIANCE / 100)
     flags = []
-    for k in range(4):
+    for _ in range(4):
         loc.request_nomotion_update()
         flags.append(loc.update(odom, scan(truth)).resampled)
     assert flags == [False, True, False, True]

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from amcl_synthetic import BEAMS, LIDAR, RANGE_MAX, drive, grid, ranges
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from nav2_msgs.msg import ParticleCloud
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
@@ -16,7 +17,6 @@ from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Empty
 from tf2_msgs.msg import TFMessage
 
-from amcl_synthetic import BEAMS, LIDAR, RANGE_MAX, drive, grid, ranges
 from pppbot_bringup.run import find_executable
 from pppbot_common.ros.maps import grid_message
 from pppbot_common.ros.qos import LATCHED, SENSOR
@@ -167,7 +167,7 @@ def test_services_and_bad_input_keep_the_node_running(ros_node, spawn):
     for value, ok in ((ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=1), False),
                       (ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=30), True)):
         future = setter.call_async(SetParameters.Request(parameters=[Parameter(name="max_beams", value=value)]))
-        result = wait_until(lambda: future.result(), 20, "a reply", node=ros_node).results[0]
+        result = wait_until(future.result, 20, "a reply", node=ros_node).results[0]
         assert result.successful is ok
         if not ok:
             assert "max_beams" in result.reason and "at least 2" in result.reason

@@ -89,7 +89,7 @@ def test_circular_arc_is_tracked_closely():
 def test_path_behind_turns_in_place_first_within_the_angular_acceleration_limit():
     path = np.c_[-straight(3.0)[:, 0], np.zeros(len(straight(3.0)))]
     poses, commands = drive(PurePursuit(DEFAULTS), path, (0.0, 0.0, 0.0), 200)
-    for pose, cmd in zip(poses, commands):
+    for pose, cmd in zip(poses[:-1], commands, strict=True):  # each command and the pose it came from
         to_carrot = math.atan2(cmd.lookahead[1] - pose[1], cmd.lookahead[0] - pose[0])
         if abs(math.remainder(to_carrot - pose[2], 2.0 * math.pi)) > DEFAULTS.rotate_to_heading_min_angle:
             assert cmd.linear_mps == 0.0 and cmd.mode is ControlMode.ROTATE_TO_PATH
@@ -145,7 +145,8 @@ def wall_at(x_m: float, value: int) -> Costmap:
 
 def test_lethal_wall_ahead_raises_collision_ahead_naming_the_pose():
     with pytest.raises(CollisionAhead, match=r"would reach \(0\.3[0-5]\d, 0\.000\).*lethal"):
-        PurePursuit(DEFAULTS).compute((0.0, 0.0, 0.0), (0.5, 0.0), straight(3.0), wall_at(0.32, LETHAL_OBSTACLE), DT)  # cells 0.30…0.35 m
+        wall = wall_at(0.32, LETHAL_OBSTACLE)  # cells 0.30…0.35 m
+        PurePursuit(DEFAULTS).compute((0.0, 0.0, 0.0), (0.5, 0.0), straight(3.0), wall, DT)
 
 
 @pytest.mark.parametrize("costmap, settings", [

@@ -40,7 +40,8 @@ def test_static_layer_makes_occupied_lethal_and_keeps_unknown_when_tracking_it()
     layer = StaticLayer(track_unknown_space=True, lethal_cost_threshold=100)
     layer.set_map(grid)
     layer.update(master)
-    assert master.costs.tolist() == [[FREE_SPACE, LETHAL_OBSTACLE, NO_INFORMATION], [FREE_SPACE, FREE_SPACE, FREE_SPACE]]
+    assert master.costs.tolist() == [[FREE_SPACE, LETHAL_OBSTACLE, NO_INFORMATION],
+                                     [FREE_SPACE, FREE_SPACE, FREE_SPACE]]
     assert StaticLayer(track_unknown_space=False, lethal_cost_threshold=65).costs_of(data).tolist() == \
         [[0, 254, 0], [254, 254, 0]]
 

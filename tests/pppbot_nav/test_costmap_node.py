@@ -3,7 +3,7 @@ ObservationBuffer (``observation_persistence`` 0: the newest scan only)."""
 from __future__ import annotations
 
 import math
-from typing import Iterator
+from collections.abc import Iterator
 
 import pytest
 import rclpy

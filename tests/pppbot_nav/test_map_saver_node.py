@@ -40,11 +40,11 @@ def save(node: Any, timeout_s: float = 10, attempts: int = 3, **fields: Any) -> 
     can match later, and a reply sent before it is lost (a request is safe to repeat)."""
     client = node.create_client(SaveMap, SERVICE)
     try:
-        wait_until(lambda: client.service_is_ready(), 20, f"service {SERVICE}", node=node)
+        wait_until(client.service_is_ready, 20, f"service {SERVICE}", node=node)
         for attempt in range(attempts):
             future = client.call_async(SaveMap.Request(**fields))
             try:
-                return wait_until(lambda: future.result(), timeout_s, f"a reply from {SERVICE}", node=node).result
+                return wait_until(future.result, timeout_s, f"a reply from {SERVICE}", node=node).result
             except TimeoutExpired:
                 if attempt == attempts - 1:
                     raise
@@ -150,12 +150,12 @@ def test_runtime_parameter_updates_are_validated(ros_node, start_saver):
 
     start_saver()
     client = ros_node.create_client(SetParameters, "/map_saver/set_parameters")
-    wait_until(lambda: client.service_is_ready(), 20, "the parameter service", node=ros_node)
+    wait_until(client.service_is_ready, 20, "the parameter service", node=ros_node)
 
     def set_double(name: str, value: float) -> Any:
         value_msg = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
         future = client.call_async(SetParameters.Request(parameters=[Parameter(name=name, value=value_msg)]))
-        return wait_until(lambda: future.result(), 20, "a reply", node=ros_node).results[0]
+        return wait_until(future.result, 20, "a reply", node=ros_node).results[0]
 
     refused = set_double("free_thresh_default", 0.9)
     assert not refused.successful

@@ -79,9 +79,9 @@ def start_server(spawn: Any, *params: str) -> Any:
 def call(node: Any, kind: Any, name: str, request: Any) -> Any:
     client = node.create_client(kind, name)
     try:
-        wait_until(lambda: client.service_is_ready(), 20, f"service {name}", node=node)
+        wait_until(client.service_is_ready, 20, f"service {name}", node=node)
         future = client.call_async(request)
-        return wait_until(lambda: future.result(), 20, f"a reply from {name}", node=node)
+        return wait_until(future.result, 20, f"a reply from {name}", node=node)
     finally:
         node.destroy_client(client)
 

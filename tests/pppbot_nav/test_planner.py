@@ -243,6 +243,6 @@ def test_near_obstacle_band_weighs_more_and_keeps_paths_off_the_inscribed_zone()
         planner = GridPlanner(PlannerSettings(near_obstacle_penalty=penalty))
         planner.set_costmap(cm)
         points = planner.plan((1.0, 2.0), (3.5, 0.5)).points_xy
-        dense = np.vstack([np.linspace(a, b, 10) for a, b in zip(points[:-1], points[1:])])
+        dense = np.vstack([np.linspace(a, b, 10) for a, b in zip(points[:-1], points[1:], strict=True)])
         nearest[penalty] = np.min(np.hypot(dense[:, None, 0] - wall[None, :, 1], dense[:, None, 1] - wall[None, :, 0]))
     assert nearest[1.0] < 0.38 and nearest[10.0] >= 0.40, nearest

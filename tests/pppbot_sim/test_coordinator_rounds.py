@@ -5,11 +5,11 @@ import time
 from typing import Any
 
 import pytest
-from pppbot_interfaces.msg import LockstepAck, LockstepStep
 from rclpy.serialization import deserialize_message
 
-from pppbot_common.ros.lockstep import time_msg
 import pppbot_sim.ros.coordinator as coordinator_module
+from pppbot_common.ros.lockstep import time_msg
+from pppbot_interfaces.msg import LockstepAck, LockstepStep
 from pppbot_sim.ros.coordinator import Coordinator
 
 pytestmark = pytest.mark.ros
@@ -73,7 +73,8 @@ def test_a_time_without_timers_due_handles_its_readings_alone(ros_node: Any) -> 
     assert [(s.round, s.timers) for s in replies.steps] == [(0, False), (1, False)]
 
 
-def test_a_step_a_participant_missed_is_repeated_until_it_answers(ros_node: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_step_a_participant_missed_is_repeated_until_it_answers(ros_node: Any,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     # The simulator sends a step only to the readers it has discovered: a joiner's may be unknown yet.
     coordinator, replies = coordinator_with(ros_node, {"navigation": []})
     published = replies.publish

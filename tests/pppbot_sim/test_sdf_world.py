@@ -188,7 +188,8 @@ def test_shipped_worlds_are_known_and_load():
 
 
 def test_unknown_world_lists_the_known_ones():
-    with pytest.raises(WorldError, match=r"unknown world 'mars'; known worlds: cones, empty, maze, maze_boxes, office, room, room_boxes"):
+    with pytest.raises(WorldError, match=r"unknown world 'mars'; known worlds: "
+                                         r"cones, empty, maze, maze_boxes, office, room, room_boxes"):
         find_world("mars")
     assert find_world("maze.sdf") == find_world("maze")
     with pytest.raises(WorldError, match=r"world file 'mars.sdf' not found \(known worlds in .*: cones, empty"):

@@ -48,7 +48,7 @@ def test_robot_build_fuses_fixed_links_and_keeps_frames():
     m = sim.model
     robot_bodies = [m.body(i).name for i in range(m.nbody) if m.body(i).name.startswith("ppp_bot/")]
     assert sorted(robot_bodies) == ["ppp_bot/base_link", "ppp_bot/left_wheel", "ppp_bot/right_wheel"]
-    total = sum(l.inertial.mass for l in ROBOT.links.values() if l.inertial)
+    total = sum(link.inertial.mass for link in ROBOT.links.values() if link.inertial)
     robot_mass = sum(m.body(b).mass[0] for b in robot_bodies)
     assert robot_mass == pytest.approx(total)
     sites = {m.site(i).name for i in range(m.nsite)}

@@ -170,7 +170,8 @@ def test_runtime_real_time_factor_change(ros_node, spawn):
 
 
 @pytest.mark.parametrize("param, message", [
-    ("world:=atlantis", "unknown world 'atlantis'; known worlds: cones, empty, maze, maze_boxes, office, room, room_boxes"),
+    ("world:=atlantis",
+     "unknown world 'atlantis'; known worlds: cones, empty, maze, maze_boxes, office, room, room_boxes"),
     ("real_time_factor:=-2.0", "parameter 'real_time_factor' = -2.0: must be a finite number in [0.0, 1000.0]"),
     ("robot_description:=/no/such.urdf", "cannot read '/no/such.urdf'"),
 ])

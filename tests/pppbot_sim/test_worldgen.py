@@ -7,7 +7,6 @@ corridor widths (twice the distance to the nearest wall on a corridor's centre l
 """
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 from scipy import ndimage

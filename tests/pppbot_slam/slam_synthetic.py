@@ -73,7 +73,7 @@ def ring_path(step_m: float = 0.1, overlap_m: float = 4.0) -> np.ndarray:
     """Around the block counter-clockwise from (0, −3), and on past the start by ``overlap_m``."""
     corners = np.array([[0, -3], [4, -3], [4, 3], [-4, 3], [-4, -3], [0, -3], [overlap_m, -3]], dtype=float)
     poses = []
-    for a, b in zip(corners[:-1], corners[1:]):
+    for a, b in zip(corners[:-1], corners[1:], strict=True):
         yaw = math.atan2(*(b - a)[::-1])
         n = int(round(np.linalg.norm(b - a) / step_m))
         poses += [(*(a + (b - a) * k / n), yaw) for k in range(n)]
@@ -82,7 +82,7 @@ def ring_path(step_m: float = 0.1, overlap_m: float = 4.0) -> np.ndarray:
 
 def drifting_odometry(truth: np.ndarray, yaw_per_m: float, scale: float) -> np.ndarray:
     odom = [truth[0].copy()]
-    for prev, cur in zip(truth[:-1], truth[1:]):
+    for prev, cur in zip(truth[:-1], truth[1:], strict=True):
         step = se2_compose(se2_inverse(prev), cur)
         moved = math.hypot(step[0], step[1])
         odom.append(se2_compose(odom[-1], [step[0] * scale, step[1] * scale, step[2] + yaw_per_m * moved]))

@@ -3,12 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from slam_synthetic import RING, drifting_odometry, feed, ring_path, scan_rays, wall_points
 
 from pppbot_common.maps import OCCUPIED
 from pppbot_common.se2 import se2_compose, se2_inverse
 from pppbot_slam.loops import LoopSolution, solve_loops
 from pppbot_slam.mapper import Mapper, MapperError, MapperSettings
-from slam_synthetic import RING, drifting_odometry, feed, ring_path, scan_rays, wall_points
 
 
 def run(settings: MapperSettings) -> tuple[Mapper, np.ndarray]:

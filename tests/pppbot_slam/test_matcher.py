@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from slam_synthetic import CORRIDOR, ROOM, cast, wall_points
 
 from pppbot_common.se2 import se2_apply
 from pppbot_slam.matcher import MatcherError, MatcherSettings, ScanMatcher, normal_classes, rotate, scan_normals
-from slam_synthetic import CORRIDOR, ROOM, cast, wall_points
 
 SEGMENTS = ROOM
 

@@ -9,7 +9,11 @@ import pytest
 from pppbot_common.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from pppbot_common.se2 import se2_compose
 from pppbot_slam.occupancy import (
-    BLOCK_CELLS, LogOddsGrid, OccupancyError, OccupancySettings, ScanRays,
+    BLOCK_CELLS,
+    LogOddsGrid,
+    OccupancyError,
+    OccupancySettings,
+    ScanRays,
 )
 
 RES = 0.05
@@ -42,7 +46,7 @@ def world_cells(grid: OccupancyGrid, value: int) -> set[tuple[int, int]]:
     """World lattice indices (ix, iy) of cells holding ``value``."""
     rows, cols = np.nonzero(grid.data == value)
     ox, oy = round(grid.origin[0] / grid.resolution), round(grid.origin[1] / grid.resolution)
-    return {(int(c) + ox, int(r) + oy) for r, c in zip(rows, cols)}
+    return {(int(c) + ox, int(r) + oy) for r, c in zip(rows, cols, strict=True)}
 
 
 def value_at(grid: OccupancyGrid, x, y) -> np.ndarray:
@@ -173,7 +177,8 @@ def test_a_free_cell_flips_to_occupied_after_the_computed_number_of_hits():
         grid.add_scan(SENSOR, one_beam(1.0))
         out = grid.to_occupancy_grid()
         log_odds = -clamp + k * hit
-        expected = OCCUPIED if log_odds > math.log(0.65 / 0.35) else FREE if log_odds < math.log(0.25 / 0.75) else UNKNOWN
+        expected = (OCCUPIED if log_odds > math.log(0.65 / 0.35)
+                    else FREE if log_odds < math.log(0.25 / 0.75) else UNKNOWN)
         assert (expected == OCCUPIED) == (k == needed)
         assert value_at(out, 1.025, 0.025) == expected
         assert grid.probabilities()[out.cell_of(1.025, 0.025)] == pytest.approx(

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from slam_synthetic import CORRIDOR, ROOM, beam_angles, box, cast, cast_ranges, drifting_odometry, wall_points
+from test_pose_graph import LOOP_COV, drifting_graph, position_errors, square_truth
 
 from pppbot_common.maps import OCCUPIED
 from pppbot_common.se2 import se2_apply, se2_compose, se2_inverse
@@ -14,8 +16,6 @@ from pppbot_slam.mapper import LOST_KEYFRAMES, ODOMETRY_STD_PER_M, LoopClosure, 
 from pppbot_slam.matcher import MatcherSettings, ScanMatcher, scan_normals
 from pppbot_slam.occupancy import ScanRays
 from pppbot_slam.pose_graph import PoseGraph
-from slam_synthetic import CORRIDOR, ROOM, beam_angles, box, cast, cast_ranges, drifting_odometry, wall_points
-from test_pose_graph import LOOP_COV, drifting_graph, position_errors, square_truth
 
 
 # ---------------------------------------------------------------- a corridor
@@ -92,8 +92,8 @@ def identical_rooms() -> tuple[PoseGraph, LoopSearch, np.ndarray]:
         graph.add_edge(i - 1, i, se2_compose(se2_inverse(truth[i - 1]), truth[i]), CHAIN_COV)
     chain = np.arange(10)
     scans = [cast(ROOMS, truth[i], max_range=8.0) for i in chain]
-    points = np.vstack([se2_apply(truth[i], s) for i, s in zip(chain, scans)])
-    normals = np.vstack([scan_normals(se2_apply(truth[i], s), truth[i][:2]) for i, s in zip(chain, scans)])
+    points = np.vstack([se2_apply(truth[i], s) for i, s in zip(chain, scans, strict=True)])
+    normals = np.vstack([scan_normals(se2_apply(truth[i], s), truth[i][:2]) for i, s in zip(chain, scans, strict=True)])
     last = len(truth) - 1
     own = cast(ROOMS, truth[last], max_range=8.0)
     search = LoopSearch(last, truth[last], own, scan_normals(own),

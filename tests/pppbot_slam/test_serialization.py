@@ -5,11 +5,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from slam_synthetic import RING, drifting_odometry, feed, ring_path
 
 from pppbot_common.se2 import se2_compose, se2_inverse
 from pppbot_slam.mapper import Mapper, MapperError
 from pppbot_slam.serialization import PoseGraphFileError, load_posegraph, posegraph_path, save_posegraph
-from slam_synthetic import RING, drifting_odometry, feed, ring_path
 
 TRUTH = ring_path(overlap_m=0.0)
 FIRST_PART = 170  # scans of the first run: (0, −3) round to the far side of the block
@@ -41,7 +41,7 @@ def test_round_trip_keeps_keyframes_scans_graph_and_map(first_run: Mapper, tmp_p
     loaded = load_posegraph(written)
     assert len(loaded.keyframes) == len(first_run.keyframes)
     np.testing.assert_array_equal(np.array(loaded.graph.poses), np.array(first_run.graph.poses))
-    for a, b in zip(loaded.keyframes, first_run.keyframes):
+    for a, b in zip(loaded.keyframes, first_run.keyframes, strict=True):
         assert a.stamp_s == b.stamp_s and a.session == b.session
         np.testing.assert_array_equal(a.odom_pose, b.odom_pose)
         np.testing.assert_array_equal(a.rays.ranges_m, b.rays.ranges_m)

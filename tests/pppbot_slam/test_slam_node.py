@@ -9,9 +9,10 @@ import math
 import re
 import sys
 import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 import numpy as np
 import pytest
@@ -19,10 +20,11 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import LaserScan
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import LaserScan
+from slam_synthetic import ROOM, beam_angles, cast_ranges
 from std_srvs.srv import SetBool, Trigger
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
@@ -32,7 +34,6 @@ from pppbot_common.process import ChildProcess
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.wait import wait_until
-from slam_synthetic import ROOM, beam_angles, cast_ranges
 
 pytestmark = pytest.mark.ros
 
@@ -48,9 +49,9 @@ def transform(parent: str, child: str, t: float, x: float, y: float, yaw: float)
 
 def call(node: Any, service_type: Any, name: str, request: Any) -> Any:
     client = node.create_client(service_type, name)
-    wait_until(lambda: client.service_is_ready(), 20, f"service {name}", node=node)
+    wait_until(client.service_is_ready, 20, f"service {name}", node=node)
     future = client.call_async(request)
-    return wait_until(lambda: future.result(), 20, f"a reply from {name}", node=node)
+    return wait_until(future.result, 20, f"a reply from {name}", node=node)
 
 
 @dataclass

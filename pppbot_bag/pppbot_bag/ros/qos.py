@@ -1,7 +1,8 @@
 """QoS and type hashes between rclpy and the bag files (rosbags' ``Qos``)."""
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 from rclpy.duration import Duration
 from rclpy.qos import (

@@ -34,8 +34,8 @@ from pppbot_bag.cli import RecordOptions
 from pppbot_bag.definitions import type_definition
 from pppbot_bag.errors import BagError
 from pppbot_bag.metadata import BagMetadata
-from pppbot_bag.writer import BagWriter
 from pppbot_bag.ros.qos import qos_to_bag, type_hash_string
+from pppbot_bag.writer import BagWriter
 from pppbot_common.errors import MessageTypeError
 from pppbot_common.ros.messages import get_interface
 from pppbot_common.ros.qos import subscription_qos

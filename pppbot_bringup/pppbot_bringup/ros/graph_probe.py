@@ -7,19 +7,19 @@ so nothing is missed (and latched topics are asked for with transient local QoS)
 """
 from __future__ import annotations
 
+import contextlib
 import threading
-from typing import Callable
+from collections.abc import Callable
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 
-from pppbot_interfaces.msg import LockstepStatus
-
 from pppbot_common.ros.lockstep import STATUS_QOS, STATUS_TOPIC
 from pppbot_common.ros.messages import get_interface
 from pppbot_common.ros.qos import DEFAULT, LATCHED
+from pppbot_interfaces.msg import LockstepStatus
 
 
 class GraphProbe:
@@ -38,10 +38,8 @@ class GraphProbe:
         self._thread.start()
 
     def _spin(self) -> None:
-        try:
+        with contextlib.suppress(ExternalShutdownException, rclpy.executors.ShutdownException):
             self.executor.spin()
-        except (ExternalShutdownException, rclpy.executors.ShutdownException):
-            pass
 
     def first_message(self, topic: str, type_name: str, latched: bool | QoSProfile = False) -> Callable[[], bool]:
         """A probe that turns true once a message arrives on ``topic`` (``latched``: transient local)."""

@@ -14,7 +14,8 @@ import os
 import shutil
 import sys
 import time
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 from pppbot_bringup.launch_sim import ARGUMENTS, controllers_file, plan, stop_timeouts
 from pppbot_bringup.paths import log_root

@@ -6,12 +6,14 @@ DDS discovery: ``--spin-time`` bounds that wait.
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import statistics
 import sys
 import time
 from collections import deque
-from typing import Any, Callable, Iterator
+from collections.abc import Callable, Iterator
+from typing import Any
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -196,7 +198,7 @@ def rate_statistics(stamps: list[float]) -> tuple[float, float, float, float] | 
     """``(rate_hz, min_s, max_s, std_s)`` of arrival times, or None below two stamps."""
     if len(stamps) < 2:
         return None
-    gaps = [b - a for a, b in zip(stamps, stamps[1:])]
+    gaps = [b - a for a, b in itertools.pairwise(stamps)]
     mean = statistics.fmean(gaps)
     rate = math.inf if mean == 0 else 1.0 / mean
     return rate, min(gaps), max(gaps), statistics.pstdev(gaps)

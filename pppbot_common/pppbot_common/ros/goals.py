@@ -17,8 +17,9 @@ from __future__ import annotations
 
 import enum
 import functools
+from collections.abc import Callable, Generator
 from dataclasses import dataclass
-from typing import Any, Callable, Generator, Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
@@ -116,7 +117,8 @@ class Flow(Generic[T]):
     result happens to arrive.
     """
 
-    def __init__(self, steps: Step[T], clock_s: Callable[[], float], on_end: Callable[[T | None, BaseException | None], None],
+    def __init__(self, steps: Step[T], clock_s: Callable[[], float],
+                 on_end: Callable[[T | None, BaseException | None], None],
                  check: Callable[[], None] | None = None) -> None:
         self._steps = steps
         self._clock_s = clock_s

@@ -41,10 +41,10 @@ from __future__ import annotations
 import functools
 import threading
 import time
-from typing import Any, Callable, ClassVar, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any, ClassVar
 
 from builtin_interfaces.msg import Time as TimeMsg
-from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
 from rclpy.clock import ClockType, ROSClock
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -52,10 +52,17 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.time import Time
 
 from pppbot_common.lockstep import LockstepError, StepTimer, StepTimers
-from pppbot_common.ros.lockstep_counting import (_ORIGINAL_PUBLISH, COUNTERS, OUTBOX, HeldFuture, Receiver,
-                                                 install_counting)
+from pppbot_common.ros.lockstep_counting import (
+    _ORIGINAL_PUBLISH,
+    COUNTERS,
+    OUTBOX,
+    HeldFuture,
+    Receiver,
+    install_counting,
+)
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_common.throttle import Throttle
+from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
 
 STEP_TOPIC = "/lockstep/step"
 ACK_TOPIC = "/lockstep/ack"

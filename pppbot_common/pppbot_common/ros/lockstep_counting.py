@@ -17,7 +17,8 @@ import functools
 import inspect
 import itertools
 import threading
-from typing import Any, Callable, ClassVar
+from collections.abc import Callable
+from typing import Any, ClassVar
 
 import rclpy.action.client
 import rclpy.action.server
@@ -28,6 +29,7 @@ import rclpy.task
 from rclpy.serialization import serialize_message
 
 from pppbot_common.lockstep import Counted, Deliveries
+
 
 # --------------------------------------------------------------------------- counting
 class _Counters:

@@ -3,11 +3,10 @@ from __future__ import annotations
 
 import array
 
+import numpy as np
 from builtin_interfaces.msg import Time
 from nav_msgs.msg import MapMetaData
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
-
-import numpy as np
 
 from pppbot_common.maps import OccupancyGrid
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion

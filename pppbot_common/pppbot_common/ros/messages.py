@@ -10,6 +10,7 @@ import yaml
 from pppbot_common.errors import MessageTypeError
 from pppbot_common.type_names import split_type_name
 
+
 def get_interface(type_name: str) -> Any:
     """The Python class of an installed interface type.
 

@@ -25,8 +25,9 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable, Sequence
 from types import FrameType
-from typing import Any, Callable, Sequence, TypeVar
+from typing import Any, TypeVar
 
 import rclpy
 from rclpy.clock import ROSClock

@@ -1,7 +1,8 @@
 """Declare a node's parameters from its parameter dataclass, and keep it valid at run time."""
 from __future__ import annotations
 
-from typing import Any, Callable, TypeVar
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node

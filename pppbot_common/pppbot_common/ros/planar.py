@@ -1,7 +1,8 @@
 """Messages → planar values: stamps in seconds, TF transforms as (parent, child, stamp, x, y, yaw)."""
 from __future__ import annotations
 
-from typing import Iterator, NamedTuple
+from collections.abc import Iterator
+from typing import NamedTuple
 
 from builtin_interfaces.msg import Time
 from tf2_msgs.msg import TFMessage

@@ -1,7 +1,8 @@
 """QoS profiles pppbot uses, and QoS that matches a topic's publishers."""
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 from rclpy.node import Node
 from rclpy.qos import (

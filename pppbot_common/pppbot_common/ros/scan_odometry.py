@@ -10,7 +10,7 @@ frames.
 from __future__ import annotations
 
 from collections import deque
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from rclpy.node import Node

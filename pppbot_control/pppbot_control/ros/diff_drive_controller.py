@@ -22,8 +22,9 @@ from __future__ import annotations
 import math
 import sys
 from collections import deque
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Mapping, Protocol, Sequence
+from typing import Protocol
 
 from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import TransformStamped, Twist, TwistStamped
@@ -184,10 +185,11 @@ class DiffDriveController(Node):
         self._odom_stamp_ns = -1  # the stamp of the odometry last published
         self.timer = None if hosted else create_timer(self, 1.0 / self.params.update_rate, self.update)
         on_valid_update(self, lambda: self.params, self._apply)
+        feedback = "positions" if self.params.position_feedback else "velocities"
         self.get_logger().info(
             f"wheels {self.params.left_wheel_names} / {self.params.right_wheel_names}, separation "
             f"{self.params.wheel_separation} m, radius {self.params.wheel_radius} m; odometry "
-            f"{'open loop' if self.params.open_loop else 'from wheel ' + ('positions' if self.params.position_feedback else 'velocities')}"
+            f"{'open loop' if self.params.open_loop else 'from wheel ' + feedback}"
             f"; {'in the simulator, ' if hosted else ''}{self.params.update_rate:g} Hz")
 
     def _configure(self, params: DiffDriveParameters) -> None:
@@ -303,7 +305,7 @@ class DiffDriveController(Node):
         p = self.params
         speeds = [left] * len(p.left_wheel_names) + [right] * len(p.right_wheel_names)
         if self.hosted is not None:
-            self.hosted.write(dict(zip(self._command_names, speeds)))
+            self.hosted.write(dict(zip(self._command_names, speeds, strict=True)))
         else:
             command = JointState(name=self._command_names, velocity=speeds)
             command.header.stamp = _time_msg(now_ns)

@@ -7,7 +7,8 @@ Parameters as twist_mux's YAML: ``topics.<name>.{topic, timeout, priority}`` and
 from __future__ import annotations
 
 import sys
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from geometry_msgs.msg import Twist, TwistStamped
 from rclpy.node import Node
@@ -59,7 +60,8 @@ class TwistMuxNode(Node):
             count_deliveries(self, self.create_subscription(Bool, lock.topic, self._lock_callback(lock.name), 10))
         create_timer(self, 1.0 / CHECK_RATE_HZ, self.check, wakes=False)
         summary = ", ".join(f"{s.name} ({s.topic}, priority {s.priority}, {s.timeout_s:g} s)" for s in inputs)
-        self.get_logger().info(f"inputs: {summary}" + (f"; locks: {', '.join(l.name for l in locks)}" if locks else ""))
+        locked = f"; locks: {', '.join(lock.name for lock in locks)}" if locks else ""
+        self.get_logger().info(f"inputs: {summary}{locked}")
 
     def _input_callback(self, name: str) -> Callable[[Any], None]:
         return guarded(self, lambda msg: self.on_input(name, msg), f"'{name}' input")

@@ -127,7 +127,7 @@ class RobotStatePublisher(Node):
                 f"dropping a JointState with {len(msg.name)} names but {len(msg.position)} positions",
                 throttle_duration_sec=WARN_PERIOD_S)
             return
-        positions = dict(zip(msg.name, msg.position))
+        positions = dict(zip(msg.name, msg.position, strict=False))
         unknown = self.tree.unknown_names(positions)
         if unknown:
             self.get_logger().warning(f"ignoring unknown joint(s) {', '.join(sorted(unknown))}",

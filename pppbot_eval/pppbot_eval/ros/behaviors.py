@@ -8,16 +8,17 @@ it has no clock and no ROS of its own.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol, Sequence
+from typing import Any, Protocol
 
 from action_msgs.msg import GoalStatus
 
-from pppbot_eval.driver import RouteDriver
-from pppbot_eval.scenarios import GoalRecord, Recording, shortest_path_m
 from pppbot_common.maps import OccupancyGrid
 from pppbot_common.ros.lockstep import Arrival, hold_until
 from pppbot_common.se2 import se2_compose, se2_inverse
+from pppbot_eval.driver import RouteDriver
+from pppbot_eval.scenarios import GoalRecord, Recording, shortest_path_m
 
 #: The evaluation ticks at 20 Hz of sim time, a teleop's or a controller's rate.
 TICK_S = 0.05

@@ -20,6 +20,7 @@ one JSON object. Exit code 0 when the scenario succeeded, 1 when not, 2 for bad 
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import os
 import signal
@@ -32,11 +33,23 @@ from typing import Any
 import numpy as np
 import yaml
 
+from pppbot_bringup.launch_sim import ARGUMENTS, controllers_file, plan
+from pppbot_bringup.paths import config_directory
+from pppbot_bringup.ros.graph_probe import GraphProbe
+from pppbot_bringup.run import RunError, find_executable
+from pppbot_bringup.supervisor import Output, Supervisor
+from pppbot_common.errors import PppbotError
+from pppbot_common.launch_args import ArgumentError
+from pppbot_common.maps import MapFileError, OccupancyGrid, save_map
+from pppbot_description.errors import DescriptionError
+from pppbot_description.xacro_model import process_xacro
 from pppbot_eval.driver import DriverSettings, RouteDriver
-from pppbot_eval.progress import Progress
-from pppbot_eval.report import write_json
 from pppbot_eval.errors import GoalSamplingError, MapQualityError, RouteError
 from pppbot_eval.goals import sample_goals
+from pppbot_eval.progress import Progress
+from pppbot_eval.report import write_json
+from pppbot_eval.ros.behaviors import Behavior, Chain, DriveRoute, NavigateGoals, StartLocalization
+from pppbot_eval.ros.node import PARTICIPANT, EvalNode
 from pppbot_eval.routes import Route, load_routes, routes_file, select_route
 from pppbot_eval.scenarios import (
     CONVERGED_M,
@@ -53,18 +66,6 @@ from pppbot_eval.scenarios import (
     score_saved_map,
     world_truth,
 )
-from pppbot_bringup.launch_sim import ARGUMENTS, controllers_file, plan
-from pppbot_bringup.paths import config_directory
-from pppbot_eval.ros.behaviors import Behavior, Chain, DriveRoute, NavigateGoals, StartLocalization
-from pppbot_eval.ros.node import PARTICIPANT, EvalNode
-from pppbot_bringup.ros.graph_probe import GraphProbe
-from pppbot_bringup.run import RunError, find_executable
-from pppbot_bringup.supervisor import Output, Supervisor
-from pppbot_common.errors import PppbotError
-from pppbot_common.launch_args import ArgumentError
-from pppbot_common.maps import MapFileError, OccupancyGrid, save_map
-from pppbot_description.errors import DescriptionError
-from pppbot_description.xacro_model import process_xacro
 from pppbot_sim.errors import WorldError
 from pppbot_sim.wheel_slip import MAX_SLIP_STDDEV
 from pppbot_sim.worlds import find_world
@@ -77,6 +78,11 @@ FINAL_MAP_TIMEOUT_S = 60.0
 #: The covariance RViz's 2D Pose Estimate sends: 0.5 m and π/12 rad standard deviations.
 INITIAL_POSE_COVARIANCE = [float(v) for v in np.diag([0.25, 0.25, 0.0, 0.0, 0.0, (math.pi / 12) ** 2]).ravel()]
 
+
+
+def _progress_line(sim_s: float, wall_s: float, detail: str) -> str:
+    """The progress bar's detail: sim time, the speed against the wall clock, the behaviour's word."""
+    return f"sim {sim_s:6.1f} s, {sim_s / max(wall_s, 1e-6):4.1f}x, {detail}"
 
 class Run:
     """One scenario run: the stack under a supervisor thread, the eval node in this thread.
@@ -183,8 +189,9 @@ class Run:
                 return
             probe.close()
             if self.scenario is Scenario.LOCALIZATION:
+                dx, dy, dyaw = self.args.initial_offset
                 progress.message("global localization: particles over the whole map" if self.args.global_localization
-                                 else "initial pose off by ({:g} m, {:g} m, {:g} rad)".format(*self.args.initial_offset))
+                                 else f"initial pose off by ({dx:g} m, {dy:g} m, {dyaw:g} rad)")
             if self.scenario is Scenario.NAVIGATION:
                 progress.message(f"{len(self.goals)} goals, drawn with seed {self.args.seed}")
             node.start()
@@ -229,9 +236,8 @@ class Run:
             node.spin_pending(0.05)
             rec.drive_wall_seconds = node.drive_wall_seconds()
             fraction, detail = behavior.progress()
-            elapsed = rec.sim_seconds
-            progress.update(fraction, lambda: f"sim {elapsed:6.1f} s, {elapsed / max(rec.drive_wall_seconds, 1e-6):4.1f}x, "
-                                              f"{detail}")
+            line = functools.partial(_progress_line, rec.sim_seconds, rec.drive_wall_seconds, detail)
+            progress.update(fraction, line)  # formatted only when drawn
             if self.interrupted:
                 rec.failure = "interrupted"
                 return
@@ -293,7 +299,7 @@ def _nav2_parameter(node: str, name: str, default: float) -> float:
     parameters = values.get(node, {}).get("ros__parameters", {})
     for part in name.split(".")[:-1]:
         parameters = parameters.get(part, {})
-    return float(parameters.get(name.split(".")[-1], default))
+    return float(parameters.get(name.rsplit(".", maxsplit=1)[-1], default))
 
 
 def amcl_transform_tolerance() -> float:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import signal
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
@@ -26,14 +26,14 @@ from rclpy.task import Future
 from std_srvs.srv import Empty, Trigger
 from tf2_msgs.msg import TFMessage
 
-from pppbot_eval.scenarios import Estimate, Recording
-from pppbot_eval.ros.behaviors import TICK_S, Behavior
 from pppbot_common.ros.action_client import ActionClient
 from pppbot_common.ros.lockstep import Participant, create_timer, require_match
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.planar import planar_transforms, stamp_seconds
 from pppbot_common.ros.qos import DEFAULT, LATCHED
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
+from pppbot_eval.ros.behaviors import TICK_S, Behavior
+from pppbot_eval.scenarios import Estimate, Recording
 
 #: The lockstep participant's name, for the launch's list of whom time waits for.
 PARTICIPANT = "pppbot_eval"

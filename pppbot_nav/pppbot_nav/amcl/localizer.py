@@ -23,7 +23,6 @@ from pppbot_nav.amcl.motion import MotionNoise, RobotModel, motion_model
 from pppbot_nav.amcl.refine import ScanFitter
 from pppbot_nav.errors import AmclError
 
-
 #: Global localization's search grid: position step (m) and headings over a turn, scored
 #: this many poses at a time.
 GLOBAL_STEP_M = 0.25

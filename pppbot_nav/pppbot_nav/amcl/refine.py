@@ -13,6 +13,7 @@ stands. The particles themselves are left as they are.
 from __future__ import annotations
 
 import math
+
 import numpy as np
 
 from pppbot_nav.amcl.laser import MapField, Scan

@@ -399,10 +399,7 @@ def _check_collision(costmap: Costmap, pose: tuple[float, float, float], linear:
     x0, y0, yaw0 = pose
     if abs(linear) < _STILL_VEL:
         return  # the footprint is a circle: turning in place sweeps no new cell
-    if abs(linear) > 0.0:
-        step_s = costmap.resolution / _CELL_SUBSTEPS / abs(linear)
-    else:
-        step_s = math.inf
+    step_s = costmap.resolution / _CELL_SUBSTEPS / abs(linear) if abs(linear) > 0.0 else math.inf
     horizon_s = s.max_allowed_time_to_collision_up_to_carrot
     steps = 0 if not math.isfinite(step_s) else min(math.ceil(horizon_s / step_s) - 1, _MAX_SIM_STEPS)
     t = np.arange(0, steps + 1) * step_s

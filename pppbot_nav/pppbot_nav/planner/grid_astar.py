@@ -9,8 +9,9 @@ walls). Cells of cost ``near_obstacle_cost`` or more (a thin band round the insc
 ``near_obstacle_penalty`` times more: where there is room the path keeps that band's width
 off the inscribed zone, which is what the controller's collision check and localization
 error need; where there is not (a narrow door), it still goes through. Smac 2D and NavFn have
-no such band, and their paths graze the inscribed zone round every corner. The search itself is pyastar2d's C++ A* (a diagonal step costs as much as a straight
-one, which its L∞ heuristic keeps admissible); :mod:`pppbot_nav.planner.smoother` then
+no such band, and their paths graze the inscribed zone round every corner. The search itself
+is pyastar2d's C++ A* (a diagonal step costs as much as a straight one, which its L∞
+heuristic keeps admissible); :mod:`pppbot_nav.planner.smoother` then
 straightens the cell path into an any-angle one under the same travel cost, and rounds it.
 
 Around the search:
@@ -26,8 +27,8 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 import pyastar2d
@@ -89,7 +90,8 @@ class Plan:
 
 
 def travel_weights(costs: np.ndarray, cost_travel_multiplier: float, allow_unknown: bool,
-                   near_obstacle_cost: int = INSCRIBED_INFLATED_OBSTACLE, near_obstacle_penalty: float = 1.0) -> np.ndarray:
+                   near_obstacle_cost: int = INSCRIBED_INFLATED_OBSTACLE,
+                   near_obstacle_penalty: float = 1.0) -> np.ndarray:
     """float32 weight of stepping onto each cell (inf: cannot be entered); see the module doc."""
     c = np.asarray(costs, dtype=np.uint8)
     known = c.astype(np.float32)
@@ -136,7 +138,8 @@ class GridPlanner:
                 f"y {c.origin[1]:.2f} … {c.origin[1] + c.height * c.resolution:.2f} in '{c.frame_id}')")
         return int(row), int(col)
 
-    def _nearest(self, cell: tuple[int, int], radius_m: float, allowed: np.ndarray | None = None) -> tuple[int, int] | None:
+    def _nearest(self, cell: tuple[int, int], radius_m: float,
+                 allowed: np.ndarray | None = None) -> tuple[int, int] | None:
         """The nearest traversable cell (in ``allowed``, if given) within ``radius_m`` of ``cell``."""
         assert self.costmap is not None
         r = int(math.ceil(radius_m / self.costmap.resolution))

@@ -114,7 +114,7 @@ def resample(points: np.ndarray, step_m: float) -> np.ndarray:
     """The polyline with a point every ``step_m`` or less along each segment, corners kept."""
     pts = np.asarray(points, dtype=float)
     out = [pts[:1]]
-    for a, b in zip(pts[:-1], pts[1:]):
+    for a, b in zip(pts[:-1], pts[1:], strict=True):
         out.append(_samples(a, b, step_m)[0])
     return np.vstack(out)
 

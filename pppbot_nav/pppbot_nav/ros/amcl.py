@@ -153,7 +153,8 @@ class AmclParameters:
             laser=LaserSettings(self.z_hit, self.z_short, self.z_max, self.z_rand, self.sigma_hit,
                                 self.lambda_short, self.laser_likelihood_max_dist, self.max_beams,
                                 self.laser_min_range, self.laser_max_range,
-                                self.beams_with_returns and self.laser_model_type == LaserModelType.LIKELIHOOD_FIELD.value),
+                                self.beams_with_returns
+                                and self.laser_model_type == LaserModelType.LIKELIHOOD_FIELD.value),
             laser_model_type=LaserModelType(self.laser_model_type),
             robot_model_type=RobotModel(self.robot_model_type),
             motion_noise=MotionNoise(self.alpha1, self.alpha2, self.alpha3, self.alpha4, self.alpha5),
@@ -183,8 +184,8 @@ class Amcl(Node):
         self.cloud_pub = self.create_publisher(ParticleCloud, "particle_cloud", SENSOR)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
         self.create_subscription(OccupancyGridMsg, p.map_topic, guarded(self, self._on_map, "OccupancyGrid"), LATCHED)
-        require_match(self, self.create_subscription(LaserScan, p.scan_topic, guarded(self, at_step(self, self.scans.add), "LaserScan"),
-                                                     SENSOR))
+        on_scan = guarded(self, at_step(self, self.scans.add), "LaserScan")
+        require_match(self, self.create_subscription(LaserScan, p.scan_topic, on_scan, SENSOR))
         self.create_subscription(PoseWithCovarianceStamped, "initialpose",
                                  guarded(self, self._on_initial_pose, "PoseWithCovarianceStamped"), 10)
         self.create_service(Empty, "reinitialize_global_localization", self._global_localization)
@@ -325,7 +326,7 @@ class Amcl(Node):
         msg.header.frame_id = self.params.global_frame_id
         particles = []
         for (x, y, _), s, c, w in zip(f.particles.tolist(), np.sin(half).tolist(), np.cos(half).tolist(),
-                                      f.weights.tolist()):
+                                      f.weights.tolist(), strict=True):
             particle = Particle(weight=w)
             particle.pose.position.x, particle.pose.position.y = x, y
             particle.pose.orientation.z, particle.pose.orientation.w = s, c
@@ -346,5 +347,5 @@ class Amcl(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run_node(lambda: Amcl(), "amcl", args))
+    sys.exit(run_node(Amcl, "amcl", args))
 

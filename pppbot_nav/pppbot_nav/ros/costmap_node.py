@@ -158,8 +158,8 @@ class CostmapNode(Node):
             self.create_subscription(OccupancyGridMsg, p.map_topic, guarded(self, self._on_map, "OccupancyGrid"),
                                      LATCHED)
         if self.obstacles:
-            require_match(self, self.create_subscription(LaserScan, p.scan_topic,
-                                                         guarded(self, at_step(self, self._on_scan), "LaserScan"), SENSOR))
+            on_scan = guarded(self, at_step(self, self._on_scan), "LaserScan")
+            require_match(self, self.create_subscription(LaserScan, p.scan_topic, on_scan, SENSOR))
         self.create_service(ClearEntireCostmap, f"clear_entirely_{name}", self._clear)
         create_timer(self, 1.0 / p.update_frequency, self.update)
         create_timer(self, 1.0 / p.publish_frequency, self.publish)

@@ -13,9 +13,9 @@ import time
 import rclpy
 from action_msgs.msg import GoalStatus
 from nav2_msgs.action import NavigateToPose
-from pppbot_common.ros.action_client import ActionClient
 from rclpy.node import Node
 
+from pppbot_common.ros.action_client import ActionClient
 from pppbot_common.se2 import quaternion_from_yaw
 
 STATUS = {GoalStatus.STATUS_SUCCEEDED: "succeeded", GoalStatus.STATUS_ABORTED: "failed",

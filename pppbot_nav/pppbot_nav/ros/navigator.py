@@ -40,9 +40,9 @@ from rclpy.task import Future
 
 from pppbot_common.params import check_finite_range, param
 from pppbot_common.ros.action_client import ActionClient
-from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stopped
 from pppbot_common.ros.lockstep import Participant, count_deliveries, create_timer, require_match
+from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters
 from pppbot_common.ros.qos import LATCHED
@@ -112,8 +112,8 @@ class Navigator(Node):
             participant.require_when("the compute_path_to_pose server", self.planner.server_is_ready)
             participant.require_when("the follow_path server", self.controller.server_is_ready)
         self._local_costmap: OccupancyGridMsg | None = None
-        count_deliveries(self, self.create_subscription(OccupancyGridMsg, "local_costmap/costmap",
-                                                        guarded(self, self._on_local_costmap, "OccupancyGrid"), LATCHED))
+        on_costmap = guarded(self, self._on_local_costmap, "OccupancyGrid")
+        count_deliveries(self, self.create_subscription(OccupancyGridMsg, "local_costmap/costmap", on_costmap, LATCHED))
         self._active: tuple[ServerGoalHandle, Flow[None], _Progress] | None = None
         self._self_client = ActionClient(self, NavigateToPose, "navigate_to_pose")
         self.server = GoalServer(self, NavigateToPose, "navigate_to_pose", self._on_goal)

@@ -82,7 +82,7 @@ def path_message(points_xy: np.ndarray, goal_yaw: float, frame: str, stamp: Any)
     d = np.diff(points_xy, axis=0)
     yaws = np.append(np.arctan2(d[:, 1], d[:, 0]), goal_yaw) if len(points_xy) > 1 else np.array([goal_yaw])
     poses = []
-    for (x, y), yaw in zip(points_xy.tolist(), yaws.tolist()):
+    for (x, y), yaw in zip(points_xy.tolist(), yaws.tolist(), strict=True):
         pose = PoseStamped()
         pose.header = msg.header
         pose.pose.position.x, pose.pose.position.y = x, y

@@ -15,9 +15,9 @@ The bookkeeping is :class:`pppbot_common.lockstep.Barrier`; this is its ROS adap
 from __future__ import annotations
 
 import time
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
-from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
 from rclpy.node import Node
 
 from pppbot_common.lockstep import AckOutcome, Barrier, LockstepError, Publications
@@ -34,6 +34,7 @@ from pppbot_common.ros.lockstep import (
 from pppbot_common.ros.lockstep_counting import _ORIGINAL_PUBLISH, COUNTERS, Receiver, install_counting
 from pppbot_common.ros.node_main import Process
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
+from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
 
 #: Rounds at one time before the simulator moves on anyway (participants echoing each other).
 MAX_ROUNDS = 50

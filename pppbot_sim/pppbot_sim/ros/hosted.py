@@ -19,9 +19,9 @@ any other type is named in a warning and left out.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import yaml
 from rclpy.clock import ClockType, ROSClock

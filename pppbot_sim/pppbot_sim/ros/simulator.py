@@ -19,9 +19,10 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import PointStamped
@@ -299,7 +300,7 @@ class Simulator(Node):
                                   f"{len(msg.velocity)} velocities")
             return
         try:
-            self.runner.command(dict(zip(msg.name, msg.velocity)))
+            self.runner.command(dict(zip(msg.name, msg.velocity, strict=False)))
         except (KeyError, ValueError) as exc:
             reason = exc.args[0] if exc.args else str(exc)
             self._warn(type(exc).__name__, f"rejecting a joint command: {reason}")

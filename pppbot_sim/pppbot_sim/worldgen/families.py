@@ -28,7 +28,8 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
-from shapely.geometry import Point, Polygon, box as shapely_box
+from shapely.geometry import Point, Polygon
+from shapely.geometry import box as shapely_box
 from shapely.ops import unary_union
 
 from pppbot_sim.worldgen import mazes, sdf

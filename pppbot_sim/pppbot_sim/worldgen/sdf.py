@@ -53,10 +53,11 @@ def box(name: str, x: float, y: float, sx: float, sy: float, sz: float, yaw: flo
 
 def cylinder(name: str, x: float, y: float, r: float, h: float) -> str:
     """An upright cylinder link of radius ``r`` and height ``h`` m standing at (x, y)."""
+    shape = f"<geometry><cylinder><radius>{r:.4f}</radius><length>{h:.4f}</length></cylinder></geometry>"
     return f"""      <link name="{name}">
         <pose>{x:.4f} {y:.4f} {h / 2:.4f} 0 0 0</pose>
-        <collision name="collision"><geometry><cylinder><radius>{r:.4f}</radius><length>{h:.4f}</length></cylinder></geometry></collision>
-        <visual name="visual"><geometry><cylinder><radius>{r:.4f}</radius><length>{h:.4f}</length></cylinder></geometry></visual>
+        <collision name="collision">{shape}</collision>
+        <visual name="visual">{shape}</visual>
       </link>
 """
 
@@ -97,7 +98,8 @@ def door_wall(x0: float, y0: float, x1: float, y1: float, doors: list[tuple[floa
     for centre, width in sorted(doors):
         cuts += [centre - width / 2 - thickness / 2, centre + width / 2 + thickness / 2]
     cuts.append(length)
-    return [(x0 + ux * a, y0 + uy * a, x0 + ux * b, y0 + uy * b) for a, b in zip(cuts[::2], cuts[1::2]) if b - a > 0.05]
+    return [(x0 + ux * a, y0 + uy * a, x0 + ux * b, y0 + uy * b)
+            for a, b in zip(cuts[::2], cuts[1::2], strict=False) if b - a > 0.05]
 
 
 def world(name: str, body: str, generator: str) -> str:

@@ -27,9 +27,10 @@ from __future__ import annotations
 import queue
 import sys
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -39,8 +40,8 @@ from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rclpy.duration import Duration
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
-from std_srvs.srv import SetBool, Trigger
 from std_msgs.msg import ColorRGBA, Header
+from std_srvs.srv import SetBool, Trigger
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -194,8 +195,8 @@ class Slam(Node):
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "pose", 10)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        require_match(self, self.create_subscription(LaserScan, p.scan_topic, guarded(self, at_step(self, self.on_scan), "LaserScan"),
-                                                     SENSOR))
+        on_scan = guarded(self, at_step(self, self.on_scan), "LaserScan")
+        require_match(self, self.create_subscription(LaserScan, p.scan_topic, on_scan, SENSOR))
         self.create_service(Trigger, "~/save_map", self._save_map)
         self.create_service(Trigger, "~/serialize_map", self._serialize)
         self.create_service(Trigger, "~/deserialize_map", self._deserialize)
