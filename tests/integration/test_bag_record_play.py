@@ -42,6 +42,11 @@ PPPBOT = str(ROOT / "pppbot")
 BOX_ROOM = str(ROOT / "tests" / "pppbot_sim" / "data" / "box_room.sdf")
 SCRIPTS = ROOT / "tests" / "scripts"
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
+
+
+def decode(raw: Any, msgtype: str) -> Any:
+    """A CDR message as rosbags' Jazzy typestore reads it (an independent reader)."""
+    return JAZZY.deserialize_cdr(raw, msgtype)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: The simulator's publishing periods (its defaults and the robot's sensor rates), seconds.
 PERIODS = {"/clock": 0.01, "/joint_states": 0.01, "/imu": 0.01, "/ground_truth/odom": 0.02, "/scan": 0.1}
@@ -122,7 +127,7 @@ def test_nothing_the_simulator_published_is_lost(recording):
     with Reader(bag) as reader:
         types = {c.topic: c.msgtype for c in reader.connections}
     for topic, period in PERIODS.items():
-        stamps = np.array([stamp_s(JAZZY.deserialize_cdr(raw, types[topic]), topic) for _, raw in messages[topic]])
+        stamps = np.array([stamp_s(decode(raw, types[topic]), topic) for _, raw in messages[topic]])
         gaps = np.diff(stamps)
         span = stamps[-1] - stamps[0]
         assert span > RECORD_SIM_S - 1.0, topic
@@ -134,7 +139,7 @@ def test_nothing_the_simulator_published_is_lost(recording):
         assert summary_count(output, topic) == len(stamps)
     # Latched: delivered to the recorder although published before it started.
     note = messages["/latched_note"]
-    assert len(note) == 1 and JAZZY.deserialize_cdr(note[0][1], "std_msgs/msg/String").data.startswith("published")
+    assert len(note) == 1 and decode(note[0][1], "std_msgs/msg/String").data.startswith("published")
     # Receive times are sim time (the simulator started at 0).
     first = min(stamp for msgs in messages.values() for stamp, _ in msgs)
     assert 0 < first < 120e9
@@ -151,7 +156,7 @@ def test_the_mcap_reader_decodes_the_same_messages(recording):
                 theirs.setdefault(channel.topic, []).append((message.log_time, decoded))
     assert {k: len(v) for k, v in theirs.items()} == {k: len(v) for k, v in ours.items()}
     for (stamp_a, raw), (stamp_b, decoded) in zip(ours["/scan"], theirs["/scan"], strict=True):
-        mine = JAZZY.deserialize_cdr(raw, "sensor_msgs/msg/LaserScan")
+        mine = decode(raw, "sensor_msgs/msg/LaserScan")
         assert stamp_a == stamp_b
         assert list(mine.ranges) == list(decoded.ranges) and len(decoded.ranges) == 640
         assert decoded.header.frame_id == "lidar_frame"
@@ -214,7 +219,7 @@ def test_sigterm_finishes_the_bag(tmp_path):
         assert recorder.wait(30) == 0
     with Reader(bag) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
-        tf_nanosec = [JAZZY.deserialize_cdr(raw, c.msgtype).transforms[0].header.stamp.nanosec
+        tf_nanosec = [decode(raw, c.msgtype).transforms[0].header.stamp.nanosec
                       for c, _, raw in reader.messages() if c.topic == "/tf"]
     assert counts["/tf"] >= 20 and counts["/particle_cloud"] >= 20
     # In order and without gaps (the talker numbers its messages).
@@ -231,7 +236,7 @@ def test_a_killed_recorder_leaves_a_bag_that_reindex_recovers(tmp_path):
     fixed = subprocess.run([PPPBOT, "bag", "reindex", str(bag)], capture_output=True, text=True, timeout=60)
     assert fixed.returncode == 0, fixed.stderr
     with Reader(bag) as reader:
-        tf_nanosec = [JAZZY.deserialize_cdr(raw, c.msgtype).transforms[0].header.stamp.nanosec
+        tf_nanosec = [decode(raw, c.msgtype).transforms[0].header.stamp.nanosec
                       for c, _, raw in reader.messages() if c.topic == "/tf"]
     assert len(tf_nanosec) >= 50  # at 50 Hz, at least the first flushed second
     assert tf_nanosec == list(range(tf_nanosec[0], tf_nanosec[0] + len(tf_nanosec)))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
@@ -52,8 +53,8 @@ def write_bag(path: Path, n: int = 300, **options: object) -> None:
             w.write("/chatter", serialize_message(String(data=f"hello {i}")), stamp + 1)
 
 
-def read_rosbags(path: Path) -> dict[str, list[object]]:
-    out: dict[str, list[object]] = {}
+def read_rosbags(path: Path) -> dict[str, list[Any]]:
+    out: dict[str, list[Any]] = {}
     with Reader(path) as reader:
         for conn, _, raw in reader.messages():
             out.setdefault(conn.topic, []).append(JAZZY.deserialize_cdr(raw, conn.msgtype))

@@ -297,7 +297,9 @@ def test_in_a_terminal_the_teleop_drives_and_ctrl_c_ends_everything(ros_node):
         text = read_until("CTRL-C to quit", 30)
         assert "node output goes to the log directory" in text
         assert "[simulator-1] [INFO]" not in text  # node output went to the log files
-        log_dir = Path(re.search(r"log directory: (\S+)", text).group(1))
+        where = re.search(r"log directory: (\S+)", text)
+        assert where is not None, text
+        log_dir = Path(where.group(1))
         truths: list[Odometry] = []
         ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
         wait_until(lambda: truths, 20, "ground truth", node=ros_node)

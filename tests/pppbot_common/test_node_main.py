@@ -1,6 +1,7 @@
 """run_node: how a node's main() ends."""
 from __future__ import annotations
 
+import functools
 import signal
 import subprocess
 import sys
@@ -130,9 +131,12 @@ def test_composed_nodes_share_one_tf_listener_and_each_hears_of_new_transforms()
         static_pub = source.create_publisher(TFMessage, "/tf_static", LATCHED)
         dynamic_pub = source.create_publisher(TFMessage, "/tf", 10)
         heard = {0: 0, 1: 0}
+
+        def hear(i: int) -> None:
+            heard[i] += 1
+
         nodes = [Node(f"listening_{i}") for i in range(2)]
-        listeners = [TfListener(n, Warnings(n), on_tf=lambda i=i: heard.__setitem__(i, heard[i] + 1))
-                     for i, n in enumerate(nodes)]
+        listeners = [TfListener(n, Warnings(n), on_tf=functools.partial(hear, i)) for i, n in enumerate(nodes)]
         assert listeners[0].buffer is listeners[1].buffer
         tf_subscribers = [n for n in nodes if any(s.topic_name == "/tf" for s in n.subscriptions)]
         assert tf_subscribers == [nodes[0]]

@@ -27,7 +27,7 @@ def test_defaults_and_dotted_ros_names():
     e = from_values(Example, {"linear.x.max_velocity": 1.5})
     assert (e.rate_hz, e.max_velocity, e.names) == (20.0, 1.5, ["a"])
     with pytest.raises(FrozenInstanceError):
-        e.rate_hz = 1.0
+        e.rate_hz = 1.0  # type: ignore[misc]  # the point: it is frozen
 
 
 def test_integers_are_accepted_for_floats():

@@ -64,7 +64,7 @@ def wheel_transforms(node, pub, msg):
     Discovery can drop the first messages, and the node rate-limits by message time, so
     each retry is one second later: ``msg``'s stamp ends as the last one sent.
     """
-    received = []
+    received: list[TFMessage] = []
     sub = node.create_subscription(TFMessage, "/tf", received.append, 10)
     wait_until(lambda: sub.get_publisher_count() > 0, 10, "the /tf subscription to match", node=node)
 
@@ -174,8 +174,12 @@ def test_rate_limit_by_message_time(ros_node, spawn):
     # a whole second later each time (every one published) until one comes through.
     sent: list[int] = []
     seconds = itertools.count(t0 + 1)
-    wait_until(lambda: (sent.append(next(seconds)), joint_state(sent[-1]), bool(stamps()))[2], 20,
-               "the /tf subscription to match", node=ros_node)
+    def send_and_look() -> bool:
+        sent.append(next(seconds))
+        joint_state(sent[-1])
+        return bool(stamps())
+
+    wait_until(send_and_look, 20, "the /tf subscription to match", node=ros_node)
     t1 = sent[-1]  # the last one published: the next within a second must not be
     for sec, nsec in ((t1, 500_000_000), (t1 + 1, 0)):
         joint_state(sec, nsec)

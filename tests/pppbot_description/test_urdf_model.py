@@ -87,7 +87,7 @@ def test_every_physical_link_has_visual_collision_and_inertial():
 @pytest.mark.parametrize("name", sorted(n for n, link in MODEL.links.items() if link.inertial is not None))
 def test_masses_positive_and_inertias_physical(name):
     inertial = MODEL.links[name].inertial
-    assert inertial.mass > 0
+    assert inertial is not None and inertial.mass > 0
     eig = np.linalg.eigvalsh(np.array(inertial.matrix()))
     assert (eig > 0).all()
     a, b, c = sorted(eig)
@@ -95,16 +95,16 @@ def test_masses_positive_and_inertias_physical(name):
 
 
 def test_inertia_macros_follow_the_solid_body_formulas():
-    chassis = MODEL.links["chassis"].inertial
+    chassis, wheel, caster = (MODEL.links[n].inertial for n in ("chassis", "left_wheel", "caster_wheel"))
+    assert chassis is not None and wheel is not None and caster is not None
     m, x, y, z = 0.5, 0.3, 0.3, 0.15
     assert chassis.mass == m
-    np.testing.assert_allclose(np.diag(chassis.matrix()), [m * (y*y + z*z) / 12, m * (x*x + z*z) / 12,
-                                                           m * (x*x + y*y) / 12])
+    np.testing.assert_allclose(np.diag(chassis.matrix()), np.array([m * (y*y + z*z) / 12, m * (x*x + z*z) / 12,
+                                                                    m * (x*x + y*y) / 12]))
     assert chassis.origin.xyz == (0.15, 0.0, 0.075)
-    wheel = MODEL.links["left_wheel"].inertial
-    np.testing.assert_allclose(np.diag(wheel.matrix()), [0.1 * (3 * 0.05**2 + 0.04**2) / 12] * 2 + [0.1 * 0.05**2 / 2])
-    caster = MODEL.links["caster_wheel"].inertial
-    np.testing.assert_allclose(np.diag(caster.matrix()), [0.4 * 0.1 * 0.05**2] * 3)
+    np.testing.assert_allclose(np.diag(wheel.matrix()),
+                               np.array([0.1 * (3 * 0.05**2 + 0.04**2) / 12] * 2 + [0.1 * 0.05**2 / 2]))
+    np.testing.assert_allclose(np.diag(caster.matrix()), np.full(3, 0.4 * 0.1 * 0.05**2))
 
 
 def test_wheel_and_caster_geometry():

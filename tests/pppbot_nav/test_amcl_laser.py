@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -68,7 +69,7 @@ def test_laser_range_limits_override_the_scans():
 
 @pytest.mark.parametrize("bad", [dict(ranges=[]), dict(angle_min=math.nan)])
 def test_a_malformed_scan_is_refused_by_name(bad):
-    args = dict(ranges=[1.0, 2.0], angle_min=0.0)
+    args: dict[str, Any] = dict(ranges=[1.0, 2.0], angle_min=0.0)
     args.update(bad)
     with pytest.raises(AmclError, match="scan"):
         Scan.from_laser(np.array(args["ranges"]), args["angle_min"], 0.1, 0.1, 10.0, (0, 0, 0), LaserSettings())

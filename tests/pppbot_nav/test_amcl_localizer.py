@@ -122,6 +122,7 @@ def test_in_an_open_field_of_cones_the_beams_that_returned_keep_it_localized():
             if loc.update(odom, Scan.from_laser(*args), full) is None:
                 loc.track(odom, full)
             if distance > 5.0:
+                assert loc.last is not None
                 estimate = se2_compose(loc.last.map_to_odom, odom)
                 late.append(math.hypot(*(estimate[:2] - truth[:2])))
         errors[returns] = math.sqrt(np.mean(np.square(late)))
@@ -158,7 +159,9 @@ def test_resample_interval_skips_resampling_between_updates():
     flags = []
     for _ in range(4):
         loc.request_nomotion_update()
-        flags.append(loc.update(odom, scan(truth)).resampled)
+        update = loc.update(odom, scan(truth))
+        assert update is not None
+        flags.append(update.resampled)
     assert flags == [False, True, False, True]
 
 
@@ -169,6 +172,7 @@ def test_map_to_odom_puts_the_base_at_the_estimate():
     loc.set_initial_pose(truth, NAV2_INITIAL_COVARIANCE / 1e4)
     update = loc.update(odom, scan(truth))
     from pppbot_common.se2 import se2_compose
+    assert update is not None
     assert np.allclose(se2_compose(update.map_to_odom, odom), update.estimate.mean, atol=1e-9)
 
 

@@ -180,7 +180,11 @@ def test_request_nomotion_update_updates_on_the_next_scan_without_motion(ros_nod
     amcl.wait_for_output(r"initial pose \(0\.500, -1\.000, 0\.000\)", 30)
     _, truth, odom = drive()[0]
     # The first scan after an initial pose is always used; later ones, standing still, are not.
-    wait_until(lambda: (robot.step(truth, odom), robot.poses)[1] or None, 20, "the first pose", node=ros_node)
+    def step_and_count() -> int:
+        robot.step(truth, odom)
+        return len(robot.poses)
+
+    wait_until(lambda: step_and_count() or None, 20, "the first pose", node=ros_node)
     for _ in range(10):
         robot.step(truth, odom)
     before = len(robot.poses)
@@ -189,8 +193,7 @@ def test_request_nomotion_update_updates_on_the_next_scan_without_motion(ros_nod
     wait_until(lambda: client.service_is_ready() or None, 20, "the service", node=ros_node)
     future = client.call_async(Empty.Request())
     wait_until(lambda: future.done() or None, 20, "a reply", node=ros_node)
-    wait_until(lambda: (robot.step(truth, odom), len(robot.poses) > before)[1] or None, 20,
-               "a pose after the no-motion update", node=ros_node)
+    wait_until(lambda: step_and_count() > before or None, 20, "a pose after the no-motion update", node=ros_node)
     for _ in range(10):
         robot.step(truth, odom)
     assert len(robot.poses) == before + 1  # one update per request

@@ -73,7 +73,7 @@ def test_loops_closed_beside_the_scans_merge_with_the_keyframes_added_meanwhile(
     truth = ring_path()
     odom = drifting_odometry(truth, yaw_per_m=0.01, scale=1.01)
     mapper = Mapper(MapperSettings(), defer_loops=True)
-    in_flight: list[tuple[int, tuple]] = []  # (keyframe it was solved at, solve_loops' result)
+    in_flight: list[tuple[int, LoopSolution]] = []  # (keyframe it was solved at, solve_loops' result)
     moved_tails = 0
     for k in range(len(truth)):
         keyframe = mapper.process(0.1 * k, odom[k], scan_rays(RING, truth[k], seed=k))
@@ -100,7 +100,7 @@ def test_loops_closed_beside_the_scans_merge_with_the_keyframes_added_meanwhile(
     assert len(mapper.loop_closures) == mapper.graph.loop_closures
     # A solution for another map (one reset since, say) is refused.
     with pytest.raises(MapperError, match="does not belong to this map"):
-        Mapper().merge_loops(LoopSolution(mapper.graph, [object()], 0, frozenset(), ()))
+        Mapper().merge_loops(LoopSolution(mapper.graph, [object()], 0, frozenset(), ()))  # type: ignore[list-item]
 
 
 def jumped_run(jump: bool) -> tuple[Mapper, np.ndarray]:
