@@ -7,11 +7,27 @@ functions broadcast like numpy over (..., 3) poses.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 PoseLike = Sequence[float] | np.ndarray
+
+
+def finite_pose(value: object, what: str, error: Callable[[str], Exception] = ValueError) -> np.ndarray:
+    """``value`` as a float (3,) array (x, y, yaw), the one check every pose input gets.
+
+    Raises:
+        ``error(message)`` (the caller's package error; ValueError by default), the message
+        naming ``what`` and the value given, when it is not three finite numbers.
+    """
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        array = np.empty(0)
+    if array.shape != (3,) or not np.isfinite(array).all():
+        raise error(f"{what} must be three finite numbers (x, y, yaw), not {value!r}")
+    return array
 
 
 def wrap_angle(angle: float) -> float:

@@ -24,7 +24,7 @@ import numpy as np
 from scipy import ndimage
 
 from pppbot_common.maps import OccupancyGrid
-from pppbot_common.se2 import PoseLike, se2_apply, se2_compose, se2_inverse
+from pppbot_common.se2 import PoseLike, finite_pose, se2_apply, se2_compose, se2_inverse
 from pppbot_eval.errors import MapQualityError
 
 #: A cell is occupied when its value (percent) is at least this (Nav2's occupied_thresh 0.65).
@@ -129,9 +129,7 @@ def _check_tolerance(tolerance_cells: int) -> int:
 
 
 def _check_pose(map_to_world: PoseLike) -> None:
-    pose = np.asarray(map_to_world, dtype=float)
-    if pose.shape != (3,) or not np.isfinite(pose).all():
-        raise MapQualityError(f"map_to_world must be a finite (x, y, yaw), not {map_to_world!r}")
+    finite_pose(map_to_world, "map_to_world", MapQualityError)
 
 
 def reference_free(truth: OccupancyGrid, reachable_from: Sequence[float] | None = None) -> np.ndarray:

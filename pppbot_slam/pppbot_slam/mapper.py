@@ -38,7 +38,7 @@ import numpy as np
 
 from pppbot_common.errors import PppbotError
 from pppbot_common.maps import OccupancyGrid
-from pppbot_common.se2 import PoseLike, se2_apply, se2_compose, se2_inverse, wrap_angles
+from pppbot_common.se2 import PoseLike, finite_pose, se2_apply, se2_compose, se2_inverse, wrap_angles
 from pppbot_slam.loops import LoopChain, LoopSearch, LoopSolution, in_frame_of, solve_loops
 from pppbot_slam.matcher import MatcherSettings, MatchResult, ScanMatcher, rotate, scan_normals
 from pppbot_slam.occupancy import LogOddsGrid, OccupancySettings, ScanRays
@@ -237,9 +237,7 @@ class Mapper:
             self.session = max(k.session for k in self.keyframes) + 1
         if start_pose is None:
             start_pose = self.map_pose(0) if self.keyframes else np.zeros(3)
-        pose = np.asarray(start_pose, dtype=float)
-        if pose.shape != (3,) or not np.isfinite(pose).all():
-            raise MapperError(f"the start pose must be a finite (x, y, yaw), not {start_pose!r}")
+        pose = finite_pose(start_pose, "the start pose", MapperError)
         self.start_pose = pose.copy()
 
     def hit_points(self, rays: ScanRays) -> tuple[np.ndarray, np.ndarray]:

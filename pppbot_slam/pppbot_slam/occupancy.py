@@ -26,7 +26,7 @@ import numpy as np
 
 from pppbot_common.errors import PppbotError
 from pppbot_common.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
-from pppbot_common.se2 import PoseLike, se2_apply, se2_compose
+from pppbot_common.se2 import PoseLike, finite_pose, se2_apply, se2_compose
 
 #: The reported grid extent is a multiple of this many cells, aligned to world (0, 0).
 BLOCK_CELLS = 16
@@ -217,9 +217,7 @@ class LogOddsGrid:
         Raises:
             OccupancyError: a pose that is not three finite numbers.
         """
-        pose = np.asarray(sensor_pose_xyyaw, dtype=float)
-        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
-            raise OccupancyError(f"sensor pose must be three finite numbers (x, y, yaw), not {sensor_pose_xyyaw!r}")
+        pose = finite_pose(sensor_pose_xyyaw, "sensor pose", OccupancyError)
         res = self._settings.resolution_m
         beams = rays.classify(self._settings.max_range_m)
         used = np.flatnonzero(beams.used)

@@ -17,7 +17,7 @@ import gtsam
 import numpy as np
 
 from pppbot_common.errors import PppbotError
-from pppbot_common.se2 import PoseLike, se2_compose, se2_inverse
+from pppbot_common.se2 import PoseLike, finite_pose, se2_compose, se2_inverse
 
 #: Standard deviation of the anchor on the first keyframe (m, m, rad).
 ANCHOR_SIGMAS = (1e-6, 1e-6, 1e-8)
@@ -39,10 +39,7 @@ class Edge:
 
 
 def _pose(value: PoseLike, what: str) -> np.ndarray:
-    array = np.asarray(value, dtype=float)
-    if array.shape != (3,) or not np.isfinite(array).all():
-        raise PoseGraphError(f"{what} must be a finite (x, y, yaw), not {value!r}")
-    return array
+    return finite_pose(value, what, PoseGraphError)
 
 
 def _covariance(value: np.ndarray, what: str) -> np.ndarray:

@@ -100,7 +100,7 @@ def test_bad_edges_and_nodes_name_the_value():
         graph.add_edge(1, 1, (0, 0, 0), ODOM_COV)
     with pytest.raises(PoseGraphError, match="positive definite"):
         graph.add_edge(0, 1, (1, 0, 0), np.zeros((3, 3)))
-    with pytest.raises(PoseGraphError, match="finite \\(x, y, yaw\\)"):
+    with pytest.raises(PoseGraphError, match="three finite numbers \\(x, y, yaw\\)"):
         graph.add_node((0, math.nan, 0))
 
 

@@ -82,7 +82,7 @@ def test_a_given_start_pose_is_corrected_by_matching(first_run: Mapper, tmp_path
 
 
 def test_bad_start_pose_is_refused(first_run: Mapper):
-    with pytest.raises(MapperError, match="start pose must be a finite"):
+    with pytest.raises(MapperError, match="start pose must be three finite numbers"):
         first_run.start_session([0.0, float("nan"), 0.0])
 
 

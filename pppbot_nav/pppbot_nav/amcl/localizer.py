@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pppbot_common.maps import OccupancyGrid
-from pppbot_common.se2 import se2_compose, se2_inverse, wrap_angle, wrap_angles
+from pppbot_common.se2 import finite_pose, se2_compose, se2_inverse, wrap_angle, wrap_angles
 from pppbot_nav.amcl.filter import Cluster, FilterSettings, ParticleFilter, uniform_poses
 from pppbot_nav.amcl.laser import LaserModelType, LaserSettings, MapField, Scan, laser_model
 from pppbot_nav.amcl.motion import MotionNoise, RobotModel, motion_model
@@ -183,9 +183,7 @@ class Localizer:
         Raises:
             AmclError: a non-finite odometry pose.
         """
-        odom_pose = np.asarray(odom_pose, dtype=float)
-        if odom_pose.shape != (3,) or not np.isfinite(odom_pose).all():
-            raise AmclError(f"an odometry pose must be three finite numbers, not {odom_pose.tolist()}")
+        odom_pose = finite_pose(odom_pose, "an odometry pose", AmclError)
         if not self.initialized:
             return None
         if not (self._force or self.moved_enough(odom_pose)):
