@@ -74,7 +74,7 @@ def run_stage(stage: str, world_file: Path, out: Path, arguments: list[str], res
             return report
     shutil.rmtree(out, ignore_errors=True)  # an earlier, unfinished or replaced run
     command = [PPPBOT, "eval", stage, "--world", str(world_file), "--lockstep", "--wheel-slip", str(WHEEL_SLIP),
-               "--out", str(out), "--json", *arguments]
+               "--out", str(out), "--json", "--no-view", *arguments]
     proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         _, stderr = proc.communicate()

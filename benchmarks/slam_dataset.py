@@ -171,7 +171,7 @@ def _cross_track_m(points: np.ndarray, route: np.ndarray) -> np.ndarray:
     return out
 
 
-def generate(world: str, route_name: str | None, seed: int, wheel_slip: float, out: Path,
+def generate(world: str, route_name: str | None, seed: int, wheel_slip: float, out: Path,  # noqa: PLR0915
              speed_mps: float = DEFAULT_SPEED_MPS) -> dict[str, Any]:
     """Drive the route in the simulation core and write the dataset to ``out``; returns a summary.
 

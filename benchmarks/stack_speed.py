@@ -153,7 +153,7 @@ def run_eval(scenario: str, args: list[str], domain: int) -> dict[str, Any]:
     start-up left out) to its end, and the peak memory of its process tree."""
     out = Path(tempfile.mkdtemp(prefix=f"stack_speed_{scenario}_"))
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
-    proc = subprocess.Popen([PPPBOT, "eval", scenario, *args, "--out", str(out)], env=env,
+    proc = subprocess.Popen([PPPBOT, "eval", scenario, *args, "--no-view", "--out", str(out)], env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     sampler = Sampler(proc.pid)
     lines: list[str] = []
@@ -182,7 +182,8 @@ def run_idle(world: str, seconds: float, domain: int, lockstep: bool = False) ->
     the navigation nodes one composed process), no goal: CPU per node over ``seconds``."""
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
     proc = subprocess.Popen([PPPBOT, "launch_sim", f"world:={world}", "localization:=true", "use_teleop:=false",
-                             "use_rviz:=false", "real_time_factor:=1.0", f"lockstep:={str(lockstep).lower()}"],
+                             "use_rviz:=false", "use_viz:=false", "real_time_factor:=1.0",
+                             f"lockstep:={str(lockstep).lower()}"],
                             env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True)
     assert proc.stdout is not None

@@ -116,6 +116,34 @@ def load_benchmark() -> Callable[[str], ModuleType]:
 
 
 @pytest.fixture
+def rerun_cli(tmp_path: Path) -> Callable[..., str]:
+    """``rerun_cli("rrd", "stats", file)``: rerun's command line (the reader of its own files),
+    with its settings out of the home directory; its stdout."""
+    import subprocess
+
+    from pppbot_viz.viewer import rerun_binary, viewer_environment
+
+    def run(*args: str) -> str:
+        env = {**os.environ, **viewer_environment(tmp_path / "rerun"), "RUST_LOG": "warn"}
+        result = subprocess.run([str(rerun_binary()), *args], capture_output=True, text=True, timeout=120, env=env)
+        assert result.returncode == 0, result.stderr
+        return result.stdout
+    return run
+
+
+@pytest.fixture
+def rrd_chunks(rerun_cli: Callable[..., str]) -> Callable[[Path], dict[str, int]]:
+    """``rrd_chunks(file)``: chunks per entity path of a rerun recording (``rerun rrd stats``)."""
+    import re
+
+    def chunks(rrd: Path) -> dict[str, int]:
+        section = rerun_cli("rrd", "stats", str(rrd)).split("Num chunks per entity", 1)[1].split("\n\n", 1)[0]
+        rows = (line.rsplit(": ", 1) for line in section.splitlines() if line.startswith("/"))
+        return {entity: int(re.sub(r"\D", "", count)) for entity, count in rows}
+    return chunks
+
+
+@pytest.fixture
 def python_script() -> Callable[[str], list[str]]:
     """The command line that runs ``tests/scripts/<name>`` with this interpreter."""
     def command(name: str, *args: str) -> list[str]:

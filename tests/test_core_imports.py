@@ -92,7 +92,7 @@ CORES = sorted(m for m in MODULES if not is_adapter(m))
 def test_rule_sees_the_packages():
     assert {m.split(".")[0] for m in MODULES} >= {
         "pppbot_common", "pppbot_description", "pppbot_sim", "pppbot_control",
-        "pppbot_slam", "pppbot_nav", "pppbot_bag", "pppbot_bringup", "pppbot_eval",
+        "pppbot_slam", "pppbot_nav", "pppbot_bag", "pppbot_bringup", "pppbot_eval", "pppbot_viz",
     }
     assert any(is_adapter(m) for m in MODULES), "no ros/ adapters found: the rule would be vacuous"
 

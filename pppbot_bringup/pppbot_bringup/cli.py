@@ -19,14 +19,11 @@ import sys
 from importlib.metadata import entry_points
 from pathlib import Path
 
+from pppbot_bringup.errors import VerbConflict
 from pppbot_common.dds_isolation import domain_id_problem
 
 #: The entry point group of ``pppbot`` verbs.
 VERB_GROUP = "pppbot.verbs"
-
-
-class VerbConflict(Exception):
-    """Two installed packages declare the same verb."""
 
 
 def find_verbs() -> dict[str, str]:

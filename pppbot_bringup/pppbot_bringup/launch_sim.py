@@ -13,63 +13,119 @@ it has joined (time starts when all have).
 """
 from __future__ import annotations
 
+import enum
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Protocol
 
+import yaml
+from pppbot_viz.viewer import ViewerKind
+
 from pppbot_bringup.paths import config_directory, maps_directory
 from pppbot_bringup.supervisor import NodeSpec, ReadyCheck
-from pppbot_common.launch_args import Argument, ArgumentError
+from pppbot_common.launch_args import Argument, ArgumentError, parse_assignments
 
 LOG_LEVELS = ("debug", "info", "warn", "error", "fatal")
-
-ARGUMENTS = [
-    Argument("world", "cones", "world name (worlds/<name>.sdf) or path to an SDF or MJCF file"),
-    Argument("localization", False, "localize on a saved map (map_server + AMCL) instead of mapping (SLAM)"),
-    Argument("map", "", "map YAML for localization; default maps/<world>.yaml"),
-    Argument("use_slam", True, "with localization:=false, map with the SLAM node (false: drive on odometry only)"),
-    Argument("navigation", "auto", "planner_server, controller_server and navigator (auto: with localization:=true)",
-             choices=("auto", "true", "false")),
-    Argument("use_composition", True, "map_server and amcl in one process (localization), the navigation nodes "
-                                      "in another (navigation), as Nav2's bringup composes its servers "
-                                      "(false: a process each)"),
-    Argument("slam_params_file", "", "the slam node's parameters; default config/mapper_params_online_async.yaml"),
-    Argument("use_teleop", True, "keyboard teleop in this terminal (other nodes' output goes to log files)"),
-    Argument("use_rviz", True, "start rviz2 with config/ppp_bot.rviz when rviz2 is on PATH"),
-    Argument("headless", True, "no MuJoCo viewer window (false opens one; needs a display)"),
-    Argument("real_time_factor", 1.0, "simulated seconds per wall second; 0 = as fast as possible"),
-    Argument("lockstep", False, "time advances only when the nodes on the data path have done their work "
-                                "(the same run on any machine; with real_time_factor:=0 as fast as they allow)"),
-    Argument("x", 0.0, "spawn x (m)"),
-    Argument("y", 0.0, "spawn y (m)"),
-    Argument("z", 0.05, "spawn z of base_link (m); ppp_bot rests at 0.05"),
-    Argument("yaw", 0.0, "spawn yaw (rad)"),
-    Argument("seed", 0, "seed of the simulator's sensor noise and wheel slip"),
-    Argument("wheel_slip", 0.0, "wheel slip as the encoders see it (0.02 = 2 %): odometry drifts like a real robot's"),
-    Argument("log_level", "info", "log level of every node", choices=LOG_LEVELS),
-    Argument("record", False, "record every topic (pppbot bag record -a, sim time) while the launch runs"),
-    Argument("bag_path", "", "the bag directory for record:=true; default rosbag2_YYYY_MM_DD-HH_MM_SS here"),
-    Argument("sigterm_timeout", 5.0, "on shutdown, seconds from SIGINT to SIGTERM for a node still running "
-                                     "(ros2 launch's sigterm_timeout)"),
-    Argument("sigkill_timeout", 5.0, "seconds from SIGTERM to SIGKILL (ros2 launch's sigkill_timeout)"),
-]
+#: twist_mux's output (``cmd_vel_out``), remapped to the diff-drive controller's input.
+MUX_OUTPUT = "/diff_drive_base_controller/cmd_vel_unstamped"
+#: ``pppbot bag record``'s node name (rosbag2's).
+RECORDER_NODE = "rosbag2_recorder"
 
 
-def stop_timeouts(values: dict[str, Any]) -> tuple[float, float]:
-    """(seconds after SIGINT, seconds after SIGTERM) before the launch escalates.
+class NavigationMode(enum.Enum):
+    """``navigation:=``: whether the navigation nodes start."""
 
-    Raises:
-        ArgumentError: a timeout that is not a positive finite number.
-    """
-    timeouts = []
-    for name in ("sigterm_timeout", "sigkill_timeout"):
-        value = float(values[name])
-        if not 0.0 < value < float("inf"):
-            raise ArgumentError(f"{name}:={value:g}: must be a positive number of seconds")
-        timeouts.append(value)
-    return timeouts[0], timeouts[1]
+    AUTO = "auto"  # with localization:=true
+    TRUE = "true"
+    FALSE = "false"
+
+    def enabled(self, localization: bool) -> bool:
+        return self is NavigationMode.TRUE or (self is NavigationMode.AUTO and localization)
+
+
+def _arg(default: Any, description: str, choices: tuple[str, ...] = ()) -> Any:
+    """A launch argument: its default, ``--show-args`` text and allowed values."""
+    return field(default=default, metadata={"description": description, "choices": choices})
+
+
+@dataclass(frozen=True)
+class LaunchArgs:
+    """``launch_sim``'s arguments (``name:=value``), typed; :data:`ARGUMENTS` is made from them."""
+
+    world: str = _arg("cones", "world name (worlds/<name>.sdf) or path to an SDF or MJCF file")
+    localization: bool = _arg(False, "localize on a saved map (map_server + AMCL) instead of mapping (SLAM)")
+    map: str = _arg("", "map YAML for localization; default maps/<world>.yaml")
+    use_slam: bool = _arg(True, "with localization:=false, map with the SLAM node (false: drive on odometry only)")
+    navigation: NavigationMode = _arg(NavigationMode.AUTO, "planner_server, controller_server and navigator "
+                                                           "(auto: with localization:=true)",
+                                      tuple(m.value for m in NavigationMode))
+    use_composition: bool = _arg(True, "map_server and amcl in one process (localization), the navigation nodes "
+                                       "in another (navigation), as Nav2's bringup composes its servers "
+                                       "(false: a process each)")
+    slam_params_file: str = _arg("", "the slam node's parameters; default config/mapper_params_online_async.yaml")
+    use_teleop: bool = _arg(True, "keyboard teleop in this terminal (other nodes' output goes to log files)")
+    use_rviz: bool = _arg(True, "start rviz2 with config/ppp_bot.rviz when rviz2 is on PATH")
+    use_viz: bool = _arg(True, "the live view (rerun): map, costmaps, scan, robot, plans, particles; "
+                               "its web page sets goals and initial poses")
+    viz_viewer: ViewerKind = _arg(ViewerKind.AUTO, "the live view's viewer: native (a window), web (a page on "
+                                                   "127.0.0.1:viz_port), auto (native with a display, else web); "
+                                                   "the page is served in every case",
+                                  tuple(k.value for k in ViewerKind))
+    viz_port: int = _arg(9090, "the live view's web page on 127.0.0.1 (0: a free port)")
+    headless: bool = _arg(True, "no MuJoCo viewer window (false opens one; needs a display)")
+    real_time_factor: float = _arg(1.0, "simulated seconds per wall second; 0 = as fast as possible")
+    lockstep: bool = _arg(False, "time advances only when the nodes on the data path have done their work "
+                                 "(the same run on any machine; with real_time_factor:=0 as fast as they allow)")
+    x: float = _arg(0.0, "spawn x (m)")
+    y: float = _arg(0.0, "spawn y (m)")
+    z: float = _arg(0.05, "spawn z of base_link (m); ppp_bot rests at 0.05")
+    yaw: float = _arg(0.0, "spawn yaw (rad)")
+    seed: int = _arg(0, "seed of the simulator's sensor noise and wheel slip")
+    wheel_slip: float = _arg(0.0, "wheel slip as the encoders see it (0.02 = 2 %): odometry drifts like a "
+                                  "real robot's")
+    log_level: str = _arg("info", "log level of every node", LOG_LEVELS)
+    record: bool = _arg(False, "record every topic (pppbot bag record -a, sim time) while the launch runs")
+    bag_path: str = _arg("", "the bag directory for record:=true; default rosbag2_YYYY_MM_DD-HH_MM_SS here")
+    sigterm_timeout: float = _arg(5.0, "on shutdown, seconds from SIGINT to SIGTERM for a node still running "
+                                       "(ros2 launch's sigterm_timeout)")
+    sigkill_timeout: float = _arg(5.0, "seconds from SIGTERM to SIGKILL (ros2 launch's sigkill_timeout)")
+
+    @classmethod
+    def parse(cls, argv: Sequence[str]) -> LaunchArgs:
+        """The arguments of ``name:=value`` items (defaults for the rest).
+
+        Raises:
+            ArgumentError: a malformed item, an unknown or repeated name, or a bad value.
+        """
+        return cls.from_values(parse_assignments(argv, ARGUMENTS))
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, Any]) -> LaunchArgs:
+        """From plain values (strings for the enums), as :func:`parse_assignments` gives them."""
+        typed = dict(values)
+        if isinstance(typed.get("navigation"), str):
+            typed["navigation"] = NavigationMode(typed["navigation"])
+        if isinstance(typed.get("viz_viewer"), str):
+            typed["viz_viewer"] = ViewerKind(typed["viz_viewer"])
+        return cls(**typed)
+
+    def stop_timeouts(self) -> tuple[float, float]:
+        """(seconds after SIGINT, seconds after SIGTERM) before the launch escalates.
+
+        Raises:
+            ArgumentError: a timeout that is not a positive finite number.
+        """
+        timeouts = (float(self.sigterm_timeout), float(self.sigkill_timeout))
+        for name, value in zip(("sigterm_timeout", "sigkill_timeout"), timeouts, strict=True):
+            if not 0.0 < value < float("inf"):
+                raise ArgumentError(f"{name}:={value:g}: must be a positive number of seconds")
+        return timeouts
+
+
+ARGUMENTS = [Argument(f.name, f.default.value if isinstance(f.default, enum.Enum) else f.default,
+                      f.metadata["description"], f.metadata["choices"]) for f in fields(LaunchArgs)]
 
 Resolver = Callable[[str, str], str]
 
@@ -80,6 +136,10 @@ class Probes(Protocol):
     def first_message(self, topic: str, type_name: str, latched: bool) -> Callable[[], bool]:
         """True once a message came on ``topic``."""
 
+    def endpoints(self, node: str, publishes: Sequence[str] = (), subscribes: Sequence[str] = (),
+                  action_servers: Sequence[str] = ()) -> Callable[[], bool]:
+        """True once ``node`` publishes, subscribes and serves every one of these names."""
+
     def joined(self, participant: str) -> Callable[[], bool]:
         """True once the simulator lists ``participant`` on /lockstep/status."""
 
@@ -88,6 +148,73 @@ class Probes(Protocol):
 class Plan:
     nodes: list[NodeSpec]
     notes: list[str]
+    #: what the user should know once it is up (the live view's address)
+    info: list[str] = field(default_factory=list)
+
+
+#: Scans a view recording without a live view keeps per second (of 10): a fifth of the size.
+RECORDING_SCAN_HZ = 2.0
+
+
+@dataclass(frozen=True)
+class VizPlan:
+    """Where the live view runs: the rerun server's ports, the page's, the viewer and rerun's
+    settings directory."""
+
+    grpc_port: int
+    web_port: int
+    page_port: int
+    native: bool
+    state_dir: Path
+
+
+def viz_nodes(viz: VizPlan | None, recording: Path | None, resolve: Resolver, probes: Probes, level: str,
+              after: tuple[str, ...]) -> list[NodeSpec]:
+    """The live view: the rerun server (gRPC and the web viewer's files, 127.0.0.1 only), the
+    native viewer when asked for, and the viz node that streams to the server and serves the
+    page; with ``recording``, the viz node also writes the stream to that ``.rrd`` file. Without
+    ``viz``, only the viz node writing ``recording``."""
+    from pppbot_viz import viewer
+    nodes: list[NodeSpec] = []
+    params: dict[str, Any] = {}
+    if viz is not None:
+        env = viewer.viewer_environment(viz.state_dir)
+        nodes.append(NodeSpec("rerun", viewer.server_command(viz.grpc_port, viz.web_port), env=env,
+                              ready=ReadyCheck(f"listening on 127.0.0.1:{viz.grpc_port}",
+                                               lambda: viewer.listening(viz.grpc_port)
+                                               and viewer.listening(viz.web_port))))
+        if viz.native:
+            nodes.append(NodeSpec("rerun_viewer", viewer.native_viewer_command(viz.grpc_port), env=env,
+                                  after=("rerun",)))
+        params.update(rerun_port=viz.grpc_port, rerun_web_port=viz.web_port, port=viz.page_port)
+        after = ("rerun", *after)
+    if recording is not None:
+        params["recording_path"] = str(recording)
+        if viz is None:  # a recording only (the evaluation's): every scan would be most of the file
+            params["scan_max_rate_hz"] = RECORDING_SCAN_HZ
+    nodes.append(NodeSpec("viz", [resolve("pppbot_viz", "viz"), *ros_args(level, params)],
+                          after=after, pppbot_node=True,
+                          ready=ReadyCheck("its subscriptions", probes.endpoints(
+                              "viz", publishes=("/goal_pose", "/initialpose"), subscribes=("/map", "/scan")))))
+    return nodes
+
+
+def twist_mux_inputs(params_file: Path) -> tuple[str, ...]:
+    """The topics twist_mux subscribes (its ``topics`` and ``locks`` entries' ``topic``), fully
+    qualified, from its parameter file (the ``twist_mux`` or ``/**`` section).
+
+    Raises:
+        ArgumentError: the file cannot be read or has no such section.
+    """
+    try:
+        document = yaml.safe_load(params_file.read_text())
+        section = next(document[key]["ros__parameters"] for key in ("twist_mux", "/twist_mux", "/**")
+                       if key in document)
+        entries = [*section.get("topics", {}).values(), *section.get("locks", {}).values()]
+        return tuple(sorted({"/" + str(entry["topic"]).lstrip("/") for entry in entries}))
+    except (OSError, yaml.YAMLError, TypeError, KeyError, AttributeError, StopIteration) as exc:
+        raise ArgumentError(f"{params_file}: not a twist_mux parameter file with topics.<name>.topic entries "
+                            f"({type(exc).__name__}: {exc})") from exc
 
 
 def ros_args(log_level: str, params: dict[str, Any] | None = None, params_file: Path | None = None,
@@ -111,17 +238,19 @@ def controllers_file() -> Path:
     return config_directory() / "my_controllers.yaml"
 
 
-def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Resolver, probes: Probes,  # noqa: C901
-         terminal: bool, rviz: str | None, extra_participants: Sequence[str] = ()) -> Plan:
+def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver, probes: Probes,  # noqa: C901, PLR0912, PLR0915
+         terminal: bool, rviz: str | None, extra_participants: Sequence[str] = (),
+         viz: VizPlan | None = None, view_recording: Path | None = None) -> Plan:
     """The nodes to start, in ppp_bot's order, and notes for the user. ``extra_participants``:
     lockstep participants outside the launch that time must wait for from its start (the
-    evaluation's own node).
+    evaluation's own node). ``viz``: the live view's ports (with ``use_viz:=true``);
+    ``view_recording``: an ``.rrd`` file the view's stream is written to (the evaluation's).
 
     Raises:
         ArgumentError: ``localization:=true`` without a map file, or a bag path that exists.
     """
-    level = values["log_level"]
-    lockstep = bool(values["lockstep"])
+    level = args.log_level
+    lockstep = args.lockstep
     config = config_directory()
     notes: list[str] = []
     participants: list[str] = []
@@ -134,7 +263,9 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
         return ({"lockstep": True, "lockstep_name": name},
                 ReadyCheck(f"{description} (joined lockstep)", probes.joined(name), timeout_s=check.timeout_s))
 
-    mux_params, mux_ready = participant("twist_mux", "its inputs", ReadyCheck("its inputs", output_pattern=r"inputs: "))
+    mux_config = config / "twist_mux.yaml"
+    mux_params, mux_ready = participant("twist_mux", "its inputs", ReadyCheck("its inputs", probes.endpoints(
+        "twist_mux", publishes=(MUX_OUTPUT,), subscribes=twist_mux_inputs(mux_config))))
     # A participant too: its wheel transforms are on /tf, which the data path counts.
     rsp_params, rsp_ready = participant("robot_state_publisher", "/robot_description", ReadyCheck(
         "/robot_description", probes.first_message("/robot_description", "std_msgs/msg/String", True)))
@@ -143,22 +274,22 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
                                            *ros_args(level, {"robot_description": urdf_file, **rsp_params})],
                  after=("simulator",), required=True, pppbot_node=True, ready=rsp_ready),
         NodeSpec("twist_mux", [resolve("pppbot_control", "twist_mux"), *ros_args(
-            level, mux_params, params_file=config / "twist_mux.yaml",
-            remaps={"cmd_vel_out": "/diff_drive_base_controller/cmd_vel_unstamped"})],
+            level, mux_params, params_file=mux_config, remaps={"cmd_vel_out": MUX_OUTPUT})],
             after=("simulator",), required=True, pppbot_node=True, ready=mux_ready),
     ]
-    if values["record"]:
-        bag = Path(values["bag_path"] or time.strftime("rosbag2_%Y_%m_%d-%H_%M_%S"))
+    if args.record:
+        bag = Path(args.bag_path or time.strftime("rosbag2_%Y_%m_%d-%H_%M_%S"))
         if bag.exists():
             raise ArgumentError(f"bag_path: '{bag}' exists already; a bag is never overwritten")
         # Right after the simulator, so the rest of the bringup (latched /robot_description,
         # /tf_static) is in the bag; stopping the launch finishes the bag.
         nodes.insert(0, NodeSpec("bag_record", [resolve("pppbot_bringup", "pppbot"), "bag", "record", "-a",
                                                 "--use-sim-time", "-o", str(bag)],
-                                 after=("simulator",), ready=ReadyCheck("recording", output_pattern=r"recording to ")))
+                                 after=("simulator",), ready=ReadyCheck("recording /clock", probes.endpoints(
+                                     RECORDER_NODE, subscribes=("/clock",)))))
         notes.append(f"recording every topic to {bag} (ends when the launch ends)")
-    if values["localization"]:
-        map_file = Path(values["map"]) if values["map"] else maps_directory() / f"{world_file.stem}.yaml"
+    if args.localization:
+        map_file = Path(args.map) if args.map else maps_directory() / f"{world_file.stem}.yaml"
         if not map_file.is_file():
             raise ArgumentError(f"localization:=true needs a map; {map_file} does not exist "
                                 f"(save one while mapping, or give map:=path/to/map.yaml)")
@@ -167,10 +298,13 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
         # spawn pose of a map made with the default spawn); RViz's 2D Pose Estimate moves it.
         # The launch's seed seeds AMCL's particles too: one seed makes the whole run repeatable.
         server_params = {"yaml_filename": map_file.resolve()}
-        amcl_params = {"set_initial_pose": True, "initial_pose.x": values["x"], "initial_pose.y": values["y"],
-                       "initial_pose.yaw": values["yaw"], "seed": values["seed"]}
-        amcl_ready = ReadyCheck("an initial pose", output_pattern=r"initial pose \(")
-        if values["use_composition"]:
+        amcl_params = {"set_initial_pose": True, "initial_pose.x": args.x, "initial_pose.y": args.y,
+                       "initial_pose.yaw": args.yaw, "seed": args.seed}
+        # Localized: a first /amcl_pose (the first scan after the initial pose forces an update),
+        # what nav2_simple_commander's BasicNavigator waits for too.
+        amcl_ready = ReadyCheck("a first /amcl_pose", probes.first_message(
+            "/amcl_pose", "geometry_msgs/msg/PoseWithCovarianceStamped", True))
+        if args.use_composition:
             # One process, as Nav2 composes its servers; each parameter goes to its own node.
             extra, localized = participant("localization", "an initial pose", amcl_ready)
             scoped = {**{f"map_server:{k}": v for k, v in server_params.items()},
@@ -188,8 +322,8 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
                 level, {**amcl_params, **extra}, params_file=nav2_params)],
                 after=("map_server", "robot_state_publisher"), required=True, pppbot_node=True, ready=localized))
         notes.append(f"localizing on {map_file}")
-    elif values["use_slam"]:
-        slam_params = Path(values["slam_params_file"] or config / "mapper_params_online_async.yaml")
+    elif args.use_slam:
+        slam_params = Path(args.slam_params_file or config / "mapper_params_online_async.yaml")
         if not slam_params.is_file():
             raise ArgumentError(f"slam_params_file: {slam_params} does not exist")
         # Ready once it has mapped its first scan: the map frame is where the robot was then, so
@@ -201,28 +335,29 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
         nodes.append(NodeSpec("slam_toolbox", [resolve("pppbot_slam", "slam"), *ros_args(
             level, slam_params_lockstep, params_file=slam_params)],
             after=("robot_state_publisher",), required=True, pppbot_node=True, ready=slam_ready))
-    localizer = (("localization" if values["use_composition"] else "amcl") if values["localization"]
-                 else "slam_toolbox" if values["use_slam"] else None)
-    if values["navigation"] == "true" or (values["navigation"] == "auto" and values["localization"]):
+    localizer = (("localization" if args.use_composition else "amcl") if args.localization
+                 else "slam_toolbox" if args.use_slam else None)
+    if args.navigation.enabled(args.localization):
         if localizer is None:
             raise ArgumentError("navigation:=true needs a map frame: localization:=true or use_slam:=true")
         nav2_params = config / "nav2_params.yaml"
-        servers: tuple[tuple[str, str], ...] = (("planner_server", r"planner 'GridBased' ready"),
-                                                ("controller_server", r"controller 'FollowPath'"),
-                                                ("navigator", r"navigator ready"))
-        if values["use_composition"]:
-            # The navigator is made last: its line means all three are.
-            servers = (("navigation", r"navigator ready"),)
-        for name, ready in servers:
-            extra, check = participant(name, name, ReadyCheck(name, output_pattern=ready))
+        servers = {"planner_server": "/compute_path_to_pose", "controller_server": "/follow_path",
+                   "navigator": "/navigate_to_pose"}
+        probe = {name: probes.endpoints(name, action_servers=(action,)) for name, action in servers.items()}
+        checks = {name: ReadyCheck(f"its {servers[name][1:]} action server", probe[name]) for name in servers}
+        if args.use_composition:
+            checks = {"navigation": ReadyCheck("the " + ", ".join(a[1:] for a in servers.values()) + " action servers",
+                                               lambda: all(p() for p in probe.values()))}
+        for name, ready in checks.items():
+            extra, check = participant(name, name, ready)
             nodes.append(NodeSpec(name, [resolve("pppbot_nav", name), *ros_args(level, extra, params_file=nav2_params)],
                                   after=(localizer,), required=True, pppbot_node=True, ready=check))
         notes.append("navigating: send goals with RViz's 2D Goal Pose, ./pppbot nav goto X Y YAW, "
                      "or the navigate_to_pose action")
     simulator_params: dict[str, Any] = {
-        "world": world_file, "robot_description": urdf_file, "real_time_factor": values["real_time_factor"],
-        "x": values["x"], "y": values["y"], "z": values["z"], "yaw": values["yaw"],
-        "seed": values["seed"], "wheel_slip": values["wheel_slip"], "viewer": not values["headless"]}
+        "world": world_file, "robot_description": urdf_file, "real_time_factor": args.real_time_factor,
+        "x": args.x, "y": args.y, "z": args.z, "yaw": args.yaw,
+        "seed": args.seed, "wheel_slip": args.wheel_slip, "viewer": not args.headless}
     if lockstep:
         simulator_params.update(lockstep=True, lockstep_participants=[*participants, *extra_participants])
     nodes.insert(0, NodeSpec("simulator", [resolve("pppbot_sim", "simulator"),
@@ -230,14 +365,21 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
                              ready=ReadyCheck("a first /clock",
                                               probes.first_message("/clock", "rosgraph_msgs/msg/Clock", False)),
                              required=True, pppbot_node=True))
-    if values["use_rviz"]:
+    if args.use_rviz:
         if rviz is None:
             notes.append("rviz2 is not on PATH: no RViz (use_rviz:=false silences this); "
                          "with ROS 2 Jazzy installed, run rviz2 -d config/ppp_bot.rviz on the same ROS_DOMAIN_ID")
         else:
             nodes.append(NodeSpec("rviz2", [rviz, "-d", str(config / "ppp_bot.rviz"), *ros_args(level)],
                                   after=("robot_state_publisher",)))
-    if values["use_teleop"]:
+    info: list[str] = []
+    if viz is not None or view_recording is not None:
+        nodes += viz_nodes(viz, view_recording, resolve, probes, level, after=("robot_state_publisher",))
+    if viz is not None:
+        viewer = "a native viewer window and " if viz.native else ""
+        info.append(f"live view: {viewer}http://127.0.0.1:{viz.page_port}/ in a browser "
+                    "(2D Goal Pose / 2D Pose Estimate: a button, then two clicks on the map)")
+    if args.use_teleop:
         if terminal:
             # Last, once the robot is up, so that its key help is what the terminal shows.
             nodes.append(NodeSpec("teleop_keyboard", [resolve("pppbot_control", "teleop_keyboard"),
@@ -245,4 +387,4 @@ def plan(values: dict[str, Any], world_file: Path, urdf_file: Path, resolve: Res
                                   after=tuple(n.name for n in nodes if n.required), terminal=True))
         else:
             notes.append("no terminal here for the keyboard teleop: run ./pppbot teleop in another terminal")
-    return Plan(nodes, notes)
+    return Plan(nodes, notes, info)

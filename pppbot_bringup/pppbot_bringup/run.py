@@ -12,9 +12,7 @@ from pathlib import Path
 
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 
-
-class RunError(Exception):
-    """The package or executable does not exist; the message says which."""
+from pppbot_bringup.errors import RunError
 
 
 def executables_of(package: str) -> dict[str, Path]:

@@ -1,7 +1,7 @@
 """Start, watch and stop a set of node processes, as ``ros2 launch`` does, without orphans.
 
 No ROS here: readiness is a callable the caller provides (``launch_sim`` asks the
-ROS graph) or a regular expression on the node's output.
+ROS graph: a first message, a node's endpoints, a lockstep participant's joining).
 
 * Order: a node starts once every node in its ``after`` is ready; a node is ready
   when its check passes (or at once without a check); a check that does not pass
@@ -31,11 +31,11 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Protocol
 
-from pppbot_common.process import STACK_DUMP_SIGNAL, block_stop_signals, die_with_parent
+from pppbot_common.process import STACK_DUMP_SIGNAL, StopTimeouts, block_stop_signals, die_with_parent
 
 POLL_S = 0.05
 #: Wall seconds a hung node has to print its stacks before SIGTERM.
@@ -45,11 +45,11 @@ _LEVEL = re.compile(r"\[(WARN|WARNING|ERROR|FATAL)\]|Traceback|error:", re.IGNOR
 
 @dataclass(frozen=True)
 class ReadyCheck:
-    """How to know a node is up: ``probe()`` returns True, or a line matches ``output_pattern``."""
+    """How to know a node is up: ``probe()`` returns True (asked from the ROS graph or the
+    node's lifecycle state, never from its log text, which log levels and wording change)."""
 
     description: str
-    probe: Callable[[], bool] | None = None
-    output_pattern: str | None = None
+    probe: Callable[[], bool]
     timeout_s: float = 60.0
 
 
@@ -129,7 +129,6 @@ class _Running:
     label: str
     proc: subprocess.Popen[bytes]
     started_s: float
-    lines: list[str] = field(default_factory=list)
     ready: bool = False
     reader: threading.Thread | None = None
 
@@ -258,7 +257,6 @@ class Supervisor:
             return
         for raw in iter(stream.readline, b""):
             text = raw.decode(errors="replace").rstrip("\r\n")
-            running.lines.append(text)
             self.output.node_line(running.label, text)
 
     def _mark_ready(self, running: _Running) -> None:
@@ -273,9 +271,7 @@ class Supervisor:
             check = running.spec.ready
             if running.ready or check is None:
                 continue
-            pattern = check.output_pattern
-            printed = pattern is not None and any(re.search(pattern, line) for line in running.lines)
-            if printed or (check.probe is not None and check.probe()):
+            if check.probe():
                 self._mark_ready(running)
             elif self.clock() - running.started_s > check.timeout_s:
                 self.output.event("ERROR", running.label,
@@ -313,7 +309,11 @@ class Supervisor:
                 self.request_shutdown(f"'{name}' exited before it was ready", 1)
 
     def _report_exit(self, running: _Running, code: int) -> None:
-        if code == 0:
+        # A program other than pppbot's nodes that keeps SIGINT's default action (rerun) ends
+        # by the signal the launch sent it to stop: that is its clean end. pppbot's nodes
+        # handle SIGINT; one that dies of it did not end cleanly.
+        stopped = code == -signal.SIGINT and self._shutdown.is_set() and not running.spec.pppbot_node
+        if code == 0 or stopped:
             self.output.event("INFO", running.label, f"process has finished cleanly [pid {running.proc.pid}]")
         else:
             self.output.event("ERROR", running.label,
@@ -350,8 +350,7 @@ class Supervisor:
             self.output.event("INFO", "launch", f"shutting down ({self._shutdown_reason})")
         self._respawn_at.clear()
         self._pending.clear()
-        for sig, wait_s in ((signal.SIGINT, self.sigint_timeout_s), (signal.SIGTERM, self.sigterm_timeout_s),
-                            (signal.SIGKILL, 5.0)):
+        for sig, wait_s in StopTimeouts(self.sigint_timeout_s, self.sigterm_timeout_s).ladder():
             alive = [r for r in self._running.values() if r.proc.poll() is None]
             if not alive:
                 break

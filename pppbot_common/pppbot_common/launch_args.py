@@ -9,14 +9,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from pppbot_common.errors import PppbotError
+from pppbot_common.errors import ArgumentError
 
 _TRUE = {"true", "1", "yes", "on"}
 _FALSE = {"false", "0", "no", "off"}
-
-
-class ArgumentError(PppbotError, ValueError):
-    """A malformed, unknown or invalid ``name:=value`` argument; the message says which."""
 
 
 @dataclass(frozen=True)

@@ -22,11 +22,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
-from pppbot_common.errors import PppbotError
-
-
-class LockstepError(PppbotError):
-    """A lockstep protocol error; the message names the participant and what it did."""
+from pppbot_common.errors import LockstepError
 
 
 class AckOutcome(enum.Enum):

@@ -37,7 +37,7 @@ import numpy as np
 import yaml
 from PIL import Image, UnidentifiedImageError
 
-from pppbot_common.errors import PppbotError
+from pppbot_common.errors import MapFileError
 
 FREE, OCCUPIED, UNKNOWN = 0, 100, -1
 #: What a trinary map file records: 0 → p 1.0 occupied, 254 → p 0.004 free, 205 → p 0.196 unknown.
@@ -48,10 +48,6 @@ IMAGE_FORMATS = ("pgm", "png", "bmp")
 ALPHA_FORMATS = ("png",)
 #: Grey of unknown cells in ``scale`` mode (under the transparency, or alone without it).
 SCALE_UNKNOWN_GREY = 127
-
-
-class MapFileError(PppbotError, ValueError):
-    """A map file is missing, malformed or unreadable; the message names file and key."""
 
 
 class MapMode(enum.Enum):

@@ -12,17 +12,9 @@ import math
 from collections.abc import Iterator
 from typing import Any, TypeVar
 
-from pppbot_common.errors import PppbotError
+from pppbot_common.errors import ParameterError
 
 T = TypeVar("T")
-
-
-class ParameterError(PppbotError, ValueError):
-    """A parameter value is not allowed; the message names parameter, value and rule."""
-
-    def __init__(self, name: str, value: Any, allowed: str) -> None:
-        super().__init__(f"parameter '{name}' = {value!r}: {allowed}")
-        self.name, self.value, self.allowed = name, value, allowed
 
 
 def param(default: Any, description: str, ros_name: str | None = None) -> Any:

@@ -28,6 +28,15 @@ class StopTimeouts:
     sigint_s: float = 5.0
     sigterm_s: float = 5.0
 
+    def ladder(self) -> tuple[tuple[signal.Signals, float], ...]:
+        """The stop ladder, as ``ros2 launch`` climbs it: each signal and how long to wait after
+        it for the process to end before the next (after SIGKILL: :data:`KILL_WAIT_S`)."""
+        return ((signal.SIGINT, self.sigint_s), (signal.SIGTERM, self.sigterm_s), (signal.SIGKILL, KILL_WAIT_S))
+
+
+#: Seconds to wait for a process after SIGKILL (it cannot refuse; this is only the kernel's time).
+KILL_WAIT_S = 5.0
+
 
 def die_with_parent(sig: int = signal.SIGTERM) -> None:
     """In a child (``preexec_fn``): get ``sig`` when the parent dies, even by SIGKILL.
@@ -147,7 +156,7 @@ def stop_process_group(
     """
     try:
         if proc.poll() is None:
-            for sig, wait_s in ((signal.SIGINT, timeouts.sigint_s), (signal.SIGTERM, timeouts.sigterm_s)):
+            for sig, wait_s in timeouts.ladder():
                 _signal_group(proc, sig)
                 try:
                     proc.wait(timeout=wait_s)
@@ -155,8 +164,7 @@ def stop_process_group(
                 except subprocess.TimeoutExpired:
                     continue
             else:
-                _signal_group(proc, signal.SIGKILL)
-                proc.wait()
+                proc.wait()  # killed: only the kernel's bookkeeping is left
     finally:
         _signal_group(proc, signal.SIGKILL)
     return proc.returncode

@@ -13,14 +13,10 @@ import bisect
 import math
 from dataclasses import dataclass, field
 
-from pppbot_common.errors import PppbotError
+from pppbot_common.errors import TransformError
 from pppbot_common.se2 import se2_compose, se2_inverse, wrap_angle
 
 Pose2D = tuple[float, float, float]
-
-
-class TransformError(PppbotError, LookupError):
-    """No transform between two frames at a time; the message names frames and times."""
 
 
 def compose(a: Pose2D, b: Pose2D) -> Pose2D:

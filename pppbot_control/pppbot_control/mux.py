@@ -14,11 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from pppbot_common.errors import PppbotError
-
-
-class MuxConfigError(PppbotError, ValueError):
-    """A malformed topics/locks entry; names the entry and the field."""
+from pppbot_control.errors import MuxConfigError
 
 
 @dataclass(frozen=True)

@@ -345,7 +345,7 @@ def _control_joints(robot: etree._Element, source: str) -> dict[str, ControlJoin
     return joints
 
 
-def parse_urdf(text: str, source: str = "<robot_description>") -> RobotModel:  # noqa: C901 (one check a field)
+def parse_urdf(text: str, source: str = "<robot_description>") -> RobotModel:  # noqa: C901, PLR0912 (one check a field)
     """Parse URDF XML text into a :class:`RobotModel`.
 
     Raises:

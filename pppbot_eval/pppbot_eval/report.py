@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
 from pppbot_common.maps import OCCUPIED, OccupancyGrid  # noqa: E402
-from pppbot_eval.trajectory import PoseSeries, TrajectoryError  # noqa: E402
+from pppbot_eval.trajectory import AteResult, PoseSeries  # noqa: E402
 
 TRUE_WALL = (0.55, 0.55, 0.55)
 MAPPED_WALL = (0.10, 0.45, 0.85)
@@ -100,7 +100,7 @@ def plot_trajectories(path: Path, truth_map: OccupancyGrid, truth: PoseSeries, e
     plt.close(fig)
 
 
-def plot_errors(path: Path, error: TrajectoryError, title: str = "") -> None:
+def plot_errors(path: Path, error: AteResult, title: str = "") -> None:
     """Position error (m) and heading error (rad) over sim time."""
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     top.plot(error.t_s, error.position_error_m, color="tab:blue", lw=1.0)

@@ -42,8 +42,8 @@ from pppbot_eval.report import plot_errors, plot_map_overlay, plot_trajectories
 from pppbot_eval.routes import Route
 from pppbot_eval.shortest_path import shortest_path
 from pppbot_eval.trajectory import (
+    AteResult,
     PoseSeries,
-    TrajectoryError,
     absolute_trajectory_error,
     compose_chain,
     relative_pose_error,
@@ -101,17 +101,28 @@ ESTIMATE_LABELS = {Scenario.DRIVE: "wheel odometry", Scenario.SLAM: "SLAM (map â
                    Scenario.NAVIGATION: "AMCL (map â†’ base_link)"}
 
 
+class GoalAnswer(str, enum.Enum):
+    """How a goal ended as the run saw it; the value is the report's ``status``."""
+
+    SUCCEEDED = "succeeded"
+    ABORTED = "aborted"
+    CANCELED = "canceled"
+    REJECTED = "rejected"
+    UNANSWERED = "unanswered"  # the server never said whether it took the goal
+    TIMEOUT = "timeout"  # the run gave up and canceled it
+    UNKNOWN = "unknown"  # an action status the run does not know (error_msg has it)
+
+
 @dataclass(frozen=True)
 class GoalRecord:
     """One goal as the run saw it: the goal in the world frame, sim times of sending it and of
-    its result, and what the navigator answered (``status``: succeeded, aborted, canceled,
-    rejected, or timeout when the run gave up and canceled it), and the shortest path's length
-    from where the robot was when the goal was sent (:func:`shortest_path_m`)."""
+    its result, what the navigator answered (``status``), and the shortest path's length from
+    where the robot was when the goal was sent (:func:`shortest_path_m`)."""
 
     goal: tuple[float, float, float]
     start_s: float
     end_s: float
-    status: str
+    status: GoalAnswer
     error_code: int = 0
     error_msg: str = ""
     recoveries: int = 0
@@ -191,7 +202,7 @@ def estimate_series(recording: Recording, estimate: Estimate, outer_ahead_s: flo
     return series
 
 
-def localization_metrics(ate: TrajectoryError, truth: PoseSeries) -> dict[str, Any]:
+def localization_metrics(ate: AteResult, truth: PoseSeries) -> dict[str, Any]:
     """AMCL's figures: the travel until the error stays within :data:`CONVERGED_M` and
     :data:`CONVERGED_RAD` for :data:`CONVERGED_TRAVEL_M`, and the error from then on
     (``amcl_rms_m``, ``amcl_yaw_rms_rad``, ``amcl_max_m``); ``converged`` false when it never did."""
@@ -315,7 +326,7 @@ def goal_outcome(record: GoalRecord, truth: PoseSeries, truth_map: OccupancyGrid
     clearance = clearance_along(driven, truth_map, PPP_BOT_FOOTPRINT) if len(driven) else np.array([np.nan])
     return GoalOutcome(
         goal=record.goal,
-        reached=record.status == "succeeded" and goal_reached(final, record.goal, GOAL_XY_TOLERANCE_M,
+        reached=record.status is GoalAnswer.SUCCEEDED and goal_reached(final, record.goal, GOAL_XY_TOLERANCE_M,
                                                               GOAL_YAW_TOLERANCE_RAD),
         final_pose=(float(final[0]), float(final[1]), float(final[2])),
         position_error_m=position_m, yaw_error_rad=yaw_rad, time_s=record.end_s - record.start_s,
@@ -356,7 +367,7 @@ def navigation_metrics(recording: Recording, truth_map: OccupancyGrid, map_to_wo
         ate = absolute_trajectory_error(estimate, truth, map_to_world)
         metrics.update(ate.as_dict("ate"))
     metrics["goal_results"] = [
-        {"goal": list(o.goal), "status": r.status, "error_code": r.error_code, "error_msg": r.error_msg,
+        {"goal": list(o.goal), "status": r.status.value, "error_code": r.error_code, "error_msg": r.error_msg,
          "reached": o.reached, "time_s": round(o.time_s, 3),
          "shortest_path_m": None if o.shortest_path_m is None else round(o.shortest_path_m, 3),
          "path_length_m": round(o.path_length_m, 3), "position_error_m": round(o.position_error_m, 3),

@@ -18,16 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pppbot_common.se2 import PoseLike, se2_compose, se2_inverse, se2_relative, wrap_angles
+from pppbot_common.se2 import PoseLike, finite_pose, se2_compose, se2_inverse, se2_relative, wrap_angles
 from pppbot_eval.errors import NoOverlapError, PoseSeriesError
-
-
-def _pose_tuple(pose: PoseLike, name: str) -> np.ndarray:
-    array = np.asarray(pose, dtype=float)
-    if array.shape != (3,) or not np.isfinite(array).all():
-        raise PoseSeriesError(f"{name} must be a finite (x, y, yaw), not {pose!r}")
-    return array
-
 
 # --- pose series --------------------------------------------------------------------------------
 
@@ -113,7 +105,7 @@ class PoseSeries:
         Raises:
             PoseSeriesError: ``pose`` is not a finite (x, y, yaw).
         """
-        return PoseSeries.from_poses(self.t_s, se2_compose(_pose_tuple(pose, "pose"), self.poses))
+        return PoseSeries.from_poses(self.t_s, se2_compose(finite_pose(pose, "pose", PoseSeriesError), self.poses))
 
     def within(self, t0_s: float, t1_s: float) -> PoseSeries:
         """The samples with ``t0_s <= t <= t1_s``."""
@@ -168,7 +160,7 @@ def _matched(estimate: PoseSeries, truth: PoseSeries, estimate_to_world: PoseLik
     """
     if not (math.isfinite(max_gap_s) and max_gap_s >= 0):
         raise PoseSeriesError(f"max_gap_s must be a non-negative number, not {max_gap_s}")
-    world = estimate.transformed(_pose_tuple(estimate_to_world, "estimate_to_world"))
+    world = estimate.transformed(finite_pose(estimate_to_world, "estimate_to_world", PoseSeriesError))
     t, tt = world.t_s, truth.t_s
     right = np.searchsorted(tt, t, side="left")
     exact = (right < tt.size) & (tt[np.minimum(right, tt.size - 1)] == t) if tt.size else np.zeros(t.shape, bool)
@@ -187,7 +179,7 @@ def _rms(values: np.ndarray) -> float:
 
 
 @dataclass(frozen=True, eq=False)
-class TrajectoryError:
+class AteResult:
     """Absolute trajectory error per matched sample: position (m) and signed yaw (rad)."""
 
     t_s: np.ndarray
@@ -230,7 +222,7 @@ def compose_chain(outer: PoseSeries, inner: PoseSeries) -> PoseSeries:
 
 
 def absolute_trajectory_error(estimate: PoseSeries, truth: PoseSeries, estimate_to_world: PoseLike = (0.0, 0.0, 0.0),
-                              max_gap_s: float = 0.1) -> TrajectoryError:
+                              max_gap_s: float = 0.1) -> AteResult:
     """ATE of ``estimate`` (in its own frame) against ``truth`` (in the world), without alignment.
 
     ``estimate_to_world`` is the estimate's frame in the world (x, y, yaw). Only estimate
@@ -244,12 +236,12 @@ def absolute_trajectory_error(estimate: PoseSeries, truth: PoseSeries, estimate_
     t, est, ref = _matched(estimate, truth, estimate_to_world, max_gap_s)
     position = np.linalg.norm(est[:, :2] - ref[:, :2], axis=1)
     yaw = wrap_angles(est[:, 2] - ref[:, 2])
-    return TrajectoryError(_frozen(t), _frozen(position), _frozen(yaw), _rms(position), float(position.max()),
+    return AteResult(_frozen(t), _frozen(position), _frozen(yaw), _rms(position), float(position.max()),
                            _rms(yaw), float(np.abs(yaw).max()), int(t.size))
 
 
 @dataclass(frozen=True, eq=False)
-class RelativeError:
+class RpeResult:
     """Relative pose error over segments of ``segment_m`` of truth path, per metre of that path.
 
     When the matched trajectory is shorter than one segment, ``segments`` is 0 and the
@@ -284,7 +276,7 @@ def _segment_ends(length_m: np.ndarray, segment_m: float) -> tuple[np.ndarray, n
 
 
 def relative_pose_error(estimate: PoseSeries, truth: PoseSeries, estimate_to_world: PoseLike = (0.0, 0.0, 0.0),
-                        segment_m: float = 1.0, max_gap_s: float = 0.1) -> RelativeError:
+                        segment_m: float = 1.0, max_gap_s: float = 0.1) -> RpeResult:
     """RPE: for each matched sample i and the first j at least ``segment_m`` of truth path later,
     the error ``(T_i⁻¹ T_j)⁻¹ (E_i⁻¹ E_j)``; its translation norm and |yaw| divided by the truth
     path length from i to j (m/m and rad/m).
@@ -306,7 +298,7 @@ def relative_pose_error(estimate: PoseSeries, truth: PoseSeries, estimate_to_wor
     rot = np.abs(error[:, 2]) / driven
 
     if not i.size:
-        return RelativeError(float(segment_m), _frozen(t[i]), _frozen(trans), _frozen(rot),
+        return RpeResult(float(segment_m), _frozen(t[i]), _frozen(trans), _frozen(rot),
                              None, None, None, None, 0)
-    return RelativeError(float(segment_m), _frozen(t[i]), _frozen(trans), _frozen(rot), float(trans.mean()),
+    return RpeResult(float(segment_m), _frozen(t[i]), _frozen(trans), _frozen(rot), float(trans.mean()),
                          float(trans.max()), float(rot.mean()), float(rot.max()), int(i.size))

@@ -1,7 +1,7 @@
 """Errors of the navigation package."""
 from __future__ import annotations
 
-from pppbot_common.errors import PppbotError
+from pppbot_common.errors import MapFileError, PppbotError
 
 
 class MapSaverError(PppbotError, ValueError):
@@ -35,3 +35,11 @@ class ControllerError(PppbotError, ValueError):
 class CollisionAhead(PppbotError, RuntimeError):
     """The command would hit an obstacle within ``max_allowed_time_to_collision_up_to_carrot``; the
     message says where (the first pose whose cell is inscribed or lethal) and how soon."""
+
+
+class MapLoadError(MapFileError):
+    """A map that cannot be served, with the LoadMap result code that says why."""
+
+    def __init__(self, message: str, result: int) -> None:
+        super().__init__(message)
+        self.result = result

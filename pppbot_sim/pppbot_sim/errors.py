@@ -1,7 +1,7 @@
 """Errors of the simulator package."""
 from __future__ import annotations
 
-from pppbot_common.errors import PppbotError
+from pppbot_common.errors import LockstepError, PppbotError
 
 
 class WorldError(PppbotError, ValueError):
@@ -14,3 +14,11 @@ class SpawnError(PppbotError, ValueError):
 
 class SimulationDiverged(PppbotError, RuntimeError):
     """The physics state became non-finite or absurdly large."""
+
+
+class WorldGenError(PppbotError, ValueError):
+    """A bad family, seed or size; the message names it and what is allowed."""
+
+
+class LockstepTimeout(LockstepError):
+    """A participant did not answer in time (the message names it, the step and the sim time)."""

@@ -4,9 +4,13 @@ Supported: ``<world>`` with ``<physics><max_step_size>`` and ``<gravity>``;
 ``<model>`` (static or not, nested) with ``<pose>``, ``<link>`` with ``<pose>``,
 ``<inertial><mass>`` and ``<collision>`` (``<pose>``, ``<geometry>`` box, cylinder,
 sphere, capsule, ellipsoid, plane, mesh with ``<uri>`` and ``<scale>``,
-``<surface><friction><ode><mu>``); ``<include>`` of ``model://name`` with
-``<name>``, ``<pose>``, ``<static>``, resolved through ``GZ_SIM_RESOURCE_PATH``,
-``IGN_GAZEBO_RESOURCE_PATH`` and ``worlds/models/``. Poses compose
+``<surface><friction><ode><mu>``); ``<include>`` with ``<name>``, ``<pose>``,
+``<static>``; URIs (``model://`` through ``GZ_SIM_RESOURCE_PATH``, ``IGN_GAZEBO_RESOURCE_PATH``
+and ``worlds/models/``, ``package://``, ``file://``, paths, Fuel URLs) as
+:mod:`pppbot_sim.uris` resolves them. Poses follow SDF 1.7's frame semantics
+(:mod:`pppbot_sim.sdf_frames`): ``<frame name attached_to>``, ``relative_to`` on the poses of
+links, collisions, models, includes, joints and frames, ``__model__``, an empty ``<pose/>`` as
+the identity in its frame. Poses compose
 world ∘ model ∘ nested model ∘ link ∘ collision, each ``x y z roll pitch yaw``
 (fixed axes, as Gazebo) or ``degrees="true"``.
 
@@ -30,6 +34,8 @@ from transforms3d.quaternions import quat2mat
 
 from pppbot_description.kinematics import rpy_matrix
 from pppbot_sim.errors import WorldError
+from pppbot_sim.sdf_frames import FrameGraph
+from pppbot_sim.uris import UriError, fuel_caches, resolve_uri
 
 SKIPPED = {"gui", "plugin", "light"}
 # Elements that carry nothing a collision world needs; ignored without a word.
@@ -68,6 +74,16 @@ class Body:
     inertia: tuple[float, float, float, float, float, float] | None = None
     #: centre of mass pose in the link frame (4×4)
     inertial_pose: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class ScopedModel:
+    """A model to read: its element and file, its name in its scope, its ``<static>`` override."""
+
+    element: etree._Element
+    file: Path
+    name: str
+    static: bool | None
 
 
 @dataclass
@@ -151,13 +167,15 @@ class _Reader:
             return default
         return self.floats(element, 1, file)[0]
 
-    def pose(self, parent: etree._Element, file: Path) -> np.ndarray:
+    def placed_pose(self, parent: etree._Element, file: Path) -> tuple[str | None, np.ndarray]:
+        """``parent``'s ``<pose>``: its ``relative_to`` (None without one) and its 4×4 matrix. An
+        empty ``<pose/>`` is the identity (in its ``relative_to`` frame), as in SDF 1.7."""
         element = parent.find("pose")
         if element is None:
-            return np.eye(4)
-        relative = element.get("relative_to")
-        if relative not in (None, "", "__model__"):
-            self.warn(element, f"<pose relative_to='{relative}'> is read as relative to its parent", file)
+            return None, np.eye(4)
+        relative = element.get("relative_to") or None
+        if not (element.text or "").strip():
+            return relative, np.eye(4)
         values = self.floats(element, (6, 7), file)
         if len(values) == 7 or element.get("rotation_format") == "quat_xyzw":
             if len(values) != 7 or not np.linalg.norm(values[3:7]) > 1e-6:  # quat2mat reads ~0 as identity
@@ -167,9 +185,13 @@ class _Reader:
             t = np.eye(4)
             t[:3, :3] = quat2mat([qw, qx, qy, qz])
             t[:3, 3] = values[:3]
-            return t
+            return relative, t
         rpy = np.radians(values[3:]) if element.get("degrees") == "true" else values[3:]
-        return pose_matrix(values[:3], rpy)
+        return relative, pose_matrix(values[:3], rpy)
+
+    def pose(self, parent: etree._Element, file: Path) -> np.ndarray:
+        """A ``<pose>`` that is always in its parent's frame (``<inertial>``)."""
+        return self.placed_pose(parent, file)[1]
 
     def note_unknown(self, element: etree._Element, allowed: set[str], file: Path) -> None:
         for child in element:
@@ -181,27 +203,24 @@ class _Reader:
                 self.warn(child, f"unsupported element <{child.tag}> in <{element.tag}> ignored", file)
 
     # --------------------------------------------------------------- resolving
+    def resolve(self, uri: str, element: etree._Element, file: Path) -> Path:
+        """The path a ``<uri>`` names (:mod:`pppbot_sim.uris`); a warning when it had to be guessed."""
+        try:
+            path, warning = resolve_uri(uri, file.parent, self.search, fuel_caches())
+        except UriError as exc:
+            raise self.fail(element, str(exc), file) from exc
+        if warning is not None:
+            self.warn(element, warning, file)
+        return path
+
     def model_directory(self, uri: str, element: etree._Element, file: Path) -> Path:
-        if not uri.startswith("model://"):
-            path = Path(uri.removeprefix("file://"))
-            path = path if path.is_absolute() else file.parent / path
-            if path.is_dir():
-                return path
-            raise self.fail(element, f"<uri>{uri}</uri>: no such model directory {path}", file)
-        name = uri.removeprefix("model://").strip("/")
-        for base in self.search:
-            if (base / name).is_dir():
-                return base / name
-        searched = ", ".join(str(p) for p in self.search) or "nothing"
-        raise self.fail(element, f"unknown model '{name}' ({uri}); searched {searched}", file)
+        path = self.resolve(uri, element, file)
+        if path.is_dir():
+            return path
+        raise self.fail(element, f"<uri>{uri}</uri>: no such model directory {path}", file)
 
     def mesh_path(self, uri: str, element: etree._Element, file: Path) -> Path:
-        if uri.startswith("model://"):
-            name, _, rest = uri.removeprefix("model://").partition("/")
-            path = self.model_directory(f"model://{name}", element, file) / rest
-        else:
-            path = Path(uri.removeprefix("file://"))
-            path = path if path.is_absolute() else file.parent / path
+        path = self.resolve(uri, element, file)
         if not path.is_file():
             raise self.fail(element, f"mesh file not found: {uri} (looked at {path})", file)
         if path.suffix.lower() not in MESH_SUFFIXES:
@@ -214,7 +233,7 @@ class _Reader:
         if world_el is None:
             raise self.fail(root, "expected <sdf><world>...</world></sdf>")
         self.world.name = world_el.get("name") or self.source.stem
-        self.note_unknown(world_el, {"physics", "gravity", "model", "include"}, self.source)
+        self.note_unknown(world_el, {"physics", "gravity", "model", "include", "frame"}, self.source)
         physics = world_el.find("physics")
         if physics is not None:
             step = self.number(physics, "max_step_size", 0.001, self.source)
@@ -225,14 +244,42 @@ class _Reader:
         if gravity is not None:
             g = self.floats(gravity, 3, self.source)
             self.world.gravity = (g[0], g[1], g[2])
-        for child in world_el:
-            if child.tag == "model":
-                self.read_model(child, np.eye(4), self.source, prefix="", static=None)
-            elif child.tag == "include":
-                self.read_include(child, np.eye(4), self.source, prefix="")
+        graph = FrameGraph("world", f"world '{self.world.name}'")
+        models = self.scope_models(world_el, self.source, graph, "world")
+        for model in models:
+            self.read_model(model, graph.resolve(model.name), prefix="")
         return self.world
 
-    def read_include(self, element: etree._Element, parent: np.ndarray, file: Path, prefix: str) -> None:
+    def scope_models(self, scope: etree._Element, file: Path, graph: FrameGraph, root: str) -> list[ScopedModel]:
+        """Put ``scope``'s models, includes and ``<frame>`` elements in ``graph``; the models to read."""
+        models: list[ScopedModel] = []
+        for child in scope:
+            if child.tag == "model":
+                models.append(ScopedModel(child, file, child.get("name") or "model", None))
+                relative, pose = self.placed_pose(child, file)
+            elif child.tag == "include":
+                models.append(self.include_target(child, file))
+                # An <include>'s pose replaces the model's own pose (Gazebo's rule).
+                source = child if child.find("pose") is not None else models[-1].element
+                relative, pose = self.placed_pose(source, file if source is child else models[-1].file)
+            elif child.tag == "frame":
+                attached = child.get("attached_to") or root
+                relative, pose = self.placed_pose(child, file)
+                graph.add(self.frame_name(child, file), relative or attached, pose, file, child.sourceline)
+                continue
+            else:
+                continue
+            graph.add(models[-1].name, relative or root, pose, file, child.sourceline)
+        return models
+
+    def frame_name(self, element: etree._Element, file: Path) -> str:
+        name = element.get("name")
+        if not name:
+            raise self.fail(element, f"<{element.tag}> needs a name", file)
+        return name
+
+    def include_target(self, element: etree._Element, file: Path) -> ScopedModel:
+        """The model an ``<include>`` brings in, with its ``<name>`` and ``<static>``."""
         uri_el = element.find("uri")
         if uri_el is None or not (uri_el.text or "").strip():
             raise self.fail(element, "<include> needs a <uri>", file)
@@ -250,12 +297,7 @@ class _Reader:
         name_el, static_el = element.find("name"), element.find("static")
         name = (name_el.text or "").strip() if name_el is not None else model.get("name", directory.name)
         static = None if static_el is None else (static_el.text or "").strip() in ("1", "true")
-        pose = parent @ self.pose(element, file) if element.find("pose") is not None else parent
-        self.including.append(str(model_file))
-        # An <include>'s pose replaces the model's own pose (Gazebo's rule).
-        self.read_model(model, pose, model_file, prefix, static, name=name,
-                        own_pose=element.find("pose") is None)
-        self.including.pop()
+        return ScopedModel(model, model_file, name, static)
 
     def model_file(self, directory: Path, element: etree._Element, file: Path) -> Path:
         config = directory / "model.config"
@@ -270,35 +312,54 @@ class _Reader:
             return directory / "model.sdf"
         raise self.fail(element, f"model directory {directory} has no model.config or model.sdf", file)
 
-    def read_model(self, model: etree._Element, parent: np.ndarray, file: Path, prefix: str,
-                   static: bool | None, name: str | None = None, own_pose: bool = True) -> None:
-        name = name or model.get("name") or "model"
-        full = f"{prefix}{name}"
+    def read_model(self, scoped: ScopedModel, pose: np.ndarray, prefix: str, parent_static: bool = False) -> None:
+        """A model whose frame is at ``pose`` in the world: its frames, links and nested models."""
+        model, file = scoped.element, scoped.file
+        full = f"{prefix}{scoped.name}"
+        static = scoped.static
         if static is None:
             static_el = model.find("static")
-            static = static_el is not None and (static_el.text or "").strip() in ("1", "true")
-        pose = parent @ self.pose(model, file) if own_pose else parent
-        self.note_unknown(model, {"link", "model", "include", "joint", "static", "pose"}, file)
+            static = parent_static or (static_el is not None and (static_el.text or "").strip() in ("1", "true"))
+        self.including.append(str(file))
+        self.note_unknown(model, {"link", "model", "include", "joint", "static", "pose", "frame"}, file)
+        graph = FrameGraph("__model__", f"model '{full}'")
+        links = [child for child in model if child.tag == "link"]
+        for link in links:
+            relative, link_pose = self.placed_pose(link, file)
+            graph.add(self.frame_name(link, file), relative or "__model__", link_pose, file, link.sourceline)
         for joint in model.findall("joint"):
             self.warn(joint, f"joint '{joint.get('name')}' of model '{full}' ignored: model joints are "
                              "not simulated (links move independently)", file)
-        for child in model:
-            if child.tag == "model":
-                self.read_model(child, pose, file, f"{full}::", static)
-            elif child.tag == "include":
-                self.read_include(child, pose, file, f"{full}::")
-            elif child.tag == "link":
-                self.read_link(child, pose, file, full, static)
+            child_el = joint.find("child")
+            relative, joint_pose = self.placed_pose(joint, file)
+            default = (child_el.text or "").strip() if child_el is not None else "__model__"
+            graph.add(self.frame_name(joint, file), relative or default, joint_pose, file, joint.sourceline)
+        nested = self.scope_models(model, file, graph, "__model__")
+        for link in links:
+            self.read_link(link, pose, graph, file, full, static)
+        for child in nested:
+            self.read_model(child, pose @ graph.resolve(child.name), f"{full}::", static)
+        self.including.pop()
 
-    def read_link(self, link: etree._Element, model_pose: np.ndarray, file: Path, model: str,
-                  static: bool) -> None:
-        name = f"{model}::{link.get('name', 'link')}"
-        pose = model_pose @ self.pose(link, file)
+    def read_link(self, link: etree._Element, model_pose: np.ndarray, graph: FrameGraph, file: Path,
+                  model: str, static: bool) -> None:
+        link_name = link.get("name", "link")
+        name = f"{model}::{link_name}"
+        in_model = graph.resolve(link_name)
+        pose = model_pose @ in_model
         self.note_unknown(link, {"collision", "pose", "inertial", "sensor"}, file)
         for sensor in link.findall("sensor"):
             self.warn(sensor, f"sensor '{sensor.get('name')}' of link '{name}' is not simulated "
                               "(only the robot's sensors are)", file)
-        shapes = [self.read_collision(c, file, name) for c in link.findall("collision")]
+        shapes = []
+        for collision in link.findall("collision"):
+            relative, raw = self.placed_pose(collision, file)
+            if relative is None or relative == link_name:
+                in_link = raw
+            else:
+                asked = f"{file}:{collision.sourceline}: "
+                in_link = np.linalg.inv(in_model) @ graph.resolve(relative, asked) @ raw
+            shapes.append(self.read_collision(collision, file, name, in_link))
         if static:
             for s in shapes:
                 self.world.static_shapes.append(Shape(s.name, s.kind, s.size, pose @ s.pose, s.mesh,
@@ -322,7 +383,7 @@ class _Reader:
         if shapes:
             self.world.bodies.append(Body(name, pose, shapes, mass, inertia, inertial_pose))
 
-    def read_collision(self, collision: etree._Element, file: Path, link: str) -> Shape:
+    def read_collision(self, collision: etree._Element, file: Path, link: str, pose: np.ndarray) -> Shape:
         name = f"{link}::{collision.get('name', 'collision')}"
         self.note_unknown(collision, {"geometry", "pose", "surface"}, file)
         geometry = collision.find("geometry")
@@ -333,7 +394,6 @@ class _Reader:
         mu = collision.find("surface/friction/ode/mu")
         if mu is not None:
             friction = self.floats(mu, 1, file)[0]
-        pose = self.pose(collision, file)
         if g.tag == "box":
             size = tuple(self.floats(self.child(g, "size", file), 3, file))
         elif g.tag in ("cylinder", "capsule"):

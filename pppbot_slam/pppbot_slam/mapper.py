@@ -36,9 +36,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pppbot_common.errors import PppbotError
 from pppbot_common.maps import OccupancyGrid
 from pppbot_common.se2 import PoseLike, finite_pose, se2_apply, se2_compose, se2_inverse, wrap_angles
+from pppbot_slam.errors import MapperError
 from pppbot_slam.loops import LoopChain, LoopSearch, LoopSolution, in_frame_of, solve_loops
 from pppbot_slam.matcher import MatcherSettings, MatchResult, ScanMatcher, rotate, scan_normals
 from pppbot_slam.occupancy import LogOddsGrid, OccupancySettings, ScanRays
@@ -77,10 +77,6 @@ LOST_KEYFRAMES = 5
 HEALTH_WINDOW = 20
 #: Hits this close to the range limit are not matched (see :meth:`Mapper.within_reach`).
 MATCH_RANGE_MARGIN_M = 1.0
-
-
-class MapperError(PppbotError, ValueError):
-    """A bad mapper setting; the message names it and its value."""
 
 
 @dataclass(frozen=True)

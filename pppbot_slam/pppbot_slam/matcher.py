@@ -37,15 +37,11 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from pppbot_common.errors import PppbotError
 from pppbot_common.se2 import PoseLike, se2_apply, wrap_angles
+from pppbot_slam.errors import MatcherError
 
 #: slam_toolbox (Karto) penalty gain on the squared distance and angle from the prior.
 PENALTY_GAIN = 0.2
-
-
-class MatcherError(PppbotError, ValueError):
-    """Bad matcher settings, or nothing to match against; the message names the value."""
 
 
 @dataclass(frozen=True)

@@ -24,16 +24,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from pppbot_common.errors import PppbotError
 from pppbot_common.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from pppbot_common.se2 import PoseLike, finite_pose, se2_apply, se2_compose
+from pppbot_slam.errors import OccupancyError
 
 #: The reported grid extent is a multiple of this many cells, aligned to world (0, 0).
 BLOCK_CELLS = 16
-
-
-class OccupancyError(PppbotError, ValueError):
-    """Bad occupancy settings, scan or pose; the message names the field and its value."""
 
 
 def _logit(p: float) -> float:
@@ -150,7 +146,7 @@ class ScanRays:
         return int(self.ranges_m.shape[0])
 
     def classify(self, max_range_m: float) -> BeamClasses:
-        """Classify beams against limit = min(range_max_m, max_range_m):
+        """Classify beams against limit = min(range_max_m, max_range_m).
 
         * finite r with range_min <= r < limit: free up to r, the cell at r occupied;
         * r >= limit (including +inf): free up to limit, nothing occupied;

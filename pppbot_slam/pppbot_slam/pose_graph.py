@@ -16,17 +16,13 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from pppbot_common.errors import PppbotError
 from pppbot_common.se2 import PoseLike, finite_pose, se2_compose, se2_inverse
+from pppbot_slam.errors import PoseGraphError
 
 #: Standard deviation of the anchor on the first keyframe (m, m, rad).
 ANCHOR_SIGMAS = (1e-6, 1e-6, 1e-8)
 #: Huber threshold on loop-closure edges, in standard deviations.
 LOOP_HUBER_K = 1.345
-
-
-class PoseGraphError(PppbotError, ValueError):
-    """A bad node index, pose or covariance; the message names the value."""
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from pppbot_common.errors import PppbotError
+from pppbot_slam.errors import PoseGraphFileError
 from pppbot_slam.mapper import Keyframe, LoopClosure, Mapper, MapperSettings
 from pppbot_slam.occupancy import OccupancyError, ScanRays
 from pppbot_slam.pose_graph import PoseGraph, PoseGraphError
@@ -33,10 +33,6 @@ from pppbot_slam.pose_graph import PoseGraph, PoseGraphError
 FORMAT = "pppbot-posegraph"
 VERSION = 1
 SUFFIX = ".posegraph"
-
-
-class PoseGraphFileError(PppbotError, ValueError):
-    """A pose-graph file that cannot be written or read; the message names the file and the field."""
 
 
 def posegraph_path(name: str | Path) -> Path:

@@ -24,11 +24,12 @@ BOX_ROOM = str(ROOT / "tests" / "pppbot_sim" / "data" / "box_room.sdf")
 
 
 def run_eval(spawn: Callable[..., ChildProcess], out: Path, *extra: str,
-             scenario: str = "drive") -> tuple[int, dict[str, Any], str]:
-    """Exit code, the report from stdout, and stderr (progress, node warnings)."""
+             scenario: str = "drive", view: bool = False) -> tuple[int, dict[str, Any], str]:
+    """Exit code, the report from stdout, and stderr (progress, node warnings). Without ``view``,
+    ``--no-view``: the live view's recording is tested once, in the slam run."""
     stderr = out.parent / f"{out.name}.stderr"
     child = spawn(["bash", "-c", f'exec "$0" "$@" 2>"{stderr}"', PPPBOT, "eval", scenario, "--world", BOX_ROOM,
-                   "--out", str(out), "--json", *extra], name="eval")
+                   "--out", str(out), "--json", *(() if view else ("--no-view",)), *extra], name="eval")
     code = child.wait(timeout_s=240)
     stdout_lines = child.output.strip().splitlines()
     assert len(stdout_lines) == 1, child.output  # with --json, stdout is the report alone
@@ -57,6 +58,7 @@ def test_drive_scenario_reports_odometry_drift_against_ground_truth(spawn, tmp_p
     assert report["rpe_segments"] > 100 and 0.0 < report["rpe_trans_mean_m_per_m"] < 0.5
     assert math.isfinite(report["final_position_error_m"])
     assert report["plots"] == ["error.png", "trajectory.png"]
+    assert report["view"] is None and not (out / "view.rrd").exists()  # --no-view
     for name in report["plots"]:
         with Image.open(out / name) as image:
             assert image.format == "PNG" and image.width > 400 and image.height > 300
@@ -75,11 +77,17 @@ def test_driving_into_a_wall_counts_a_collision_and_fails(spawn, tmp_path: Path)
     assert report["min_clearance_m"] == 0.0
 
 
-def test_slam_scenario_maps_the_room_and_tracks_the_robot(spawn, tmp_path: Path):
+def test_slam_scenario_maps_the_room_and_tracks_the_robot(spawn, tmp_path: Path, rrd_chunks):
     out = tmp_path / "slam"
-    code, report, output = run_eval(spawn, out, "--seed", "2", "--wheel-slip", "0.03", scenario="slam")
+    code, report, output = run_eval(spawn, out, "--seed", "2", "--wheel-slip", "0.03", scenario="slam", view=True)
     assert code == 0, output
     assert report["scenario"] == "slam" and report["ok"] is True and report["collisions"] == 0
+    # The live view of the run, as a rerun recording beside the plots, read back by rerun's own CLI.
+    assert report["view"] == "view.rrd"
+    chunks = rrd_chunks(out / "view.rrd")
+    for entity in ("/map", "/scan", "/tf/base_link", "/tf/odom", "/odom/trail/0", "/robot/chassis/visual_0"):
+        assert chunks.get(entity, 0) >= 1, (entity, sorted(chunks))
+    assert any(e.startswith("/slam/graph/") for e in chunks), sorted(chunks)
     # SLAM against ground truth (issue 9's targets): the map and the trajectory.
     assert report["map_f1"] >= 0.95 and report["map_precision"] >= 0.95 and report["map_recall"] >= 0.95
     assert report["ate_rms_m"] <= 0.05

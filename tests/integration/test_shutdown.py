@@ -45,7 +45,8 @@ def test_sigint_ends_every_node_of_the_navigation_bringup_with_exit_code_0(spawn
         moment = _stop_moment(run)
         separate = run % 4 == 3
         launch = spawn([PPPBOT, "launch_sim", "world:=room", "localization:=true", "use_teleop:=false",
-                        "use_rviz:=false", f"use_composition:={str(not separate).lower()}", *ESCALATION],
+                        "use_rviz:=false", "use_viz:=false", f"use_composition:={str(not separate).lower()}",
+                        *ESCALATION],
                        name=f"launch_sim run {run}")
         if moment == "starting":
             launch.wait_for_output(r"\[(amcl|localization)-1\]: process started", 60)

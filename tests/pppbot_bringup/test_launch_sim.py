@@ -1,6 +1,7 @@
 """launch_sim: arguments, --show-args, the node plan, and an end-to-end headless run."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import re
@@ -12,25 +13,35 @@ from pathlib import Path
 import pytest
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+from pppbot_viz.errors import VizError
 from rosbags.rosbag2 import Reader
 
-from pppbot_bringup.launch_sim import ARGUMENTS, plan, stop_timeouts
-from pppbot_common.launch_args import ArgumentError, describe, parse_assignments
+from pppbot_bringup.launch_sim import ARGUMENTS, LaunchArgs, NavigationMode, plan
+from pppbot_common.launch_args import ArgumentError, describe
 from pppbot_common.ros.wait import wait_until
 
 ROOT = Path(__file__).resolve().parents[2]
 PPPBOT = str(ROOT / "pppbot")
 
 
-def values(*argv: str) -> dict:
-    return parse_assignments(list(argv), ARGUMENTS)
+def values(*argv: str) -> LaunchArgs:
+    return LaunchArgs.parse(list(argv))
 
 
 def test_defaults_are_ppp_bots():
     v = values()
-    assert (v["world"], v["localization"], v["use_teleop"], v["use_rviz"], v["headless"]) == \
-        ("cones", False, True, True, True)
-    assert (v["real_time_factor"], v["z"], v["log_level"]) == (1.0, 0.05, "info")
+    assert (v.world, v.localization, v.use_teleop, v.use_rviz, v.headless) == ("cones", False, True, True, True)
+    assert (v.real_time_factor, v.z, v.log_level, v.navigation) == (1.0, 0.05, "info", NavigationMode.AUTO)
+
+
+def test_the_arguments_are_the_dataclass_fields_with_their_defaults():
+    assert [a.name for a in ARGUMENTS] == [f.name for f in dataclasses.fields(LaunchArgs)]
+    navigation = next(a for a in ARGUMENTS if a.name == "navigation")
+    assert (navigation.default, navigation.choices) == ("auto", ("auto", "true", "false"))
+    assert values("navigation:=false", "x:=1.5").navigation is NavigationMode.FALSE
+    assert values("x:=1.5").x == 1.5
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        values().x = 2.0  # type: ignore[misc]  # the point: it is frozen
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -72,18 +83,25 @@ def test_launch_refuses_bad_input_before_starting_anything(argv, message):
 
 
 def test_stop_timeouts_are_ros2_launchs_and_default_to_5_s():
-    assert stop_timeouts(values()) == (5.0, 5.0)
-    assert stop_timeouts(values("sigterm_timeout:=20", "sigkill_timeout:=2.5")) == (20.0, 2.5)
+    assert values().stop_timeouts() == (5.0, 5.0)
+    assert values("sigterm_timeout:=20", "sigkill_timeout:=2.5").stop_timeouts() == (20.0, 2.5)
     with pytest.raises(ArgumentError, match="sigterm_timeout:=nan: must be a positive number"):
-        stop_timeouts(values("sigterm_timeout:=nan"))
+        values("sigterm_timeout:=nan").stop_timeouts()
 
 
 class FakeProbes:
-    """What the plan asks the graph: (topic, type, latched) of first messages, and lockstep joins."""
+    """What the plan asks the graph: (topic, type, latched) of first messages, nodes' endpoints
+    and lockstep joins."""
 
     def __init__(self) -> None:
         self.asked: list[tuple[str, str, bool]] = []
         self.joins: list[str] = []
+        self.endpoints_asked: dict[str, dict[str, tuple[str, ...]]] = {}
+
+    def endpoints(self, node, publishes=(), subscribes=(), action_servers=()):
+        self.endpoints_asked[node] = {"publishes": tuple(publishes), "subscribes": tuple(subscribes),
+                                      "action_servers": tuple(action_servers)}
+        return lambda: True
 
     def first_message(self, topic, type_name, latched):
         self.asked.append((topic, type_name, latched))
@@ -127,6 +145,23 @@ def test_plan_follows_ppp_bots_order_and_wiring():
     assert "-r cmd_vel_out:=/diff_drive_base_controller/cmd_vel_unstamped" in mux and "use_sim_time:=true" in mux
     assert ("/robot_description", "std_msgs/msg/String", True) in probes
     assert all(n.required for n in p.nodes if n.name not in ("rviz2", "teleop_keyboard"))
+    # Readiness from the graph, never from log text: twist_mux once it has its output and inputs.
+    assert probes.endpoints_asked["twist_mux"] == {
+        "publishes": ("/diff_drive_base_controller/cmd_vel_unstamped",),
+        "subscribes": ("/cmd_vel", "/cmd_vel_teleop"), "action_servers": ()}
+
+
+def test_twist_mux_inputs_come_from_its_parameter_file(tmp_path):
+    from pppbot_bringup.launch_sim import twist_mux_inputs
+
+    good = tmp_path / "mux.yaml"
+    good.write_text("/**:\n  ros__parameters:\n    topics:\n      a: {topic: /x/in, timeout: 0.5, priority: 1}\n"
+                    "    locks:\n      stop: {topic: e_stop, timeout: 0.0, priority: 255}\n")
+    assert twist_mux_inputs(good) == ("/e_stop", "/x/in")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("other_node:\n  ros__parameters: {}\n")
+    with pytest.raises(ArgumentError, match="bad.yaml: not a twist_mux parameter file"):
+        twist_mux_inputs(bad)
 
 
 def test_plan_without_terminal_rviz_or_mapping_says_so():
@@ -167,6 +202,13 @@ def test_localization_serves_the_worlds_map_and_starts_amcl_at_the_spawn_pose_in
     assert by_name["amcl"].required and by_name["map_server"].required
     assert by_name["planner_server"].after == ("amcl",)
     assert ("/map", "nav_msgs/msg/OccupancyGrid", True) in probes
+    # Localized once AMCL publishes a first pose; each navigation server once it serves its action.
+    assert ("/amcl_pose", "geometry_msgs/msg/PoseWithCovarianceStamped", True) in probes
+    assert {name: asked["action_servers"] for name, asked in probes.endpoints_asked.items()
+            if asked["action_servers"]} == {"planner_server": ("/compute_path_to_pose",),
+                                            "controller_server": ("/follow_path",),
+                                            "navigator": ("/navigate_to_pose",)}
+    assert by_name["navigator"].ready.description == "its navigate_to_pose action server"
     other = {n.name: n for n in fake_plan("localization:=true", f"map:={ROOT / 'maps' / 'room.yaml'}")[0].nodes}
     assert f"yaml_filename:={ROOT / 'maps' / 'room.yaml'}" in " ".join(other["localization"].cmd)
 
@@ -211,9 +253,13 @@ def test_navigation_is_one_composed_process_unless_use_composition_is_false():
 
 
 def test_record_adds_a_recorder_right_after_the_simulator(tmp_path):
-    p, _ = fake_plan("record:=true", f"bag_path:={tmp_path / 'b'}")
+    from pppbot_bag.cli import RecordOptions
+
+    p, probes = fake_plan("record:=true", f"bag_path:={tmp_path / 'b'}")
     recorder = p.nodes[1]
     assert recorder.name == "bag_record" and recorder.after == ("simulator",) and not recorder.required
+    # Ready once the recorder's node (rosbag2's name) subscribes to the simulator's /clock.
+    assert probes.endpoints_asked[RecordOptions.node_name]["subscribes"] == ("/clock",)
     assert list(recorder.cmd) == ["/bin/pppbot_bringup/pppbot", "bag", "record", "-a", "--use-sim-time",
                                   "-o", str(tmp_path / "b")]
     (tmp_path / "b").mkdir()
@@ -224,7 +270,7 @@ def test_record_adds_a_recorder_right_after_the_simulator(tmp_path):
 @pytest.mark.ros
 def test_end_to_end_headless_drive_record_and_clean_sigint(ros_node, spawn, tmp_path):
     bag = tmp_path / "drive_bag"
-    launch = spawn([PPPBOT, "launch_sim", "world:=empty", "use_teleop:=false", "use_rviz:=false",
+    launch = spawn([PPPBOT, "launch_sim", "world:=empty", "use_teleop:=false", "use_rviz:=false", "use_viz:=false",
                     "real_time_factor:=2.0", "record:=true", f"bag_path:={bag}"], name="launch_sim")
     launch.wait_for_output(r"ppp_bot is up in 'empty'", 60)
     pids = [int(p) for p in re.findall(r"process started with pid \[(\d+)\]", launch.output)]
@@ -273,7 +319,8 @@ def test_in_a_terminal_the_teleop_drives_and_ctrl_c_ends_everything(ros_node):
         os.setsid()
         fcntl.ioctl(0, termios.TIOCSCTTY, 0)
 
-    proc = subprocess.Popen([PPPBOT, "launch_sim", "world:=empty", "use_rviz:=false", "real_time_factor:=2.0"],
+    proc = subprocess.Popen([PPPBOT, "launch_sim", "world:=empty", "use_rviz:=false", "use_viz:=false",
+                             "real_time_factor:=2.0"],
                             stdin=slave, stdout=slave, stderr=slave, preexec_fn=own_terminal)
     os.close(slave)
     screen = bytearray()
@@ -334,3 +381,78 @@ def test_slam_params_file_replaces_the_default_and_must_exist(tmp_path):
     assert str(own) in slam.cmd and "mapper_params_online_async.yaml" not in " ".join(slam.cmd)
     with pytest.raises(ArgumentError, match=f"slam_params_file: {tmp_path / 'missing.yaml'} does not exist"):
         fake_plan(f"slam_params_file:={tmp_path / 'missing.yaml'}")
+
+
+def test_live_view_runs_on_localhost_with_its_own_settings(tmp_path):
+    from pppbot_viz.viewer import ViewerKind
+
+    from pppbot_bringup.launch_sim import VizPlan
+
+    probes = FakeProbes()
+    viz = VizPlan(grpc_port=4001, web_port=4002, page_port=4003, native=False, state_dir=tmp_path / "rerun")
+    p = plan(values("world:=maze"), ROOT / "worlds" / "maze.sdf", Path("/tmp/robot.urdf"),
+             lambda pkg, exe: f"/bin/{pkg}/{exe}", probes, True, None, viz=viz)
+    by_name = {n.name: n for n in p.nodes}
+    assert [n.name for n in p.nodes][-3:] == ["rerun", "viz", "teleop_keyboard"]
+    server = list(by_name["rerun"].cmd)
+    assert server[0].endswith("rerun_cli/rerun") and "--serve-web" in server
+    assert server[server.index("--bind") + 1] == "127.0.0.1"
+    assert (server[server.index("--port") + 1], server[server.index("--web-viewer-port") + 1]) == ("4001", "4002")
+    # rerun's settings (analytics off) in pppbot's directory, not the user's home
+    assert by_name["rerun"].env == {"XDG_CONFIG_HOME": str(tmp_path / "rerun" / "config"),
+                                    "XDG_DATA_HOME": str(tmp_path / "rerun" / "data")}
+    node = " ".join(by_name["viz"].cmd)
+    assert node.startswith("/bin/pppbot_viz/viz ") and "-p rerun_port:=4001" in node and "-p port:=4003" in node
+    assert by_name["viz"].after == ("rerun", "robot_state_publisher") and not by_name["viz"].required
+    assert probes.endpoints_asked["viz"]["publishes"] == ("/goal_pose", "/initialpose")
+    assert p.info == ["live view: http://127.0.0.1:4003/ in a browser (2D Goal Pose / 2D Pose Estimate: a button, "
+                      "then two clicks on the map)"]
+    # with a display: a native viewer window on the same server too
+    native = plan(values("world:=maze"), ROOT / "worlds" / "maze.sdf", Path("/tmp/robot.urdf"),
+                  lambda pkg, exe: f"/bin/{pkg}/{exe}", FakeProbes(), False, None,
+                  viz=VizPlan(4001, 4002, 4003, True, tmp_path))
+    viewer = next(n for n in native.nodes if n.name == "rerun_viewer")
+    assert viewer.cmd[1:3] == ["--connect", "rerun+http://127.0.0.1:4001/proxy"] and viewer.after == ("rerun",)
+    assert ViewerKind.AUTO.native({"DISPLAY": ":0"}) and not ViewerKind.AUTO.native({})
+    assert ViewerKind.NATIVE.native({}) and not ViewerKind.WEB.native({"WAYLAND_DISPLAY": "wayland-0"})
+
+
+def test_a_view_recording_alone_is_the_viz_node_writing_a_file_without_a_server(tmp_path):
+    from pppbot_bringup.launch_sim import VizPlan
+
+    p = plan(values("world:=maze", "use_viz:=false"), ROOT / "worlds" / "maze.sdf", Path("/tmp/robot.urdf"),
+             lambda pkg, exe: f"/bin/{pkg}/{exe}", FakeProbes(), False, None, view_recording=tmp_path / "view.rrd")
+    names = [n.name for n in p.nodes]
+    assert "viz" in names and "rerun" not in names and "rerun_viewer" not in names and p.info == []
+    node = next(n for n in p.nodes if n.name == "viz")
+    assert f"-p recording_path:={tmp_path / 'view.rrd'}" in " ".join(node.cmd)
+    assert "-p scan_max_rate_hz:=2.0" in " ".join(node.cmd)
+    assert not any("rerun_port" in arg or arg.startswith("port:=") for arg in node.cmd)
+    assert node.after == ("robot_state_publisher",)
+    # with the live view as well: one viz node streams to the server and writes the file
+    both = plan(values("world:=maze"), ROOT / "worlds" / "maze.sdf", Path("/tmp/robot.urdf"),
+                lambda pkg, exe: f"/bin/{pkg}/{exe}", FakeProbes(), False, None,
+                viz=VizPlan(4001, 4002, 4003, False, tmp_path), view_recording=tmp_path / "view.rrd")
+    vizzes = [n for n in both.nodes if n.name == "viz"]
+    assert len(vizzes) == 1 and "-p rerun_port:=4001" in " ".join(vizzes[0].cmd)
+    assert "recording_path:=" in " ".join(vizzes[0].cmd)
+
+
+def test_a_taken_viz_port_moves_the_page_instead_of_stopping_the_robot(monkeypatch, tmp_path):
+    import socket
+
+    from pppbot_bringup.ros import launch_sim as ros_launch_sim
+    from pppbot_viz import viewer
+
+    monkeypatch.setattr(viewer, "state_directory", lambda checkout: tmp_path)
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        viz, notes = ros_launch_sim.viz_plan(values(f"viz_port:={port}"))
+    assert viz.page_port != port and len({viz.page_port, viz.grpc_port, viz.web_port}) == 3
+    assert notes == [f"viz_port:={port} is taken (another launch_sim?); the live view's page is on "
+                     f"{viz.page_port} instead"]
+    assert (tmp_path / "config" / "rerun" / "analytics.json").is_file()
+    with pytest.raises(VizError, match="viz_port:=70000: must be a port number"):
+        ros_launch_sim.viz_plan(values("viz_port:=70000"))

@@ -52,14 +52,14 @@ def supervise(spawn):
 
 def test_order_follows_readiness(supervise):
     sup = supervise([
-        {"name": "a", "code": "time.sleep(0.5); print('a ready', flush=True)\nwhile True: time.sleep(0.1)\n",
+        {"name": "a", "code": "time.sleep(0.5); mark('a ready')\nwhile True: time.sleep(0.1)\n",
          "ready": "a ready"},
         {"name": "b", "code": SLEEPER, "after": ["a"]},
     ])
     sup.wait_for_output(r"\[b-1\] up", 20)
     out = sup.output
     assert out.index("[INFO] [a-1]: ready after") < out.index("[INFO] [b-1]: process started with pid")
-    assert re.search(r"\[INFO\] \[a-1\]: ready after 0\.\d s \('a ready' printed\)", out)
+    assert re.search(r"\[INFO\] \[a-1\]: ready after 0\.\d s \('a ready' marked\)", out)
     os.kill(sup.pid, signal.SIGINT)
     assert sup.wait(20) == 0
     assert wait_dead(started_pids(sup.output)) == []
@@ -71,7 +71,7 @@ def test_readiness_timeout_ends_the_launch(supervise):
         {"name": "later", "code": SLEEPER, "after": ["mute"]},
     ])
     assert sup.wait(20) == 1
-    assert "[ERROR] [mute-1]: not ready after 0.5 s (waited for 'never' printed)" in sup.output
+    assert "[ERROR] [mute-1]: not ready after 0.5 s (waited for 'never' marked)" in sup.output
     assert "later-1" not in sup.output
     assert wait_dead(started_pids(sup.output)) == []
 
@@ -107,6 +107,23 @@ def test_sigterm_escalates_for_a_child_that_ignores_sigint(supervise):
     assert re.search(r"\[ERROR\] \[stubborn-1\]: process has died \[pid \d+, exit code -15", out)
     assert "[INFO] [obedient-1]: process has finished cleanly" in out or "obedient-1]: process has died" in out
     assert wait_dead(started_pids(out)) == []
+
+
+def test_a_child_ended_by_the_stop_sigint_finished_cleanly(supervise):
+    # rerun's server keeps SIGINT's default action: the launch's Ctrl-C ends it by that signal.
+    sup = supervise([{"name": "viewer", "code": "signal.signal(signal.SIGINT, signal.SIG_DFL)\n" + SLEEPER}])
+    sup.wait_for_output(r"\[viewer-1\] up", 20)
+    os.kill(sup.pid, signal.SIGINT)
+    assert sup.wait(20) == 0
+    assert "[INFO] [viewer-1]: process has finished cleanly" in sup.output
+    # The same signal from anyone else, while the launch runs, is a death.
+    sup = supervise([{"name": "viewer", "code": "signal.signal(signal.SIGINT, signal.SIG_DFL)\n" + SLEEPER},
+                     {"name": "other", "code": SLEEPER}])
+    sup.wait_for_output(r"\[viewer-1\] up", 20)
+    os.kill(started_pids(sup.output)[0], signal.SIGINT)
+    sup.wait_for_output(r"\[ERROR\] \[viewer-1\]: process has died \[pid \d+, exit code -2", 20)
+    os.kill(sup.pid, signal.SIGINT)
+    assert sup.wait(20) == 0
 
 
 HANGS_ON_THE_WAY_DOWN = """

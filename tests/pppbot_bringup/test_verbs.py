@@ -11,7 +11,9 @@ from pppbot_bringup import cli
 #: ../shared/DESIGN.md's verbs, and the package that declares each.
 DESIGN_VERBS = {"run": "pppbot_bringup", "topic": "pppbot_bringup", "teleop": "pppbot_bringup",
                 "launch_sim": "pppbot_bringup", "eval": "pppbot_eval", "bag": "pppbot_bag",
-                "nav": "pppbot_nav", "map_saver": "pppbot_nav"}
+                "nav": "pppbot_nav", "map_saver": "pppbot_nav",
+                # issue 23's Foxglove bridge and live view on its own (DESIGN.md's table predates them)
+                "foxglove": "pppbot_viz", "view": "pppbot_viz"}
 
 
 def test_every_verb_comes_from_its_package_and_is_a_verb_module():

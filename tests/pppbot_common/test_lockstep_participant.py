@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 from builtin_interfaces.msg import Time as TimeMsg
 
-import pppbot_common.ros.lockstep as lockstep
+from pppbot_common.ros import lockstep
 from pppbot_common.ros.lockstep import Participant
 from pppbot_common.ros.lockstep_counting import OUTBOX
 from pppbot_interfaces.msg import LockstepStatus, LockstepStep

@@ -105,7 +105,7 @@ def test_composed_nodes_share_one_clock_subscription_and_all_follow_clock():
         rclpy.try_shutdown()
 
 
-def test_composed_nodes_share_one_tf_listener_and_each_hears_of_new_transforms():
+def test_composed_nodes_share_one_tf_listener_and_each_hears_of_new_transforms():  # noqa: PLR0915
     """TfListener: the nodes of one process share one buffer and one /tf subscription; each
     node's callback runs after a transform arrives; a node made after /tf_static arrived is
     told at once; after the first nodes are destroyed a new one listens again."""

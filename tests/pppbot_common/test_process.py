@@ -10,7 +10,7 @@ import textwrap
 import pytest
 
 from pppbot_common.errors import TimeoutExpired
-from pppbot_common.process import ChildProcess, StopTimeouts
+from pppbot_common.process import KILL_WAIT_S, ChildProcess, StopTimeouts
 
 
 def python(code: str) -> list[str]:
@@ -109,3 +109,8 @@ def test_a_child_that_prints_nothing_in_time_is_reported_with_where_it_is():
     if "Permission" in report or "not permitted" in report:  # py-spy is pinned; ptrace may not be allowed
         pytest.skip("py-spy may not attach to a process here (ptrace)")
     assert "stuck_here" in report
+
+
+def test_the_stop_ladder_is_ros2_launchs_one_definition_for_every_stopper():
+    ladder = StopTimeouts(2.0, 3.0).ladder()
+    assert ladder == ((signal.SIGINT, 2.0), (signal.SIGTERM, 3.0), (signal.SIGKILL, KILL_WAIT_S))

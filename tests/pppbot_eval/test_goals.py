@@ -14,6 +14,7 @@ from pppbot_eval.goals import reachable_region, sample_goals
 from pppbot_eval.map_quality import cells_of
 from pppbot_eval.scenarios import (
     GOAL_XY_TOLERANCE_M,
+    GoalAnswer,
     GoalRecord,
     Recording,
     goal_outcome,
@@ -95,7 +96,7 @@ def test_a_goal_counts_when_the_navigator_succeeds_and_the_truth_is_there():
     truth = PoseSeries.from_rows(straight_drive(10.0, 20.0, (1.0, 1.0, 0.0), (3.0, 1.0, 0.1)))
     shortest = shortest_path_m(grid, (1.0, 1.0), (3.1, 1.0))
     assert shortest == pytest.approx(2.1, abs=0.01)
-    record = GoalRecord((3.1, 1.0, 0.0), 10.0, 20.0, "succeeded", shortest_path_m=shortest)
+    record = GoalRecord((3.1, 1.0, 0.0), 10.0, 20.0, GoalAnswer.SUCCEEDED, shortest_path_m=shortest)
     outcome = goal_outcome(record, truth, grid, collisions=[(15.0, 2.0, 1.0), (25.0, 0.0, 0.0)])
     assert outcome.reached and outcome.time_s == 10.0
     assert outcome.position_error_m == pytest.approx(0.1) and outcome.yaw_error_rad == pytest.approx(0.1)
@@ -103,10 +104,10 @@ def test_a_goal_counts_when_the_navigator_succeeds_and_the_truth_is_there():
     assert outcome.collisions == 1  # the one during this goal
     assert outcome.min_clearance_m == pytest.approx(1.0 - 0.05 - 0.195, abs=0.03)  # south wall, wheel's side
     # The navigator said so, but the robot is not there: not reached.
-    off = GoalRecord((3.0 + GOAL_XY_TOLERANCE_M + 0.05, 1.0, 0.0), 10.0, 20.0, "succeeded")
+    off = GoalRecord((3.0 + GOAL_XY_TOLERANCE_M + 0.05, 1.0, 0.0), 10.0, 20.0, GoalAnswer.SUCCEEDED)
     assert not goal_outcome(off, truth, grid, []).reached
     # There, but the navigator gave up: not reached.
-    assert not goal_outcome(GoalRecord((3.0, 1.0, 0.1), 10.0, 20.0, "aborted"), truth, grid, []).reached
+    assert not goal_outcome(GoalRecord((3.0, 1.0, 0.1), 10.0, 20.0, GoalAnswer.ABORTED), truth, grid, []).reached
 
 
 def test_navigation_metrics_summarize_the_goals_and_plot_them(tmp_path: Path):
@@ -116,9 +117,9 @@ def test_navigation_metrics_summarize_the_goals_and_plot_them(tmp_path: Path):
     recording = Recording(truth_rows=rows, start_sim_s=0.0, end_sim_s=30.0)
     recording.edge_rows = {("map", "odom"): [(0.0, 0.0, 0.0, 0.0), (30.0, 0.0, 0.0, 0.0)],
                            ("odom", "base_link"): [(t, x + 0.02, y, yaw) for t, x, y, yaw in rows]}
-    recording.goals = [GoalRecord((3.0, 1.0, 0.0), 0.0, 10.0, "succeeded", shortest_path_m=2.0),
-                       GoalRecord((3.0, 3.0, 1.5), 10.0, 30.0, "succeeded", shortest_path_m=2.0),
-                       GoalRecord((7.0, 3.0, 0.0), 30.0, 30.0, "aborted", 208, "no path", 6, None)]
+    recording.goals = [GoalRecord((3.0, 1.0, 0.0), 0.0, 10.0, GoalAnswer.SUCCEEDED, shortest_path_m=2.0),
+                       GoalRecord((3.0, 3.0, 1.5), 10.0, 30.0, GoalAnswer.SUCCEEDED, shortest_path_m=2.0),
+                       GoalRecord((7.0, 3.0, 0.0), 30.0, 30.0, GoalAnswer.ABORTED, 208, "no path", 6, None)]
     metrics = navigation_metrics(recording, grid, (0.0, 0.0, 0.0), 0.5, tmp_path, "test")
     assert metrics["goals"] == 3 and metrics["successes"] == 2 and metrics["success_rate"] == pytest.approx(2 / 3)
     assert metrics["mean_time_ratio"] == pytest.approx((10 / 4 + 20 / 4) / 2)

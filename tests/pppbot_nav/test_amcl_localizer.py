@@ -12,6 +12,7 @@ from pppbot_nav.amcl.filter import FilterSettings
 from pppbot_nav.amcl.laser import LaserSettings, Scan
 from pppbot_nav.amcl.localizer import (
     Localizer,
+    LocalizerMode,
     LocalizerSettings,
     covariance_from_message,
     covariance_to_message,
@@ -135,6 +136,25 @@ def test_nothing_happens_before_an_initial_pose():
     _, truth, odom = drive()[0]
     assert loc.update(odom, scan(truth)) is None
     assert not loc.initialized
+
+
+def test_the_mode_goes_from_no_pose_to_tracking_or_through_global_localization():
+    loc = localizer()
+    _, truth, odom = drive()[0]
+    assert loc.mode is LocalizerMode.UNINITIALIZED
+    loc.set_initial_pose(truth, NAV2_INITIAL_COVARIANCE / 100)
+    assert loc.mode is LocalizerMode.TRACKING
+    loc.global_localization()
+    assert loc.mode is LocalizerMode.SEARCH_PENDING and loc.initialized
+    assert loc.update(odom, scan(truth), scan(truth, max_beams=360)) is not None
+    # the search has placed the particles; one settled hypothesis that fits ends it
+    assert loc.mode in (LocalizerMode.SETTLING, LocalizerMode.TRACKING)
+    for _, truth, odom in drive()[1:60]:
+        loc.request_nomotion_update()
+        loc.update(odom, scan(truth), scan(truth, max_beams=360))
+        if loc.mode is LocalizerMode.TRACKING:
+            break
+    assert loc.mode is LocalizerMode.TRACKING
 
 
 def test_updates_wait_for_update_min_d_or_a_unless_forced():

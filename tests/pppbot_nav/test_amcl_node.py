@@ -19,20 +19,12 @@ from tf2_msgs.msg import TFMessage
 
 from pppbot_bringup.run import find_executable
 from pppbot_common.ros.maps import grid_message
+from pppbot_common.ros.planar import transform_message
 from pppbot_common.ros.qos import LATCHED, SENSOR
 from pppbot_common.ros.wait import wait_until
 from pppbot_common.se2 import quaternion_from_yaw, se2_compose, yaw_from_quaternion
 
 pytestmark = pytest.mark.ros
-
-
-def transform(parent: str, child: str, stamp: Any, pose: np.ndarray) -> TransformStamped:
-    t = TransformStamped()
-    t.header.stamp, t.header.frame_id, t.child_frame_id = stamp, parent, child
-    t.transform.translation.x, t.transform.translation.y = float(pose[0]), float(pose[1])
-    r = t.transform.rotation
-    r.x, r.y, r.z, r.w = quaternion_from_yaw(float(pose[2]))
-    return t
 
 
 class Robot:
@@ -54,7 +46,7 @@ class Robot:
             t for t in m.transforms if t.header.frame_id == "map"), 100)
         self.t_s = 100.0
         self.map_pub.publish(grid_message(grid(), Time(seconds=1).to_msg()))
-        self.static_pub.publish(TFMessage(transforms=[transform("base_footprint", "lidar_frame",
+        self.static_pub.publish(TFMessage(transforms=[transform_message("base_footprint", "lidar_frame",
                                                                Time(seconds=1).to_msg(), np.array(LIDAR))]))
 
     def step(self, truth: np.ndarray, odom: np.ndarray) -> None:
@@ -68,9 +60,9 @@ class Robot:
         scan.angle_max = math.pi - scan.angle_increment
         scan.range_min, scan.range_max = 0.12, RANGE_MAX
         scan.ranges = [float(r) for r in ranges(truth)]
-        self.tf_pub.publish(TFMessage(transforms=[transform("odom", "base_footprint", stamp, odom)]))
+        self.tf_pub.publish(TFMessage(transforms=[transform_message("odom", "base_footprint", stamp, odom)]))
         self.scan_pub.publish(scan)
-        self.tf_pub.publish(TFMessage(transforms=[transform("odom", "base_footprint", after, odom)]))
+        self.tf_pub.publish(TFMessage(transforms=[transform_message("odom", "base_footprint", after, odom)]))
         for _ in range(5):
             import rclpy
             rclpy.spin_once(self.node, timeout_sec=0.02)

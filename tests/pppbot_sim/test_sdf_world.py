@@ -72,14 +72,8 @@ def test_include_resolves_models_and_its_pose_replaces_the_models_own(world):
     np.testing.assert_allclose(crate.pose[:3, 3], [4.0, 3.0, 0.25])
 
 
-def test_collada_mesh_reaches_mujoco_with_its_size(world):
-    model = world_spec(world).compile()
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    gid = model.geom("cone_a::link::collision").id
-    mid = model.geom_dataid[gid]
-    vertices = model.mesh_vert[model.mesh_vertadr[mid]:model.mesh_vertadr[mid] + model.mesh_vertnum[mid]]
-    world_vertices = vertices @ data.geom_xmat[gid].reshape(3, 3).T + data.geom_xpos[gid]
+def test_collada_mesh_reaches_mujoco_with_its_size(world, placed_vertices):
+    world_vertices = placed_vertices(world_spec(world).compile(), "cone_a::link::collision")
     np.testing.assert_allclose(world_vertices.min(axis=0), [3.8, -0.2, 0.0], atol=1e-6)
     np.testing.assert_allclose(world_vertices.max(axis=0)[2], 0.7, atol=1e-6)
 

@@ -1,6 +1,7 @@
 """Run pppbot's Supervisor on plain Python children described in JSON (argv[1]).
 
-Each child: {"name", "code" (Python source), "after" [...], "ready" (regex) or null,
+Each child: {"name", "code" (Python source), "after" [...], "ready" (a mark's name: the child
+is ready once its code calls ``mark(name)``) or null,
 "ready_timeout", "required", "respawn", "max_respawns", "ignore": ["INT", "TERM"],
 "pppbot_node" (started as one of pppbot's nodes: stop signals blocked until the code unblocks them)}.
 Prints the supervisor's lines; "PIDS <pid> ..." at the end; exits with its code.
@@ -8,25 +9,31 @@ Prints the supervisor's lines; "PIDS <pid> ..." at the end; exits with its code.
 from __future__ import annotations
 
 import json
+import shutil
 import sys
+import tempfile
+from pathlib import Path
 
 from pppbot_bringup.supervisor import NodeSpec, Output, ReadyCheck, Supervisor
 
 PRELUDE = """
-import signal, sys, time
+import pathlib, signal, sys, time
 for name in {ignore!r}:
     signal.signal(getattr(signal, 'SIG' + name), signal.SIG_IGN)
+def mark(name):
+    pathlib.Path({marks!r}, name).touch()
 """
 
 
 def main() -> int:
     config = json.loads(sys.argv[1])
+    marks = Path(tempfile.mkdtemp(prefix="supervise-"))
     specs = []
     for c in config["children"]:
-        code = PRELUDE.format(ignore=c.get("ignore", [])) + c["code"]
+        code = PRELUDE.format(ignore=c.get("ignore", []), marks=str(marks)) + c["code"]
         ready = None
         if c.get("ready"):
-            ready = ReadyCheck(f"'{c['ready']}' printed", output_pattern=c["ready"],
+            ready = ReadyCheck(f"'{c['ready']}' marked", (marks / c["ready"]).exists,
                                timeout_s=c.get("ready_timeout", 10.0))
         specs.append(NodeSpec(c["name"], [sys.executable, "-u", "-c", code], after=tuple(c.get("after", [])),
                               ready=ready, required=c.get("required", False), respawn=c.get("respawn", False),
@@ -36,7 +43,10 @@ def main() -> int:
                             sigterm_timeout_s=config.get("sigterm_timeout", 1.0))
     supervisor.install_signal_handlers()
     print("SUPERVISOR READY", flush=True)
-    code = supervisor.run()
+    try:
+        code = supervisor.run()
+    finally:
+        shutil.rmtree(marks, ignore_errors=True)
     print("PIDS", *supervisor.pids, flush=True)
     return code
 

@@ -1,17 +1,19 @@
 """Readiness from the ROS graph, for the supervisor: "a first message arrived on <topic>", "a
-lockstep participant has joined".
+node has its publishers, subscriptions and action servers", "a lockstep participant has joined".
 
-A hidden node spins in a background thread; each probe is a subscription that
-remembers whether a message came. Subscriptions are made before the nodes start,
-so nothing is missed (and latched topics are asked for with transient local QoS).
+A hidden node spins in a background thread. A message probe is a subscription that
+remembers whether a message came; subscriptions are made before the nodes start, so
+nothing is missed (and latched topics are asked for with transient local QoS). An
+endpoint probe asks the graph (as ``ros2 node info`` does) each time it is called.
 """
 from __future__ import annotations
 
 import contextlib
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import rclpy
+from rclpy.action import get_action_server_names_and_types_by_node
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
@@ -47,6 +49,28 @@ class GraphProbe:
         qos = latched if isinstance(latched, QoSProfile) else LATCHED if latched else DEFAULT
         self.node.create_subscription(get_interface(type_name), topic, lambda _msg: seen.set(), qos, raw=True)
         return seen.is_set
+
+    def endpoints(self, node: str, publishes: Sequence[str] = (), subscribes: Sequence[str] = (),
+                  action_servers: Sequence[str] = ()) -> Callable[[], bool]:
+        """A probe that turns true once node ``node`` (in the root namespace) publishes, subscribes
+        and serves (actions) every one of the given fully qualified names; once true it stays
+        true, as a message probe does (and answers so after :meth:`close`)."""
+        seen = threading.Event()
+
+        def probe() -> bool:
+            if seen.is_set() or self._closed:
+                return seen.is_set()
+            try:
+                have = [{name for name, _ in self.node.get_publisher_names_and_types_by_node(node, "/")},
+                        {name for name, _ in self.node.get_subscriber_names_and_types_by_node(node, "/")},
+                        {name for name, _ in get_action_server_names_and_types_by_node(self.node, node, "/")}]
+            except RuntimeError:  # rclpy's RCLError: the node is not discovered yet
+                return False
+            if all(set(wanted) <= got for wanted, got in zip((publishes, subscribes, action_servers), have,
+                                                             strict=True)):
+                seen.set()
+            return seen.is_set()
+        return probe
 
     def joined(self, participant: str) -> Callable[[], bool]:
         """A probe that turns true once the simulator lists ``participant`` as joined on /lockstep/status."""

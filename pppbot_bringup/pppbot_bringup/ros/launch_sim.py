@@ -17,16 +17,38 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-from pppbot_bringup.launch_sim import ARGUMENTS, controllers_file, plan, stop_timeouts
-from pppbot_bringup.paths import log_root
+from pppbot_viz.errors import VizError
+
+from pppbot_bringup.launch_sim import ARGUMENTS, LaunchArgs, VizPlan, controllers_file, plan
+from pppbot_bringup.paths import checkout_root, log_root
 from pppbot_bringup.ros.graph_probe import GraphProbe
 from pppbot_bringup.run import RunError, find_executable
 from pppbot_bringup.supervisor import Output, Supervisor
-from pppbot_common.launch_args import ArgumentError, describe, parse_assignments
+from pppbot_common.launch_args import ArgumentError, describe
 from pppbot_description.errors import DescriptionError
 from pppbot_description.xacro_model import process_xacro
 from pppbot_sim.errors import WorldError
 from pppbot_sim.worlds import find_world
+from pppbot_viz import viewer
+
+
+def viz_plan(args: LaunchArgs) -> tuple[VizPlan, list[str]]:
+    """The live view's ports (the rerun server's: free ones; the page's: ``viz_port``, or a free
+    one when that is taken: the view must not keep the robot from starting) and its settings,
+    written; and what the user should know.
+
+    Raises:
+        VizError: ``viz_port`` is not a port number, or rerun's settings can't be written.
+    """
+    notes: list[str] = []
+    page_port = viewer.available_port(args.viz_port, "viz_port:=")
+    if args.viz_port and page_port != args.viz_port:
+        notes.append(f"viz_port:={args.viz_port} is taken (another launch_sim?); the live view's page is on "
+                     f"{page_port} instead")
+    state_dir = viewer.state_directory(checkout_root())
+    viewer.write_viewer_settings(state_dir)
+    return VizPlan(viewer.free_port(), viewer.free_port(), page_port, args.viz_viewer.native(os.environ),
+                   state_dir), notes
 
 
 def run(argv: Sequence[str]) -> int:
@@ -35,23 +57,24 @@ def run(argv: Sequence[str]) -> int:
         return 0
     terminal = sys.stdin.isatty() and sys.stdout.isatty()
     try:
-        values = parse_assignments(argv, ARGUMENTS)
-        sigint_timeout_s, sigterm_timeout_s = stop_timeouts(values)
-        world_file = find_world(values["world"])
+        args = LaunchArgs.parse(argv)
+        sigint_timeout_s, sigterm_timeout_s = args.stop_timeouts()
+        world_file = find_world(args.world)
         urdf = process_xacro(mappings={"controllers_file": str(controllers_file())})
         run_dir = log_root() / time.strftime("%Y-%m-%d-%H-%M-%S")
         urdf_file = run_dir / "robot.urdf"
+        viz, viz_notes = viz_plan(args) if args.use_viz else (None, [])
         probe = GraphProbe()
-    except (ArgumentError, WorldError, DescriptionError, RunError, OSError) as exc:
+    except (ArgumentError, WorldError, DescriptionError, RunError, VizError, OSError) as exc:
         print(f"launch_sim: {exc}", file=sys.stderr)
         return 2
     os.environ["PYTHONUNBUFFERED"] = "1"  # children's print() reaches the log as it happens
     try:
         try:
-            the_plan = plan(values, world_file, urdf_file,
+            the_plan = plan(args, world_file, urdf_file,
                             lambda pkg, exe: str(find_executable(pkg, exe)),
                             probe,
-                            terminal and values["use_teleop"], shutil.which("rviz2"))
+                            terminal and args.use_teleop, shutil.which("rviz2"), viz=viz)
         except (ArgumentError, RunError) as exc:
             print(f"launch_sim: {exc}", file=sys.stderr)
             return 2
@@ -62,7 +85,7 @@ def run(argv: Sequence[str]) -> int:
         output.event("INFO", "launch", f"log directory: {run_dir}")
         if teleop_owns_terminal:
             output.event("INFO", "launch", "node output goes to the log directory; warnings and errors show here")
-        for note in the_plan.notes:
+        for note in [*viz_notes, *the_plan.notes]:
             output.event("WARNING", "launch", note)
         supervisor = Supervisor(the_plan.nodes, output, sigint_timeout_s=sigint_timeout_s,
                                 sigterm_timeout_s=sigterm_timeout_s)
@@ -77,6 +100,8 @@ def run(argv: Sequence[str]) -> int:
                 drive = "the teleop keys" if teleop_owns_terminal else "./pppbot teleop (in another terminal)"
                 output.event("INFO", "launch", f"ppp_bot is up in '{world_file.stem}': drive with {drive}; "
                                                "Ctrl-C stops everything")
+                for line in the_plan.info:
+                    output.event("INFO", "launch", line)
             return False
 
         return supervisor.run(until=announce)

@@ -101,6 +101,26 @@ class Stopped(Exception):
     """Thrown into a :class:`Flow` whose ``check`` fails (its goal was canceled or preempted)."""
 
 
+def check_running(handle: ServerGoalHandle, current: ServerGoalHandle | None, preempted_by: str = "a new goal") -> None:
+    """The one cancel and preemption check: raises :class:`Stopped` when goal ``handle`` must
+    stop, because its client asked to cancel it or because another goal (``current``, the one
+    the server runs now) took its place.
+
+    Raises:
+        Stopped: "canceled" or "preempted by <preempted_by>".
+    """
+    if handle.is_cancel_requested:
+        raise Stopped("canceled")
+    if current is not handle:
+        raise Stopped(f"preempted by {preempted_by}")
+
+
+def stopped_end(handle: ServerGoalHandle) -> GoalEnd:
+    """How a goal that did not succeed ends: canceled when its client asked, else aborted
+    (preempted or failed), as Nav2's servers report it."""
+    return GoalEnd.CANCELED if handle.is_cancel_requested else GoalEnd.ABORTED
+
+
 Step = Generator[Any, Any, T]
 
 

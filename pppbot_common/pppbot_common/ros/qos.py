@@ -47,3 +47,16 @@ def subscription_qos(infos: Sequence[Any], depth: int = 10) -> QoSProfile:
             durability = DurabilityPolicy.TRANSIENT_LOCAL
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
                       reliability=reliability, durability=durability)
+
+
+def lowered_for(profile: QoSProfile, infos: Sequence[Any]) -> QoSProfile:
+    """``profile`` made compatible with every publisher in ``infos`` (endpoint infos): best effort
+    when one of them is, volatile when one of them is. A reliable subscription hears no
+    best-effort publisher and a transient-local one no volatile publisher, as with a bag
+    recorded without QoS, or another tool's node."""
+    reliability, durability = profile.reliability, profile.durability
+    if any(i.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for i in infos):
+        reliability = ReliabilityPolicy.BEST_EFFORT
+    if any(i.qos_profile.durability == DurabilityPolicy.VOLATILE for i in infos):
+        durability = DurabilityPolicy.VOLATILE
+    return QoSProfile(history=profile.history, depth=profile.depth, reliability=reliability, durability=durability)

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from rclpy.serialization import serialize_message
 
-from pppbot_common.errors import PppbotError
+from pppbot_common.errors import TemplateError
 
 #: struct formats of the primitive ROS types (the IDL names rosidl reports)
 FORMATS = {"double": "<d", "float": "<f", "int64": "<q", "uint64": "<Q", "int32": "<i", "uint32": "<I",
@@ -29,10 +29,6 @@ FORMATS = {"double": "<d", "float": "<f", "int64": "<q", "uint64": "<Q", "int32"
 _SEQUENCE = re.compile(r"^sequence<(.+?)(?:, \d+)?>$")
 _ARRAY = re.compile(r"^(.+)\[(\d+)\]$")
 HEADER = 4  # the CDR encapsulation header
-
-
-class TemplateError(PppbotError, ValueError):
-    """A field a template cannot patch (unknown, a string, or a sequence it would have to resize)."""
 
 
 @dataclass(frozen=True)

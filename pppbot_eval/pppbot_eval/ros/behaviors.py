@@ -18,13 +18,13 @@ from pppbot_common.maps import OccupancyGrid
 from pppbot_common.ros.lockstep import Arrival, hold_until
 from pppbot_common.se2 import se2_compose, se2_inverse
 from pppbot_eval.driver import RouteDriver
-from pppbot_eval.scenarios import GoalRecord, Recording, shortest_path_m
+from pppbot_eval.scenarios import GoalAnswer, GoalRecord, Recording, shortest_path_m
 
 #: The evaluation ticks at 20 Hz of sim time, a teleop's or a controller's rate.
 TICK_S = 0.05
 
-STATUS_NAMES = {GoalStatus.STATUS_SUCCEEDED: "succeeded", GoalStatus.STATUS_ABORTED: "aborted",
-                GoalStatus.STATUS_CANCELED: "canceled"}
+ANSWERS = {GoalStatus.STATUS_SUCCEEDED: GoalAnswer.SUCCEEDED, GoalStatus.STATUS_ABORTED: GoalAnswer.ABORTED,
+           GoalStatus.STATUS_CANCELED: GoalAnswer.CANCELED}
 
 
 class EvalActions(Protocol):
@@ -192,26 +192,29 @@ class NavigateGoals:
         if self._handle is None:
             if not self._sent.done():
                 if elapsed > self._limit_s:  # the request or its answer is lost: say so, go on
-                    self._record(node, "unanswered", error_msg=f"navigate_to_pose did not answer the goal within "
-                                                               f"{self._limit_s:.0f} sim seconds")
+                    self._record(node, GoalAnswer.UNANSWERED, error_msg="navigate_to_pose did not answer the goal "
+                                                                        f"within {self._limit_s:.0f} sim seconds")
                 return
             self._handle = self._sent.result()
             if self._handle is None or not self._handle.accepted:
-                self._record(node, "rejected")
+                self._record(node, GoalAnswer.REJECTED)
                 return
             self._result = Arrival(self._handle.get_result_async(), lambda: node.sim_now_s)
         if self._result.done():
             response = self._result.result()
-            status = STATUS_NAMES.get(response.status, f"status {response.status}")
+            answer = ANSWERS.get(response.status, GoalAnswer.UNKNOWN)
             if self._canceled:
-                self._record(node, "timeout", error_msg=f"no result within {self._limit_s:.0f} sim seconds")
+                self._record(node, GoalAnswer.TIMEOUT, error_msg=f"no result within {self._limit_s:.0f} sim seconds")
             else:
-                self._record(node, status, int(response.result.error_code), str(response.result.error_msg))
+                message = str(response.result.error_msg)
+                if answer is GoalAnswer.UNKNOWN:
+                    message = f"action status {response.status}" + (f": {message}" if message else "")
+                self._record(node, answer, int(response.result.error_code), message)
         elif not self._canceled and elapsed > self._limit_s:
             self._canceled = True
             hold_until(self._handle.cancel_goal_async())
         elif self._canceled and elapsed > self._limit_s + self.limits.base_s:
-            self._record(node, "timeout", error_msg=f"no result within {self._limit_s:.0f} sim seconds, "
+            self._record(node, GoalAnswer.TIMEOUT, error_msg=f"no result within {self._limit_s:.0f} sim seconds, "
                                                     f"nor {self.limits.base_s:.0f} s after the cancel")
 
     def _send(self, node: EvalActions, goal: tuple[float, float, float]) -> None:
@@ -223,7 +226,7 @@ class NavigateGoals:
         self._canceled = False
         self._sent = Arrival(hold_until(node.send_goal(x, y, yaw)), lambda: node.sim_now_s)
 
-    def _record(self, node: EvalActions, status: str, error_code: int = 0, error_msg: str = "") -> None:
+    def _record(self, node: EvalActions, status: GoalAnswer, error_code: int = 0, error_msg: str = "") -> None:
         node.recording.goals.append(GoalRecord(
             goal=self.goals[self.index], start_s=self._start_s, end_s=node.sim_now_s or self._start_s, status=status,
             error_code=error_code, error_msg=error_msg, recoveries=node.recoveries(), shortest_path_m=self._shortest))
@@ -237,6 +240,6 @@ class NavigateGoals:
 
     def progress(self) -> tuple[float, str]:
         rec = self._recording
-        reached = sum(1 for r in rec.goals if r.status == "succeeded") if rec is not None else 0
+        reached = sum(1 for r in rec.goals if r.status is GoalAnswer.SUCCEEDED) if rec is not None else 0
         count = len(self.goals)
         return self.index / max(count, 1), f"goal {min(self.index + 1, count)}/{count}, {reached} succeeded"

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from pppbot_bringup.launch_sim import ARGUMENTS, controllers_file, plan
+from pppbot_bringup.launch_sim import LaunchArgs, NavigationMode, controllers_file, plan
 from pppbot_bringup.paths import config_directory
 from pppbot_bringup.ros.graph_probe import GraphProbe
 from pppbot_bringup.run import RunError, find_executable
@@ -43,6 +43,7 @@ from pppbot_common.launch_args import ArgumentError
 from pppbot_common.maps import MapFileError, OccupancyGrid, save_map
 from pppbot_description.errors import DescriptionError
 from pppbot_description.xacro_model import process_xacro
+from pppbot_eval.config import EvalConfig
 from pppbot_eval.driver import DriverSettings, RouteDriver
 from pppbot_eval.errors import GoalSamplingError, MapQualityError, RouteError
 from pppbot_eval.goals import sample_goals
@@ -71,6 +72,8 @@ from pppbot_sim.wheel_slip import MAX_SLIP_STDDEV
 from pppbot_sim.worlds import find_world
 
 READY_TIMEOUT_S = 120.0
+#: The live view's rerun recording in ``--out`` (``--view``).
+VIEW_FILE = "view.rrd"
 #: Wall seconds without a ground-truth message before the run is declared stuck.
 STALL_TIMEOUT_S = 30.0
 #: Wall seconds to wait for SLAM's map after the route (it updates every map_update_interval sim s).
@@ -93,13 +96,13 @@ class Run:
     watches the wall clock (interrupts, a stack that stopped or stalled).
     """
 
-    def __init__(self, args: argparse.Namespace, scenario: Scenario, world_file: Path, route: Route | None,
+    def __init__(self, config: EvalConfig, world_file: Path, route: Route | None,
                  out: Path, truth_map: OccupancyGrid, goals: list[tuple[float, float, float]] | None = None) -> None:
-        self.args = args
-        self.scenario = scenario
+        self.config = config
+        self.scenario = config.scenario
         self.world_file = world_file
         self.route = route
-        self.start: tuple[float, float, float] = route.start if route is not None else tuple(args.start)
+        self.start: tuple[float, float, float] = route.start if route is not None else config.start
         self.out = out
         self.truth_map = truth_map
         self.goals = goals or []
@@ -114,22 +117,21 @@ class Run:
         self.interrupted = True
         self.stop.set()
 
-    def _values(self) -> dict[str, Any]:
-        values = {a.name: a.default for a in ARGUMENTS}
+    def _launch_args(self) -> LaunchArgs:
+        """The bringup this scenario runs: launch_sim's arguments as a user would give them."""
         x, y, yaw = self.start
         navigates = self.scenario is Scenario.NAVIGATION
-        values.update(world=str(self.world_file), x=x, y=y, yaw=yaw, use_teleop=False, use_rviz=False,
-                      headless=True, record=False, real_time_factor=self.args.real_time_factor,
-                      lockstep=self.args.lockstep,
-                      seed=self.args.seed, wheel_slip=self.args.wheel_slip, log_level=self.args.log_level,
-                      use_slam=self.scenario is Scenario.SLAM,
-                      localization=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION),
-                      # The route scenarios drive themselves: no navigation nodes to share the CPU.
-                      navigation="true" if navigates else "false",
-                      map=str(self.args.map or ""))
-        if self.scenario is Scenario.SLAM:
-            values["slam_params_file"] = str(self._slam_params())
-        return values
+        return LaunchArgs(
+            world=str(self.world_file), x=x, y=y, yaw=yaw, use_teleop=False, use_rviz=False, use_viz=False,
+            headless=True,
+            record=False, real_time_factor=self.config.target_real_time_factor, lockstep=self.config.lockstep,
+            seed=self.config.seed, wheel_slip=self.config.wheel_slip, log_level=self.config.log_level,
+            use_slam=self.scenario is Scenario.SLAM,
+            localization=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION),
+            # The route scenarios drive themselves: no navigation nodes to share the CPU.
+            navigation=NavigationMode.TRUE if navigates else NavigationMode.FALSE,
+            map=str(self.config.map or ""),
+            slam_params_file=str(self._slam_params()) if self.scenario is Scenario.SLAM else "")
 
     def _slam_params(self) -> Path:
         """The bringup's slam parameters with ``map_save_name`` in ``--out``: serialize_map writes
@@ -148,9 +150,10 @@ class Run:
         probe = GraphProbe()
         try:
             try:
-                the_plan = plan(self._values(), self.world_file, urdf_file,
+                the_plan = plan(self._launch_args(), self.world_file, urdf_file,
                                 lambda p, e: str(find_executable(p, e)), probe, terminal=False, rviz=None,
-                                extra_participants=(PARTICIPANT,))
+                                extra_participants=(PARTICIPANT,),
+                                view_recording=self.out / VIEW_FILE if self.config.view else None)
             except (ArgumentError, RunError) as exc:
                 self.recording.failure = f"cannot start the stack: {exc}"
                 return
@@ -162,22 +165,22 @@ class Run:
 
     def _behavior(self) -> Behavior:
         if self.route is None:
-            return NavigateGoals(self.goals, self.truth_map, tuple(self.args.map_pose), self.max_speed_mps)
-        driver = RouteDriver(self.route.points, DriverSettings(speed_mps=self.args.speed))
-        limit_s = self.args.timeout or 2.5 * self.route.length_m / self.args.speed + 60.0
+            return NavigateGoals(self.goals, self.truth_map, self.config.map_pose, self.max_speed_mps)
+        driver = RouteDriver(self.route.points, DriverSettings(speed_mps=self.config.speed))
+        limit_s = self.config.timeout or 2.5 * self.route.length_m / self.config.speed + 60.0
         drive = DriveRoute(driver, limit_s)
         if self.scenario is not Scenario.LOCALIZATION:
             return drive
-        offset = None if self.args.global_localization else tuple(self.args.initial_offset)
+        offset = None if self.config.global_localization else self.config.initial_offset
         return Chain([StartLocalization(self.start, offset, INITIAL_POSE_COVARIANCE), drive])
 
     def _run_stack(self, supervisor: Supervisor, names: list[str], probe: GraphProbe, progress: Progress) -> None:
         thread = threading.Thread(target=supervisor.run, kwargs={"until": self.stop.is_set}, name="supervisor")
         node = EvalNode(ESTIMATES[self.scenario], self.recording, wants_map=self.scenario is Scenario.SLAM,
                         localizes=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION),
-                        navigates=self.scenario is Scenario.NAVIGATION, lockstep=self.args.lockstep)
+                        navigates=self.scenario is Scenario.NAVIGATION, lockstep=self.config.lockstep)
         behavior = node.behavior = self._behavior()
-        if self.args.lockstep:
+        if self.config.lockstep:
             # Time starts only once every participant (this node among them) has joined: the
             # behaviour runs from the first tick, at the same sim time on every run.
             node.start()
@@ -189,11 +192,11 @@ class Run:
                 return
             probe.close()
             if self.scenario is Scenario.LOCALIZATION:
-                dx, dy, dyaw = self.args.initial_offset
-                progress.message("global localization: particles over the whole map" if self.args.global_localization
+                dx, dy, dyaw = self.config.initial_offset
+                progress.message("global localization: particles over the whole map" if self.config.global_localization
                                  else f"initial pose off by ({dx:g} m, {dy:g} m, {dyaw:g} rad)")
             if self.scenario is Scenario.NAVIGATION:
-                progress.message(f"{len(self.goals)} goals, drawn with seed {self.args.seed}")
+                progress.message(f"{len(self.goals)} goals, drawn with seed {self.config.seed}")
             node.start()
             self._run(node, behavior, thread, progress)
             if self.scenario is Scenario.SLAM and self.recording.failure is None:
@@ -338,7 +341,7 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     if rec.truth_rows:
         try:
             localizing = run.scenario is Scenario.LOCALIZATION
-            map_pose = tuple(run.args.map_pose) if localizing else None
+            map_pose = run.config.map_pose if localizing else None
             metrics, problem = route_metrics(run.scenario, rec, run.route, truth_map, run.out, title, map_pose,
                                              amcl_transform_tolerance() if localizing else 0.0)
             if run.scenario is Scenario.SLAM and rec.final_map is not None:
@@ -359,7 +362,7 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     if failure is None and metrics.get("converged") is False:
         failure = (f"AMCL never converged (error within {CONVERGED_M} m and {CONVERGED_RAD} rad for "
                    f"{CONVERGED_TRAVEL_M} m of travel)")
-    return _result(run, failure or problem, {"speed_mps": run.args.speed, **metrics})
+    return _result(run, failure or problem, {"speed_mps": run.config.speed, **metrics})
 
 
 def navigation_report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
@@ -371,9 +374,9 @@ def navigation_report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     problem = None
     if rec.truth_rows and rec.goals:
         try:
-            metrics = navigation_metrics(rec, truth_map, tuple(run.args.map_pose), run.max_speed_mps, run.out,
+            metrics = navigation_metrics(rec, truth_map, run.config.map_pose, run.max_speed_mps, run.out,
                                          f"navigation in {run.world_file.stem}, {len(run.goals)} goals "
-                                         f"(seed {run.args.seed})")
+                                         f"(seed {run.config.seed})")
         except (PppbotError, ValueError, OSError) as exc:
             problem = f"metrics: {exc}"
     failure = rec.failure
@@ -382,10 +385,10 @@ def navigation_report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     if failure is None and metrics.get("collisions", 0):
         failure = f"{metrics['collisions']} collision(s)"
     rate = metrics.get("success_rate")
-    if failure is None and rate is not None and rate < run.args.min_success_rate:
-        failure = (f"success rate {rate:.3f} < {run.args.min_success_rate} (a goal counts when the navigator "
+    if failure is None and rate is not None and rate < run.config.min_success_rate:
+        failure = (f"success rate {rate:.3f} < {run.config.min_success_rate} (a goal counts when the navigator "
                    f"succeeds and the true pose is within {GOAL_XY_TOLERANCE_M:g} m of it)")
-    return _result(run, failure or problem, {"start": list(run.start), "map_pose": list(run.args.map_pose),
+    return _result(run, failure or problem, {"start": list(run.start), "map_pose": list(run.config.map_pose),
                                              **metrics})
 
 
@@ -400,13 +403,14 @@ def _result(run: Run, failure: str | None, metrics: dict[str, Any]) -> dict[str,
         "sim_seconds": round(rec.sim_seconds, 3),
         "wall_seconds": round(rec.wall_seconds, 3),
         "real_time_factor": round(rec.sim_seconds / drive_wall, 3) if drive_wall > 0 else None,
-        "target_real_time_factor": run.args.real_time_factor,
-        "lockstep": run.args.lockstep,
-        "seed": run.args.seed,
-        "wheel_slip": run.args.wheel_slip,
+        "target_real_time_factor": run.config.real_time_factor,
+        "lockstep": run.config.lockstep,
+        "seed": run.config.seed,
+        "wheel_slip": run.config.wheel_slip,
         **metrics,
         "out": str(run.out),
         "plots": sorted(p.name for p in run.out.glob("*.png")),
+        "view": VIEW_FILE if (run.out / VIEW_FILE).is_file() else None,
     }
 
 
@@ -457,6 +461,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="navigation: the spawn pose in the world, also AMCL's initial pose (default 0 0 0)")
     parser.add_argument("--min-success-rate", type=float, default=0.98,
                         help="navigation: the report is ok from this success rate on (default 0.98)")
+    parser.add_argument("--view", action=argparse.BooleanOptionalAction, default=True,
+                        help="save the live view of the run (map, scan, robot, plans, particles, SLAM graph, "
+                             "on sim time) as a rerun recording, view.rrd beside the plots: open it with "
+                             "./pppbot env rerun view.rrd (default; --no-view saves the CPU it costs)")
     parser.add_argument("--json", action="store_true", help="print the report as one JSON object on the last line")
     parser.add_argument("--log-level", default="info", choices=("debug", "info", "warn", "error", "fatal"),
                         help="log level of the stack's nodes (default info; their output goes to the log "
@@ -464,47 +472,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "readiness line is not printed)")
 
 
-#: The default real-time factor of each scenario without lockstep (``--real-time-factor``).
-DEFAULT_REAL_TIME_FACTOR = {Scenario.NAVIGATION: 1.0}
-
-
-def _check(args: argparse.Namespace) -> None:
-    if not (math.isfinite(args.real_time_factor) and 0.0 <= args.real_time_factor <= 1000.0):
-        raise ArgumentError(f"--real-time-factor {args.real_time_factor}: must be in [0, 1000]")
-    if not (math.isfinite(args.speed) and 0.0 < args.speed <= 2.0):
-        raise ArgumentError(f"--speed {args.speed}: must be in (0, 2] m/s (the controller's limit)")
-    if not (math.isfinite(args.wheel_slip) and 0.0 <= args.wheel_slip <= MAX_SLIP_STDDEV):
-        raise ArgumentError(f"--wheel-slip {args.wheel_slip}: must be in [0, {MAX_SLIP_STDDEV}]")
-    if not all(math.isfinite(v) for v in args.map_pose):
-        raise ArgumentError(f"--map-pose {' '.join(map(str, args.map_pose))}: must be three finite numbers")
-    if args.scenario == Scenario.MAP.value and args.map is None:
-        raise ArgumentError("--map: the map scenario needs it")
-    if args.map is not None and args.scenario not in (Scenario.MAP.value, Scenario.LOCALIZATION.value,
-                                                      Scenario.NAVIGATION.value):
-        raise ArgumentError(f"--map: only the map, localization and navigation scenarios take it, not {args.scenario}")
-    if args.goals < 1:
-        raise ArgumentError(f"--goals {args.goals}: must be at least 1")
-    if not (math.isfinite(args.goal_distance) and args.goal_distance >= 0):
-        raise ArgumentError(f"--goal-distance {args.goal_distance}: must be a non-negative number of metres")
-    if not all(math.isfinite(v) for v in args.start):
-        raise ArgumentError(f"--start {' '.join(map(str, args.start))}: must be three finite numbers")
-    if not (0.0 <= args.min_success_rate <= 1.0):
-        raise ArgumentError(f"--min-success-rate {args.min_success_rate}: must be in [0, 1]")
-    if not all(math.isfinite(v) for v in args.initial_offset):
-        raise ArgumentError(f"--initial-offset {' '.join(map(str, args.initial_offset))}: must be three finite numbers")
-    if args.seed < 0:
-        raise ArgumentError(f"--seed {args.seed}: must be a non-negative integer")
-    if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
-        raise ArgumentError(f"--timeout {args.timeout}: must be a positive number of sim seconds")
-
-
-def _output_dir(args: argparse.Namespace, scenario: Scenario, world_file: Path) -> Path:
+def _output_dir(config: EvalConfig, world_file: Path) -> Path:
     """``--out`` or a new name; an existing file or non-empty directory is refused.
 
     Raises:
         ArgumentError: ``--out`` exists and is not an empty directory.
     """
-    out: Path = args.out or Path(f"eval_{scenario.value}_{world_file.stem}_{time.strftime('%Y_%m_%d-%H_%M_%S')}")
+    stamp = time.strftime("%Y_%m_%d-%H_%M_%S")
+    out: Path = config.out or Path(f"eval_{config.scenario.value}_{world_file.stem}_{stamp}")
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise ArgumentError(f"--out {out}: exists and is not an empty directory; a report is never overwritten")
     return out
@@ -518,42 +493,40 @@ def _print_report(result: dict[str, Any], line: str, as_json: bool) -> None:
             print(f"{key:>26}: {value:.4g}" if isinstance(value, float) else f"{key:>26}: {value}")
 
 
-def _score_map(args: argparse.Namespace, world_file: Path) -> int:
-    out = _output_dir(args, Scenario.MAP, world_file)
+def _score_map(config: EvalConfig, world_file: Path) -> int:
+    out = _output_dir(config, world_file)
     created = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)
-        pose = (args.map_pose[0], args.map_pose[1], args.map_pose[2])
-        result = score_saved_map(args.map, world_file, pose, out)
+        assert config.map is not None  # EvalConfig.checked: the map scenario has one
+        result = score_saved_map(config.map, world_file, config.map_pose, out)
     except (MapFileError, MapQualityError) as exc:
         print(f"pppbot eval map: {exc}", file=sys.stderr)
         if created and out.is_dir() and not any(out.iterdir()):
             out.rmdir()  # no report: leave no empty folder behind
         return 2
-    _print_report(result, write_json(out / "report.json", result), args.json)
+    _print_report(result, write_json(out / "report.json", result), config.json)
     return 0
 
 
 def main(args: argparse.Namespace) -> int:
-    scenario = Scenario(args.scenario)
-    if args.real_time_factor is None:
-        args.real_time_factor = 0.0 if args.lockstep else DEFAULT_REAL_TIME_FACTOR.get(scenario, 3.0)
     goals = None
     try:
-        _check(args)
-        world_file = find_world(args.world)
+        config = EvalConfig.from_flags(args, MAX_SLIP_STDDEV)
+        scenario = config.scenario
+        world_file = find_world(config.world)
         if scenario is Scenario.MAP:
-            return _score_map(args, world_file)
+            return _score_map(config, world_file)
         if scenario is Scenario.NAVIGATION:
             route = None
             truth_map = world_truth(world_file)
-            goals = sample_goals(truth_map, args.start[:2], args.goals, np.random.default_rng(args.seed),
-                                 min_distance_m=args.goal_distance)
+            goals = sample_goals(truth_map, config.start[:2], config.goals, np.random.default_rng(config.seed),
+                                 min_distance_m=config.goal_distance)
         else:
-            route_path = args.route_file or routes_file(world_file)
-            route = select_route(load_routes(route_path), args.route, route_path)
+            route_path = config.route_file or routes_file(world_file)
+            route = select_route(load_routes(route_path), config.route, route_path)
             truth_map = world_truth(world_file, route)
-        out = _output_dir(args, scenario, world_file)
+        out = _output_dir(config, world_file)
         out.mkdir(parents=True, exist_ok=True)
     except (ArgumentError, RouteError, GoalSamplingError, WorldError, DescriptionError, ValueError) as exc:
         print(f"pppbot eval: {exc}", file=sys.stderr)
@@ -563,7 +536,7 @@ def main(args: argparse.Namespace) -> int:
         return 2
     os.environ["PYTHONUNBUFFERED"] = "1"
     progress = Progress(sys.stderr, f"{scenario.value} {world_file.stem}/{route.name if route else 'goals'}")
-    run = Run(args, scenario, world_file, route, out, truth_map, goals)
+    run = Run(config, world_file, route, out, truth_map, goals)
     # Ctrl-C, SIGTERM, SIGHUP: stop the stack and still write the report.
     previous = {s: signal.signal(s, run.interrupt) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
     try:
@@ -573,7 +546,7 @@ def main(args: argparse.Namespace) -> int:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    _print_report(result, line, args.json)
+    _print_report(result, line, config.json)
     if run.interrupted:
         return 130
     return 0 if result["ok"] else 1

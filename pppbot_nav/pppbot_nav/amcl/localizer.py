@@ -10,6 +10,7 @@ is set (or global localization asked for) it does nothing.
 """
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass, field
 
@@ -42,6 +43,15 @@ REFINED_SPREAD = np.array([0.02, 0.02, 0.01])
 #: still: the fit is not made again (it would only follow the scan's noise), as Nav2's AMCL
 #: does not update below ``update_min_d`` / ``update_min_a``.
 TRACK_STILL = (1e-3, 1e-3)
+
+
+class LocalizerMode(enum.Enum):
+    """Where the localizer is: no pose yet, tracking one, or in global localization."""
+
+    UNINITIALIZED = "no pose yet"
+    TRACKING = "tracking"
+    SEARCH_PENDING = "global localization: the next scan places the particles"
+    SETTLING = "global localization: until one hypothesis fits the whole scan"
 
 
 @dataclass(frozen=True)
@@ -82,11 +92,9 @@ class Localizer:
         self.filter = ParticleFilter(settings.filter)
         self.motion = motion_model(settings.robot_model_type, settings.motion_noise)
         self.set_map(grid)
-        self.initialized = False
+        self.mode = LocalizerMode.UNINITIALIZED
         self._odom: np.ndarray | None = None  # odometry pose at the last filter update
         self._force = False
-        self._global_search = False  # place the particles by a search on the next scan
-        self._searching = False  # global localization has not settled yet
         self._researches_left = 0
         self._updates = 0
         self.last: Update | None = None
@@ -144,14 +152,16 @@ class Localizer:
         """
         self.filter.init_uniform(self._free_xy, self.field.grid.resolution, self.rng)
         self._initialized()
-        self._global_search = True
-        self._searching = True
+        self.mode = LocalizerMode.SEARCH_PENDING
         self._researches_left = GLOBAL_RESEARCHES
 
+    @property
+    def initialized(self) -> bool:
+        """Whether it has particles to update: a pose was given or global localization asked for."""
+        return self.mode is not LocalizerMode.UNINITIALIZED
+
     def _initialized(self) -> None:
-        self._global_search = False
-        self._searching = False
-        self.initialized = True
+        self.mode = LocalizerMode.TRACKING
         self._force = True
         self._odom = None
         self.last = None
@@ -188,7 +198,7 @@ class Localizer:
             return None
         if not (self._force or self.moved_enough(odom_pose)):
             return None
-        if self._global_search:
+        if self.mode is LocalizerMode.SEARCH_PENDING:
             self._search(scan)
         elif self._odom is not None:
             self.motion.sample(self.filter.particles, self._odom, odom_pose, self.rng)
@@ -206,14 +216,14 @@ class Localizer:
         refined = None
         alias: tuple[np.ndarray, float] | None = None
         whole = scan if full_scan is None else full_scan
-        if self._searching and estimate.weight >= SETTLED_WEIGHT:
+        if self.mode is LocalizerMode.SETTLING and estimate.weight >= SETTLED_WEIGHT:
             # Global localization is down to one hypothesis: settled if the scan fits there,
             # otherwise that place only looks alike (a maze), and the particles start over.
             polished = self.fitter.refine(estimate.mean, whole)
             at = estimate.mean if polished is None else polished
             fit = self.fitter.fit_fraction(at, whole)
             if fit >= GLOBAL_SETTLE_FIT or not self._researches_left:
-                self._searching = False
+                self.mode = LocalizerMode.TRACKING
             else:
                 alias = (at.copy(), fit)
                 self._researches_left -= 1
@@ -224,7 +234,7 @@ class Localizer:
             refined = self.fitter.refine(estimate.mean, whole)
             if refined is not None:
                 estimate = Cluster(estimate.weight, refined, estimate.covariance)
-                if estimate.weight >= SETTLED_WEIGHT and not self._searching:
+                if estimate.weight >= SETTLED_WEIGHT and self.mode is LocalizerMode.TRACKING:
                     # Only once one hypothesis holds the weight: while several compete (global
                     # localization, a symmetric place), redrawing would crown the leader early.
                     self._reset_around(refined)
@@ -254,7 +264,7 @@ class Localizer:
 
     def _search(self, scan: Scan) -> None:
         """Global localization's particles: the best poses for ``scan`` (see :meth:`global_localization`)."""
-        self._global_search = False
+        self.mode = LocalizerMode.SETTLING
         self.filter.particles = self._best_poses(scan)
         self.filter.weights = np.full(len(self.filter.particles), 1.0 / len(self.filter.particles))
 

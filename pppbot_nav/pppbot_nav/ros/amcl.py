@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav2_msgs.msg import Particle, ParticleCloud
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rclpy.duration import Duration
@@ -44,6 +44,7 @@ from pppbot_common.ros.lockstep import at_step, require, require_match
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
+from pppbot_common.ros.planar import transform_message
 from pppbot_common.ros.qos import LATCHED, SENSOR
 from pppbot_common.ros.scan_odometry import ScanOdometry
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
@@ -336,16 +337,14 @@ class Amcl(Node):
 
     def _publish_transform(self, scan_time: Time, map_to_odom: np.ndarray) -> None:
         p = self.params
-        t = TransformStamped()
-        t.header.stamp = (scan_time + Duration(seconds=p.transform_tolerance)).to_msg()
-        t.header.frame_id = p.global_frame_id
-        t.child_frame_id = p.odom_frame_id
-        t.transform.translation.x, t.transform.translation.y = float(map_to_odom[0]), float(map_to_odom[1])
-        r = t.transform.rotation
-        r.x, r.y, r.z, r.w = quaternion_from_yaw(float(map_to_odom[2]))
-        self.tf_pub.publish(TFMessage(transforms=[t]))
+        stamp = (scan_time + Duration(seconds=p.transform_tolerance)).to_msg()
+        self.tf_pub.publish(TFMessage(transforms=[transform_message(p.global_frame_id, p.odom_frame_id, stamp,
+                                                                    map_to_odom)]))
 
 
-def main(args: list[str] | None = None) -> None:
-    sys.exit(run_node(Amcl, "amcl", args))
+def main(args: list[str] | None = None) -> int:
+    return run_node(Amcl, "amcl", args)
 
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -9,8 +9,10 @@ computes the command (:mod:`pppbot_nav.controller.pure_pursuit`, parameters unde
 feedback (distance to goal, speed). The goal checker (``general_goal_checker.*``) ends the
 goal with success; the progress checker (``progress_checker.*``) fails it with
 FAILED_TO_MAKE_PROGRESS; a collision ahead that lasts longer than ``failure_tolerance`` fails
-it with NO_VALID_CONTROL. A new path preempts the one being followed and keeps the progress
-checker's history, as Nav2's path updates do. The robot is stopped whenever a goal ends.
+it with NO_VALID_CONTROL. These per-period decisions are
+:class:`pppbot_nav.controller.follow.Follower`'s (no ROS, unit-tested). A new path preempts the
+one being followed and keeps the progress checker's history, as Nav2's path updates do. The
+robot is stopped whenever a goal ends.
 """
 from __future__ import annotations
 
@@ -28,15 +30,16 @@ from rclpy.action.server import ServerGoalHandle
 from rclpy.node import Node
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.goals import GoalEnd, GoalServer
+from pppbot_common.ros.goals import GoalEnd, GoalServer, Stopped, check_running, stopped_end
 from pppbot_common.ros.lockstep import create_timer, require_match
 from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters
 from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_common.transforms import TransformError, compose
 from pppbot_nav.controller.checkers import SimpleGoalChecker, SimpleProgressChecker
+from pppbot_nav.controller.follow import FollowEnd, Follower
 from pppbot_nav.controller.pure_pursuit import PurePursuit, PurePursuitSettings
-from pppbot_nav.errors import CollisionAhead, ControllerError
+from pppbot_nav.errors import ControllerError
 from pppbot_nav.ros.costmap_node import CostmapNode
 from pppbot_nav.ros.planner_server import path_message
 
@@ -98,16 +101,22 @@ def _follow_path_parameters() -> type:
 FollowPathParameters = _follow_path_parameters()
 
 
+#: How each way a follow ends is answered (nav2_msgs/action/FollowPath result codes).
+RESULT_CODES = {FollowEnd.SUCCEEDED: Result.NONE, FollowEnd.TF_ERROR: Result.TF_ERROR,
+                FollowEnd.FAILED_TO_MAKE_PROGRESS: Result.FAILED_TO_MAKE_PROGRESS,
+                FollowEnd.NO_VALID_CONTROL: Result.NO_VALID_CONTROL}
+
+
 class _Following:
-    """The goal being followed: its path (in its own frame), goal pose and failure clock."""
+    """The goal being followed: its path (in its own frame), goal pose and its follow policy."""
 
     def __init__(self, handle: ServerGoalHandle, path3: np.ndarray, path_frame: str,
-                 goal: tuple[float, float, float]) -> None:
+                 goal: tuple[float, float, float], follower: Follower) -> None:
         self.handle = handle
         self.path3 = path3
         self.path_frame = path_frame
         self.goal = goal
-        self.failing_since: float | None = None
+        self.follower = follower
 
 
 class ControllerServer(Node):
@@ -191,7 +200,10 @@ class ControllerServer(Node):
             self.controller.set_path(path3)
         except ControllerError as exc:
             return Result.INVALID_PATH, str(exc)
-        self._active = _Following(handle, path3, path_frame, goal)
+        p = self.params
+        follower = Follower(self.controller, self.goal_checker, self.progress_checker, p.failure_tolerance,
+                            p.required_movement_radius, p.movement_time_allowance)
+        self._active = _Following(handle, path3, path_frame, goal, follower)
         return None
 
     def _end(self, following: _Following, code: int, message: str, stop: bool = True) -> None:
@@ -202,14 +214,9 @@ class ControllerServer(Node):
         if stop:
             self.stop()
         handle = following.handle
-        if code == Result.NONE:
-            end = GoalEnd.SUCCEEDED
-        elif handle.is_cancel_requested:
-            end = GoalEnd.CANCELED
-        else:
-            end = GoalEnd.ABORTED
-            if code != Result.UNKNOWN:
-                self.get_logger().warning(f"following failed: {message}")
+        end = GoalEnd.SUCCEEDED if code == Result.NONE else stopped_end(handle)
+        if end is GoalEnd.ABORTED and code != Result.UNKNOWN:
+            self.get_logger().warning(f"following failed: {message}")
         self.server.finish(handle, end, Result(error_code=code, error_msg=message))
 
     # ------------------------------------------------------------------- loop
@@ -227,44 +234,34 @@ class ControllerServer(Node):
             self._end(following, *outcome)
 
     def _step(self, following: _Following) -> tuple[int, str] | None:
-        """The command of this period, or how the goal ends (code, message)."""
-        if following.handle.is_cancel_requested:
-            return Result.UNKNOWN, "canceled"
+        """Carry out this period's decision (:class:`Follower`): a command, a stop, or the end
+        of the goal (code, message)."""
+        try:
+            check_running(following.handle, None if self._active is None else self._active.handle, "a new path")
+        except Stopped as stopped:
+            return Result.UNKNOWN, str(stopped)
         now = self._now_s()
         tf = self.costmap_node.tf
         local_frame = self.costmap_node.params.global_frame
         base = self.costmap_node.params.robot_base_frame
+        pose = pose_in_costmap = None
+        reason = ""
         try:
-            in_path_frame = tf.lookup(following.path_frame, base)
-            to_local = tf.lookup(local_frame, following.path_frame)
+            pose = tf.lookup(following.path_frame, base)
+            # The path stays in its frame (its progress with it); the costmap is looked up in odom.
+            pose_in_costmap = compose(tf.lookup(local_frame, following.path_frame), pose)
         except TransformError as exc:
-            if following.failing_since is None:
-                following.failing_since = now
-            if now - following.failing_since > max(self.params.failure_tolerance, 1.0):
-                return Result.TF_ERROR, f"no transform for the path: {exc}"
+            pose, reason = None, str(exc)
+        step = following.follower.step(now, pose, following.goal, following.path3, self._speed,
+                                       self.costmap_node.costmap, 1.0 / self.params.controller_frequency,
+                                       pose_in_costmap=pose_in_costmap, no_pose_reason=reason)
+        if step.end is not None:
+            return RESULT_CODES[step.end], step.message
+        if step.command is None:
             self.stop()
+            self._warn("control", step.problem)
             return None
-        if self.goal_checker.is_goal_reached(in_path_frame, following.goal):
-            return Result.NONE, ""
-        if not self.progress_checker.check(in_path_frame[:2], now):
-            return Result.FAILED_TO_MAKE_PROGRESS, (
-                f"the robot moved less than {self.params.required_movement_radius} m in "
-                f"{self.params.movement_time_allowance} s")
-        # The path stays in its frame (its progress with it); the costmap is looked up in odom.
-        pose_in_costmap = compose(to_local, in_path_frame)
-        period = 1.0 / self.params.controller_frequency
-        try:
-            command = self.controller.compute(in_path_frame, self._speed, following.path3, self.costmap_node.costmap,
-                                              period, costmap_pose=pose_in_costmap)
-            following.failing_since = None
-        except (CollisionAhead, ControllerError) as exc:
-            if following.failing_since is None:
-                following.failing_since = now
-            self.stop()
-            if now - following.failing_since > self.params.failure_tolerance:
-                return Result.NO_VALID_CONTROL, str(exc)
-            self._warn("control", f"no command this period: {exc}")
-            return None
+        command = step.command
         twist = Twist()
         twist.linear.x, twist.angular.z = command.linear_mps, command.angular_radps
         self.cmd_pub.publish(twist)
@@ -272,12 +269,15 @@ class ControllerServer(Node):
             self.local_plan_pub.publish(path_message(command.local_plan, 0.0, following.path_frame,
                                                      self.get_clock().now().to_msg()))
         feedback = FollowPath.Feedback()
-        feedback.distance_to_goal = float(math.hypot(following.goal[0] - in_path_frame[0],
-                                                     following.goal[1] - in_path_frame[1]))
+        assert pose is not None
+        feedback.distance_to_goal = float(math.hypot(following.goal[0] - pose[0], following.goal[1] - pose[1]))
         feedback.speed = float(abs(self._speed[0]))
         following.handle.publish_feedback(feedback)
         return None
 
+def main(args: list[str] | None = None) -> int:
+    return run_nodes([ControllerServer], "controller_server", args)
 
-def main(args: list[str] | None = None) -> None:
-    sys.exit(run_nodes([ControllerServer], "controller_server", args))
+
+if __name__ == "__main__":
+    sys.exit(main())

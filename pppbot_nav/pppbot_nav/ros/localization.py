@@ -18,5 +18,9 @@ from pppbot_nav.ros.amcl import Amcl
 from pppbot_nav.ros.map_server import MapServer
 
 
-def main(args: list[str] | None = None) -> None:
-    sys.exit(run_nodes([MapServer, Amcl], "localization", args))
+def main(args: list[str] | None = None) -> int:
+    return run_nodes([MapServer, Amcl], "localization", args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -36,6 +36,7 @@ from pppbot_common.ros.maps import grid_message
 from pppbot_common.ros.node_main import run_node
 from pppbot_common.ros.params import declare_parameters
 from pppbot_common.ros.qos import LATCHED
+from pppbot_nav.errors import MapLoadError
 
 
 @dataclass(frozen=True)
@@ -50,14 +51,6 @@ class MapServerParameters:
             value = getattr(self, name)
             if not value or any(ch.isspace() for ch in value):
                 raise ParameterError(name, value, "must be a non-empty name without white space")
-
-
-class MapLoadError(MapFileError):
-    """A map that cannot be served, with the LoadMap result code that says why."""
-
-    def __init__(self, message: str, result: int) -> None:
-        super().__init__(message)
-        self.result = result
 
 
 def resolve_map_path(name: str) -> Path:

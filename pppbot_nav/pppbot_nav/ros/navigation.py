@@ -18,5 +18,9 @@ from pppbot_nav.ros.navigator import Navigator
 from pppbot_nav.ros.planner_server import PlannerServer
 
 
-def main(args: list[str] | None = None) -> None:
-    sys.exit(run_nodes([PlannerServer, ControllerServer, Navigator], "navigation", args))
+def main(args: list[str] | None = None) -> int:
+    return run_nodes([PlannerServer, ControllerServer, Navigator], "navigation", args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -11,7 +11,9 @@ running one, cancel stops the robot. It runs Nav2's default tree
   local costmap and tries once more; then one recovery of the round robin (clear both
   costmaps, spin ``spin_dist``, wait ``wait_duration``, back up ``backup_dist`` at
   ``backup_speed``; :mod:`pppbot_nav.behaviors`) and the loop again, at most
-  ``number_of_retries`` recoveries per goal.
+  ``number_of_retries`` recoveries per goal. These decisions are
+  :class:`pppbot_nav.navigation_policy.NavigationPolicy`'s (no ROS, unit-tested); this node
+  carries them out.
 
 Feedback: the robot's pose in ``global_frame``, the navigation time, the distance left along
 the path, an estimated time remaining, and the recoveries so far. A goal that fails carries
@@ -40,7 +42,7 @@ from rclpy.task import Future
 
 from pppbot_common.params import check_finite_range, param
 from pppbot_common.ros.action_client import ActionClient
-from pppbot_common.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stopped
+from pppbot_common.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stopped, check_running, stopped_end
 from pppbot_common.ros.lockstep import Participant, count_deliveries, create_timer, require_match
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
@@ -49,7 +51,8 @@ from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.tf_listener import TfListener
 from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_common.transforms import TransformError
-from pppbot_nav.behaviors import BackUp, Recovery, RecoveryRoundRobin, Spin, Wait, collision_ahead
+from pppbot_nav.behaviors import BackUp, Recovery, Spin, Wait, collision_ahead
+from pppbot_nav.navigation_policy import FollowDecision, NavigationPolicy, PlanDecision, PolicySettings
 
 
 @dataclass(frozen=True)
@@ -145,9 +148,11 @@ class Navigator(Node):
         request: PoseStamped = handle.request.pose
         if not request.header.frame_id:
             request.header.frame_id = self.params.global_frame
-        state = _Progress(self._now_s())
-        p = request.pose.position
-        self.get_logger().info(f"navigating to ({p.x:.2f}, {p.y:.2f}) in '{request.header.frame_id}'")
+        p = self.params
+        state = _Progress(self._now_s(), NavigationPolicy(PolicySettings(
+            number_of_retries=p.number_of_retries, server_timeout_s=p.server_timeout)))
+        at = request.pose.position
+        self.get_logger().info(f"navigating to ({at.x:.2f}, {at.y:.2f}) in '{request.header.frame_id}'")
         flow: Flow[None] = Flow(self._navigate(handle, request, state), self._now_s,
                                 lambda value, error: self._ended(handle, state, error),
                                 check=lambda: self._check(handle))
@@ -175,10 +180,7 @@ class Navigator(Node):
         return self.tf.lookup(frame, self.params.robot_base_frame)
 
     def _check(self, handle: ServerGoalHandle) -> None:
-        if handle.is_cancel_requested:
-            raise Stopped("canceled")
-        if self._active is None or self._active[0] is not handle:
-            raise Stopped("preempted by a new goal")
+        check_running(handle, None if self._active is None else self._active[0])
 
     def stop(self) -> None:
         self.cmd_pub.publish(Twist())
@@ -196,9 +198,10 @@ class Navigator(Node):
         self._cancel_follow(state)
         if isinstance(error, Stopped):
             result.error_msg = str(error)
-            if handle.is_cancel_requested:
-                self.stop()
-            self.server.finish(handle, GoalEnd.CANCELED if handle.is_cancel_requested else GoalEnd.ABORTED, result)
+            end = stopped_end(handle)
+            if end is GoalEnd.CANCELED:
+                self.stop()  # canceled: stand still (a preempted goal's successor drives on)
+            self.server.finish(handle, end, result)
             return
         self.stop()
         if isinstance(error, Failed):
@@ -227,18 +230,16 @@ class Navigator(Node):
                     raise Failed(0, f"the {name} server is not available")
                 yield self._sleep(TICK_S)
         yield from self._wait_for_pose()
-        robin = RecoveryRoundRobin()
         while True:
             try:
                 yield from self._plan_and_follow(request, state)
                 return
             except Failed as exc:
-                if state.recoveries >= p.number_of_retries:
+                recovery = state.policy.after_failure()
+                if recovery is None:
                     raise Failed(exc.code, f"{exc} (after {state.recoveries} recoveries)") from exc
                 self._cancel_follow(state)
                 self.stop()
-                recovery = robin.next()
-                state.recoveries += 1
                 self.get_logger().info(f"recovery {state.recoveries}/{p.number_of_retries}: {recovery.value} "
                                        f"(after: {exc})")
                 yield from self._recover(recovery)
@@ -256,7 +257,7 @@ class Navigator(Node):
                     raise Failed(ComputePathToPose.Result.TF_ERROR, f"no robot pose: {exc}") from exc
             yield self._sleep(0.1)
 
-    def _plan(self, request: PoseStamped) -> Step[Path]:
+    def _plan(self, request: PoseStamped, policy: NavigationPolicy) -> Step[Path]:
         """A path from the planner. A planner that is not ready yet (no robot pose, no map: TF_ERROR
         or UNKNOWN, as a just-started stack's may be) is asked again every half second for up to
         ``server_timeout`` s; any other failure once more after clearing the global costmap.
@@ -267,7 +268,7 @@ class Navigator(Node):
         goal = ComputePathToPose.Goal()
         goal.goal = request
         not_ready = (ComputePathToPose.Result.TF_ERROR, ComputePathToPose.Result.UNKNOWN)
-        deadline = self._now_s() + self.params.server_timeout
+        started_s = self._now_s()
         cleared = False
         while True:
             handle = yield self.planner.send_goal_async(goal)
@@ -277,9 +278,10 @@ class Navigator(Node):
             res = response.result
             if res.error_code == ComputePathToPose.Result.NONE and res.path.poses:
                 return res.path
-            if res.error_code in not_ready and self._now_s() < deadline:
-                yield self._sleep(0.5)
-            elif not cleared:
+            decision = policy.after_plan_failure(res.error_code in not_ready, self._now_s() - started_s, cleared)
+            if decision is PlanDecision.RETRY_LATER:
+                yield self._sleep(policy.settings.planner_not_ready_retry_s)
+            elif decision is PlanDecision.CLEAR_AND_RETRY:
                 yield from self._clear(self.clear_global)
                 cleared = True
             else:
@@ -292,7 +294,7 @@ class Navigator(Node):
             now = self._now_s()
             if now >= next_plan:
                 next_plan = now + 1.0 / self.params.replanning_frequency
-                path = yield from self._plan(request)
+                path = yield from self._plan(request, state.policy)
                 state.path = np.array([[ps.pose.position.x, ps.pose.position.y] for ps in path.poses])
                 follow = FollowPath.Goal()
                 follow.path = path
@@ -306,7 +308,7 @@ class Navigator(Node):
                 if res.error_code == FollowPath.Result.NONE:
                     return
                 follow_failures += 1
-                if follow_failures > 1:
+                if state.policy.after_follow_failure(follow_failures) is FollowDecision.FAIL:
                     raise Failed(res.error_code, f"following: {res.error_msg}")
                 yield from self._clear(self.clear_local)
                 next_plan = -math.inf
@@ -387,17 +389,25 @@ class Navigator(Node):
 class _Progress:
     """One goal's running state."""
 
-    def __init__(self, start_s: float) -> None:
+    def __init__(self, start_s: float, policy: NavigationPolicy) -> None:
         self.start_s = start_s
-        self.recoveries = 0
+        self.policy = policy
         self.path: np.ndarray | None = None
         self.follow: Any = None
         self.follow_result: Future | None = None
         self.speed = 0.0
 
+    @property
+    def recoveries(self) -> int:
+        return self.policy.recoveries
+
     def on_feedback(self, msg: Any) -> None:
         self.speed = float(msg.feedback.speed)
 
 
-def main(args: list[str] | None = None) -> None:
-    sys.exit(run_nodes([Navigator], "navigator", args))
+def main(args: list[str] | None = None) -> int:
+    return run_nodes([Navigator], "navigator", args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -172,5 +172,9 @@ class PlannerServer(Node):
         return msg, (f"goal moved {moved:.2f} m to a reachable cell" if moved > 1e-6 else "")
 
 
-def main(args: list[str] | None = None) -> None:
-    sys.exit(run_nodes([PlannerServer], "planner_server", args))
+def main(args: list[str] | None = None) -> int:
+    return run_nodes([PlannerServer], "planner_server", args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -20,7 +20,7 @@ from typing import Any
 
 from rclpy.node import Node
 
-from pppbot_common.lockstep import AckOutcome, Barrier, LockstepError, Publications
+from pppbot_common.lockstep import AckOutcome, Barrier, Publications
 from pppbot_common.ros.lockstep import (
     ACK_TOPIC,
     DELIVERY_TIMEOUT_S,
@@ -35,6 +35,7 @@ from pppbot_common.ros.lockstep_counting import _ORIGINAL_PUBLISH, COUNTERS, Rec
 from pppbot_common.ros.node_main import Process
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
+from pppbot_sim.errors import LockstepTimeout
 
 #: Rounds at one time before the simulator moves on anyway (participants echoing each other).
 MAX_ROUNDS = 50
@@ -49,10 +50,6 @@ SETTLE_TIMEOUT_S = 20.0
 #: participants' readers the simulator has discovered: a joiner's may still be unknown to it
 #: (discovery matches each side on its own). Participants ignore a step they have had.
 STEP_REPEAT_S = 1.0
-
-
-class LockstepTimeout(LockstepError):
-    """A participant did not answer in time (the message names it, the step and the sim time)."""
 
 
 class Coordinator:

@@ -32,6 +32,7 @@ from shapely.geometry import Point, Polygon
 from shapely.geometry import box as shapely_box
 from shapely.ops import unary_union
 
+from pppbot_sim.errors import WorldGenError
 from pppbot_sim.worldgen import mazes, sdf
 from pppbot_sim.worldgen.sdf import WALL_T, Segment, door_wall
 
@@ -49,10 +50,6 @@ class Family(str, Enum):
     HALL = "hall"
     SYMMETRIC = "symmetric"
     CONES = "cones"
-
-
-class WorldGenError(ValueError):
-    """A bad family, seed or size; the message names it and what is allowed."""
 
 
 @dataclass(frozen=True)
@@ -320,6 +317,8 @@ def generate(family: Family | str, seed: int, *, small: bool = False) -> Layout:
     """The world of ``family`` made from ``seed`` (the same layout on every machine).
 
     Args:
+        family: a :class:`Family` or its name.
+        seed: the layout's seed (0 or more).
         small: about half the size (for tests and CI: short routes).
 
     Raises:

@@ -64,6 +64,10 @@ def carve(nx: int, ny: int, rng: np.random.Generator, *, straightness: float = 0
     """A perfect ``nx`` × ``ny`` maze carved depth first from ``start``.
 
     Args:
+        nx: cells across.
+        ny: cells up.
+        rng: the random generator the walk draws from.
+        start: the cell the walk starts in.
         straightness: probability (0–1) of carving on in the direction just taken when
             that cell is free: 0 is the plain random walk, values near 1 make long
             straight corridors.

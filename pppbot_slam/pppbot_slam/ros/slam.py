@@ -15,26 +15,23 @@ whether it is lost — also warned about in the log when it happens). Services (
 and map on from it; also done at startup when it is set), ``~/pause_new_measurements``
 (SetBool) and ``~/reset``. The algorithm is :mod:`pppbot_slam.mapper`.
 
-Three threads besides the executor's: scan processing (keyframes matched against the
-running buffer), loop closing (each new keyframe's loop search, matched and solved on a
-copy of the graph, then merged), and the map builder. Scans never wait for a loop search.
-In lockstep each piece of work is held for (:func:`pppbot_common.ros.lockstep.hold`): a
-step is answered once its scan is processed, its loop search merged and its map
+The work is :class:`pppbot_slam.async_mapper.AsyncMapper`'s three threads besides the
+executor's (scan processing, loop closing, map building); scans never wait for a loop
+search. In lockstep each piece of work is held for (:func:`pppbot_common.ros.lockstep.hold`):
+a step is answered once its scan is processed, its loop search merged and its map
 published, so the map and the pose graph are the same on every run.
 """
 from __future__ import annotations
 
-import queue
 import sys
 import threading
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point, PoseWithCovarianceStamped, TransformStamped
+from geometry_msgs.msg import Point, PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rclpy.duration import Duration
@@ -52,22 +49,18 @@ from pppbot_common.ros.lockstep import at_step, create_timer, hold, require_matc
 from pppbot_common.ros.maps import grid_message, map_metadata
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
+from pppbot_common.ros.planar import transform_message
 from pppbot_common.ros.qos import LATCHED, SENSOR
 from pppbot_common.ros.scan_odometry import ScanOdometry
 from pppbot_common.se2 import quaternion_from_yaw
-from pppbot_slam.loops import LOOP_SEE_THROUGH_MAX, solve_loops
+from pppbot_slam.async_mapper import AsyncMapper, AsyncMapperEvents, KeyframeAdded, LoopsMerged, ScanInput
 from pppbot_slam.mapper import LOST_KEYFRAMES, Mapper, MapperError, MapperSettings
 from pppbot_slam.matcher import MatcherError, MatcherSettings
-from pppbot_slam.occupancy import LogOddsGrid, OccupancyError, ScanRays
+from pppbot_slam.occupancy import OccupancyError, ScanRays
 from pppbot_slam.pose_graph import Edge
 from pppbot_slam.serialization import PoseGraphFileError, load_posegraph, posegraph_path, save_posegraph
 
 WARN_PERIOD_S = 5.0
-#: Scans (with their odometry) waiting for the processing thread; beyond this the oldest goes.
-MAX_QUEUED = 200
-#: Keyframes waiting for their loop search; beyond this the oldest goes (a later keyframe
-#: searches the same places).
-MAX_LOOP_QUEUED = 50
 
 
 @dataclass(frozen=True)
@@ -169,26 +162,21 @@ class SlamParameters:
 
 
 class Slam(Node):
+    """The ROS side of :class:`~pppbot_slam.async_mapper.AsyncMapper`: scans and TF in, the map,
+    pose, transform, graph and health out, and the services."""
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("slam_toolbox", **kwargs)
         self.params = p = declare_parameters(self, SlamParameters)
         on_valid_update(self, lambda: self.params, self._set_params)
-        self.mapper = Mapper(p.mapper_settings(), defer_loops=True)
-        if p.map_file_name:
-            self.mapper = self._load(p.map_file_name)
-        self.lock = threading.Lock()  # the mapper: scans write it, the map thread reads it
         self._diagnostics_lock = threading.Lock()  # one health reading published at a time
         self.paused = False
         self._warn = Warnings(self, WARN_PERIOD_S)
+        events = AsyncMapperEvents(keyframe=self._on_keyframe, loops=self._on_loops, map_built=self._on_map,
+                                   warn=self._warn)
+        first = self._load(p.map_file_name) if p.map_file_name else Mapper(p.mapper_settings())
+        self.mapping = AsyncMapper(first, events, hold=hold, map_frame=p.map_frame)
         self.scans = ScanOdometry(self, p.odom_frame, p.base_frame, self._queue, self._warn, p.tf_buffer_duration)
-        self._scan_frame: str | None = None
-        # Scans with their odometry, processed in a worker thread: the executor stays free
-        # for TF (in and out) while a keyframe is matched or a loop searched. Each item carries
-        # the release of its lockstep hold.
-        self._work: queue.Queue[tuple[Callable[[], None], LaserScan, float, str, np.ndarray, np.ndarray] | None] = \
-            queue.Queue(maxsize=MAX_QUEUED)
-        # Keyframes (of which mapper: a reset or a loaded graph replaces it) to search for loops.
-        self._loops: queue.Queue[tuple[Callable[[], None], Mapper, int] | None] = queue.Queue(maxsize=MAX_LOOP_QUEUED)
         self.map_pub = self.create_publisher(OccupancyGridMsg, "/map", LATCHED)
         self.meta_pub = self.create_publisher(MapMetaData, "/map_metadata", LATCHED)
         self.graph_pub = self.create_publisher(MarkerArray, "~/graph_visualization", 1)
@@ -204,21 +192,8 @@ class Slam(Node):
         self.create_service(Trigger, "~/reset", self._reset)
         # map → odom is stamped ahead (transform_timeout): nobody waits for each one.
         create_timer(self, p.transform_publish_period, self._publish_transform, wakes=False)
-        create_timer(self, p.map_update_interval, self._request_map)
-        self._map_wake = threading.Event()
-        self._map_holds: list[Callable[[], None]] = []
-        self._map_lock = threading.Lock()
-        self._stopping = threading.Event()
-        self._map_thread = threading.Thread(target=self._map_loop, name="map-builder", daemon=True)
-        self._map_thread.start()
-        self._worker = threading.Thread(
-            target=self._serve, args=(self._work, self._process, "process", "a scan could not be processed"),
-            name="scan-processing", daemon=True)
-        self._worker.start()
-        self._loop_closer = threading.Thread(
-            target=self._serve, args=(self._loops, self._close_loops, "loops", "a loop search failed"),
-            name="loop-closing", daemon=True)
-        self._loop_closer.start()
+        create_timer(self, p.map_update_interval, self.mapping.request_map)
+        self.mapping.start()
         self.get_logger().info(f"mapping: {p.scan_topic} with {p.odom_frame} → {p.base_frame}; map every "
                                f"{p.map_update_interval:g} s at {p.resolution} m")
 
@@ -233,7 +208,6 @@ class Slam(Node):
             PoseGraphFileError: the file is missing or bad (the message names it).
         """
         mapper = load_posegraph(name, self.params.mapper_settings())
-        mapper.defer_loops = True
         mapper.start_session(self.params.start_pose())
         start = mapper.predict(np.zeros(3))  # the new session's first keyframe goes here
         self.get_logger().info(f"mapping on from {posegraph_path(name)}: {len(mapper.keyframes)} keyframes, "
@@ -248,96 +222,40 @@ class Slam(Node):
         self.scans.add(msg)
 
     def _queue(self, msg: LaserScan, stamp: float, frame: str, odom_pose: np.ndarray, sensor: np.ndarray) -> None:
-        if _put_dropping_oldest(self._work, (hold(), msg, stamp, frame, odom_pose, sensor)):
-            self._warn("behind", f"scan processing is {MAX_QUEUED} scans behind: dropping the oldest")
-
-    def _serve(self, work: queue.Queue[Any], handle: Callable[..., None], kind: str, failure: str) -> None:
-        """A thread's loop: ``handle`` each item of ``work`` until the stop sign; one that fails
-        is warned about (``failure``, throttled per ``kind``) and the thread goes on. The item's
-        lockstep hold is released when it is done."""
-        while True:
-            item = work.get()
-            if item is None or self._stopping.is_set():
-                return
-            release, *args = item
-            try:
-                handle(*args)
-            except Exception as exc:  # noqa: BLE001 - one bad scan or search must not stop the thread
-                self._warn(kind, f"{failure}: {type(exc).__name__}: {exc}")
-            finally:
-                release()
-
-    def _process(self, msg: LaserScan, stamp: float, frame: str, odom_pose: np.ndarray, sensor: np.ndarray) -> None:
         try:
             rays = ScanRays.from_laser(msg.angle_min, msg.angle_increment, np.asarray(msg.ranges, dtype=float),
                                        msg.range_min, msg.range_max)
         except OccupancyError as exc:
             self._warn("scan", f"dropping a malformed scan: {exc}")
             return
-        with self.lock:
-            mapper = self.mapper
-            if self._scan_frame != frame or not np.allclose(mapper.sensor_offset, sensor):
-                mapper.sensor_offset = sensor
-                self._scan_frame = frame
-            recoveries, was_lost = mapper.recoveries, mapper.lost
-            keyframe = mapper.process(stamp, odom_pose, rays)
-            recovered = mapper.recoveries > recoveries
-            lost = mapper.lost
-            pose = mapper.predict(odom_pose)
-            response = mapper.last_response
-        if keyframe is not None:
-            self.get_logger().debug(f"keyframe {keyframe.index} at t = {stamp:.2f} s: match response "
-                                    f"{response:.2f}, pose ({pose[0]:.2f}, {pose[1]:.2f}, {pose[2]:.3f})")
-            if recovered:
-                self.get_logger().warning(
-                    f"keyframe {keyframe.index}: the scan did not fit where odometry put it (a collision or a "
-                    f"skid?); found at ({pose[0]:.2f}, {pose[1]:.2f}, {pose[2]:.3f}) by a search over every heading "
-                    f"(response {response:.2f})")
-            if lost != was_lost:
-                self._report_lost(lost, keyframe.index, stamp, mapper)
-            self._publish_pose(msg.header.stamp, pose)
-            if keyframe.index == 0:
-                self._request_map()  # a first map at once
-            if mapper.settings.do_loop_closing and _put_dropping_oldest(self._loops, (hold(), mapper, keyframe.index)):
-                self._warn("loops behind", f"loop closing is {MAX_LOOP_QUEUED} keyframes behind: the oldest "
-                                           "keyframe's search is skipped")
+        self.mapping.add_scan(ScanInput(stamp, frame, odom_pose, sensor, rays, tag=msg.header.stamp))
 
-    # ---------------------------------------------------------- loop closure
-    def _close_loops(self, mapper: Mapper, index: int) -> None:
-        """Keyframe ``index``'s loop search: taken from the mapper under the lock, matched and
-        solved outside it (scans go on), merged under it. A mapper replaced meanwhile (reset,
-        a loaded graph) is left alone."""
-        with self.lock:
-            if mapper is not self.mapper:
-                return
-            search = mapper.loop_search(index)
-        matches = search.run(mapper.settings) if search is not None else []
-        if not matches:
-            return
-        with self.lock:
-            if mapper is not self.mapper:
-                return
-            graph = mapper.graph.copy()
-        solution = solve_loops(graph, matches)
-        accepted, rejected = solution.accepted, solution.rejected
-        with self.lock:
-            if mapper is not self.mapper:
-                return
-            moved = mapper.merge_loops(solution)
-            stamp = mapper.keyframes[index].stamp_s
-        for match in accepted:
-            self.get_logger().info(f"loop closure: keyframe {match.target} (scan at t = {stamp:.2f} s) with "
-                                   f"{match.source} (response {match.response:.2f})")
-        if accepted:
-            self.get_logger().info(f"the graph solved with keyframe {index}'s closures moved the newest keyframe "
-                                   f"{float(np.hypot(moved[0], moved[1])):.3f} m, {float(moved[2]):+.4f} rad")
-        if rejected:
-            taken = {id(match) for match in accepted}
-            through = sum(1 for m in matches if id(m) not in taken and m.see_through > LOOP_SEE_THROUGH_MAX)
-            why = f" ({through} whose scans saw through each other's walls)" if through else ""
-            self.get_logger().info(f"keyframe {index} (t = {stamp:.2f} s): {rejected} loop match(es) the pose graph "
-                                   f"could not agree with{why}, dropped")
-        for source, target in sorted(solution.undone):
+    def _on_keyframe(self, added: KeyframeAdded) -> None:
+        pose = added.pose
+        where = f"({pose[0]:.2f}, {pose[1]:.2f}, {pose[2]:.3f})"
+        self.get_logger().debug(f"keyframe {added.index} at t = {added.stamp_s:.2f} s: match response "
+                                f"{added.response:.2f}, pose {where}")
+        if added.recovered:
+            self.get_logger().warning(
+                f"keyframe {added.index}: the scan did not fit where odometry put it (a collision or a skid?); "
+                f"found at {where} by a search over every heading (response {added.response:.2f})")
+        if added.lost_changed:
+            self._report_lost(added)
+        self._publish_pose(added.tag, pose)
+
+    def _on_loops(self, merged: LoopsMerged) -> None:
+        for match in merged.accepted:
+            self.get_logger().info(f"loop closure: keyframe {match.target} (scan at t = {merged.stamp_s:.2f} s) "
+                                   f"with {match.source} (response {match.response:.2f})")
+        moved = merged.moved
+        if merged.accepted:
+            self.get_logger().info(f"the graph solved with keyframe {merged.index}'s closures moved the newest "
+                                   f"keyframe {float(np.hypot(moved[0], moved[1])):.3f} m, {float(moved[2]):+.4f} rad")
+        if merged.rejected:
+            why = f" ({merged.see_through} whose scans saw through each other's walls)" if merged.see_through else ""
+            self.get_logger().info(f"keyframe {merged.index} (t = {merged.stamp_s:.2f} s): {merged.rejected} loop "
+                                   f"match(es) the pose graph could not agree with{why}, dropped")
+        for source, target in merged.undone:
             self.get_logger().warning(f"loop closure of keyframe {target} with {source} undone: the closures since "
                                       "show it was wrong (a place that looks like another)")
 
@@ -351,66 +269,28 @@ class Slam(Node):
         self.pose_pub.publish(msg)
 
     def _publish_transform(self) -> None:
-        with self.lock:
-            map_to_odom = self.mapper.map_to_odom()
-        t = TransformStamped()
-        t.header.stamp = (self.get_clock().now() + Duration(seconds=self.params.transform_timeout)).to_msg()
-        t.header.frame_id = self.params.map_frame
-        t.child_frame_id = self.params.odom_frame
-        t.transform.translation.x, t.transform.translation.y = float(map_to_odom[0]), float(map_to_odom[1])
-        r = t.transform.rotation
-        r.x, r.y, r.z, r.w = quaternion_from_yaw(float(map_to_odom[2]))
-        self.tf_pub.publish(TFMessage(transforms=[t]))
+        map_to_odom = self.mapping.read(Mapper.map_to_odom)
+        stamp = (self.get_clock().now() + Duration(seconds=self.params.transform_timeout)).to_msg()
+        self.tf_pub.publish(TFMessage(transforms=[transform_message(self.params.map_frame, self.params.odom_frame,
+                                                                    stamp, map_to_odom)]))
 
     # ------------------------------------------------------------------- map
-    def _request_map(self) -> None:
-        """A map rebuild by the map thread (every map_update_interval of sim time, and at the first keyframe)."""
-        with self._map_lock:
-            self._map_holds.append(hold())
-        self._map_wake.set()
-
-    def _map_loop(self) -> None:
-        while not self._stopping.is_set():
-            self._map_wake.wait()
-            self._map_wake.clear()
-            with self._map_lock:
-                releases, self._map_holds = self._map_holds, []
-            try:
-                if not self._stopping.is_set():
-                    self.publish_map()
-            except Exception as exc:  # noqa: BLE001 - a failed build must not stop the map thread
-                self._warn("map", f"the map could not be built: {type(exc).__name__}: {exc}")
-            finally:
-                for release in releases:
-                    release()
-
-    def build_map(self) -> OccupancyGrid | None:
-        """The grid from the keyframes' current poses; built outside the lock (scans go on)."""
-        with self.lock:
-            if not self.mapper.keyframes:
-                return None
-            inputs = self.mapper.grid_inputs()
-        return LogOddsGrid.build(*inputs).to_occupancy_grid(self.params.map_frame)
-
-    def publish_map(self) -> None:
-        grid = self.build_map()
-        if grid is None:
-            return
+    def _on_map(self, grid: OccupancyGrid) -> None:
         stamp = self.get_clock().now().to_msg()
         self.map_pub.publish(grid_message(grid, stamp))
         self.meta_pub.publish(map_metadata(grid, stamp))
         self.publish_graph(stamp)
         self.publish_diagnostics(stamp)
 
-    def _report_lost(self, lost: bool, index: int, stamp: float, mapper: Mapper) -> None:
-        if lost:
+    def _report_lost(self, added: KeyframeAdded) -> None:
+        if added.lost:
             self.get_logger().warning(
-                f"lost at keyframe {index} (t = {stamp:.2f} s): the last {LOST_KEYFRAMES} scans matched nothing "
-                f"around where odometry put them (response below {mapper.settings.link_match_minimum_response_fine}); "
-                "keyframes are placed by odometry alone and left out of the map until a scan matches again")
+                f"lost at keyframe {added.index} (t = {added.stamp_s:.2f} s): the last {LOST_KEYFRAMES} scans matched "
+                f"nothing around where odometry put them (response below {added.required_response}); keyframes are "
+                "placed by odometry alone and left out of the map until a scan matches again")
         else:
-            self.get_logger().info(f"found again at keyframe {index} (t = {stamp:.2f} s): the scan matched the map "
-                                   f"(response {mapper.last_response:.2f})")
+            self.get_logger().info(f"found again at keyframe {added.index} (t = {added.stamp_s:.2f} s): the scan "
+                                   f"matched the map (response {added.response:.2f})")
         self.publish_diagnostics(self.get_clock().now().to_msg())
 
     def publish_diagnostics(self, stamp: Any) -> None:
@@ -424,8 +304,7 @@ class Slam(Node):
             self._publish_diagnostics(stamp)
 
     def _publish_diagnostics(self, stamp: Any) -> None:
-        with self.lock:
-            health = self.mapper.health()
+        health = self.mapping.read(Mapper.health)
         status = DiagnosticStatus(name=f"{self.get_name()}: mapping", hardware_id=self.params.scan_topic)
         if health["lost"]:
             status.level, status.message = DiagnosticStatus.WARN, "lost: scans do not match the map"
@@ -440,14 +319,12 @@ class Slam(Node):
 
     def publish_graph(self, stamp: Any) -> None:
         """Keyframes as spheres, matching edges and loop closures as lines (slam_toolbox's markers)."""
-        with self.lock:
-            poses = np.array(self.mapper.graph.poses).reshape(-1, 3)
-            edges = list(self.mapper.graph.edges)
+        poses, edges = self.mapping.read(lambda m: (np.array(m.graph.poses).reshape(-1, 3), list(m.graph.edges)))
         self.graph_pub.publish(graph_markers(poses, edges, self.params.map_frame, stamp))
 
     # -------------------------------------------------------------- services
     def _save_map(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        grid = self.build_map()
+        grid = self.mapping.build_map()
         if grid is None:
             response.success, response.message = False, "no map yet: no scan has been processed"
             return response
@@ -461,8 +338,7 @@ class Slam(Node):
         return response
 
     def _serialize(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        with self.lock:
-            snapshot = self.mapper.snapshot()  # written outside the lock: scans go on
+        snapshot = self.mapping.read(Mapper.snapshot)  # written outside the lock: scans go on
         try:
             path = save_posegraph(snapshot, self.params.save_name())
         except PoseGraphFileError as exc:
@@ -480,10 +356,7 @@ class Slam(Node):
         except PoseGraphFileError as exc:
             response.success, response.message = False, str(exc)
             return response
-        with self.lock:
-            mapper.sensor_offset = self.mapper.sensor_offset
-            self.mapper = mapper
-        self._request_map()
+        self.mapping.replace(mapper)
         response.success, response.message = True, f"mapping on from {posegraph_path(self.params.map_file_name)}"
         return response
 
@@ -493,37 +366,13 @@ class Slam(Node):
         return response
 
     def _reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        with self.lock:
-            self.mapper = Mapper(self.params.mapper_settings(), self.mapper.sensor_offset, defer_loops=True)
+        self.mapping.replace(Mapper(self.params.mapper_settings()))
         response.success, response.message = True, "the map and pose graph are cleared"
         return response
 
     def destroy_node(self) -> None:
-        self._stopping.set()
-        self._map_wake.set()
-        _put_dropping_oldest(self._work, None)
-        _put_dropping_oldest(self._loops, None)
-        for thread in (self._worker, self._loop_closer, self._map_thread):
-            thread.join(timeout=3.0)
+        self.mapping.stop()
         super().destroy_node()
-
-
-def _put_dropping_oldest(work: queue.Queue[Any], item: Any) -> bool:
-    """Put ``item``, first dropping the oldest entries while ``work`` is full (releasing the lockstep
-    hold each carries first); whether any went."""
-    dropped = False
-    while True:
-        try:
-            work.put_nowait(item)
-            return dropped
-        except queue.Full:
-            try:
-                old = work.get_nowait()
-                dropped = True
-                if old is not None:
-                    old[0]()
-            except queue.Empty:
-                pass
 
 
 def graph_markers(poses: np.ndarray, edges: list[Edge], frame: str, stamp: Any) -> MarkerArray:

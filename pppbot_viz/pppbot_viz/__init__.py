@@ -1,0 +1,1 @@
+"""pppbot_viz: the live view (rerun) and the Foxglove bridge."""

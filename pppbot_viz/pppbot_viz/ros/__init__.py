@@ -1,0 +1,1 @@
+"""The viz node and the Foxglove bridge: ROS messages in, rerun and Foxglove out."""

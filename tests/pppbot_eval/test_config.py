@@ -1,0 +1,70 @@
+"""EvalConfig: pppbot eval's flags as one checked value, without ROS."""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+from pathlib import Path
+
+import pytest
+
+from pppbot_common.errors import ArgumentError
+from pppbot_eval.config import EvalConfig
+from pppbot_eval.ros.cli import add_arguments
+from pppbot_eval.scenarios import Scenario
+
+MAX_SLIP = 0.05
+
+
+def flags(*argv: str) -> argparse.Namespace:
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    return parser.parse_args(list(argv))
+
+
+def test_every_flag_of_the_command_line_is_a_field():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert {a.dest for a in parser._actions} - {"help"} == {f.name for f in dataclasses.fields(EvalConfig)}
+
+
+@pytest.mark.parametrize("argv, rtf", [(["slam"], 0.0), (["slam", "--no-lockstep"], 3.0),
+                                       (["navigation", "--no-lockstep"], 1.0),
+                                       (["slam", "--no-lockstep", "--real-time-factor", "5"], 5.0)])
+def test_the_real_time_factor_default_depends_on_lockstep_and_scenario(argv: list[str], rtf: float):
+    config = EvalConfig.from_flags(flags(*argv), MAX_SLIP)
+    assert config.real_time_factor == rtf and config.scenario is Scenario(argv[0])
+
+
+def test_flags_become_typed_values():
+    config = EvalConfig.from_flags(flags("navigation", "--start", "1", "2", "0.5", "--map", "m.yaml",
+                                         "--goals", "3"), MAX_SLIP)
+    assert config.start == (1.0, 2.0, 0.5) and config.map == Path("m.yaml") and config.goals == 3
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        config.goals = 4  # type: ignore[misc]  # the point: it is frozen
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["slam", "--real-time-factor", "-1"], "--real-time-factor -1.0: must be in [0, 1000]"),
+    (["slam", "--speed", "3"], "--speed 3.0: must be in (0, 2] m/s"),
+    (["slam", "--wheel-slip", "0.2"], "--wheel-slip 0.2: must be in [0, 0.05]"),
+    (["slam", "--map-pose", "0", "nan", "0"], "--map-pose 0.0 nan 0.0: must be three finite numbers"),
+    (["navigation", "--start", "inf", "0", "0"], "--start inf 0.0 0.0: must be three finite numbers"),
+    (["map"], "--map: the map scenario needs it"),
+    (["slam", "--map", "m.yaml"], "--map: only the map, localization and navigation scenarios take it, not slam"),
+    (["navigation", "--goals", "0"], "--goals 0: must be at least 1"),
+    (["navigation", "--goal-distance", "-1"], "--goal-distance -1.0: must be a non-negative number"),
+    (["navigation", "--min-success-rate", "1.5"], "--min-success-rate 1.5: must be in [0, 1]"),
+    (["slam", "--seed", "-3"], "--seed -3: must be a non-negative integer"),
+    (["slam", "--timeout", "0"], "--timeout 0.0: must be a positive number of sim seconds"),
+])
+def test_a_bad_flag_is_refused_naming_it_its_value_and_the_rule(argv: list[str], words: str):
+    with pytest.raises(ArgumentError) as caught:
+        EvalConfig.from_flags(flags(*argv), MAX_SLIP)
+    assert words in str(caught.value)
+
+
+def test_a_config_made_in_code_is_checked_the_same_way():
+    assert math.isclose(EvalConfig(Scenario.DRIVE, speed=0.5).checked(MAX_SLIP).speed, 0.5)
+    with pytest.raises(ArgumentError, match="--speed 0"):
+        EvalConfig(Scenario.DRIVE, speed=0.0).checked(MAX_SLIP)

@@ -1,0 +1,166 @@
+"""ROS messages → rerun archetypes: each display shows its message's data, in its frame."""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+import rerun as rr
+from geometry_msgs.msg import Point, PoseStamped, PoseWithCovarianceStamped, TransformStamped
+from nav2_msgs.msg import Particle, ParticleCloud
+from nav_msgs.msg import OccupancyGrid, Path
+from pppbot_viz.ros import convert
+from pppbot_viz.visuals import UNKNOWN_CELL
+from sensor_msgs.msg import CompressedImage, Image, LaserScan
+from std_msgs.msg import ColorRGBA
+from visualization_msgs.msg import Marker, MarkerArray
+
+
+def values(batch: Any) -> list[Any]:
+    return batch.as_arrow_array().to_pylist()
+
+
+def frame(archetypes: list[Any]) -> str:
+    coordinate_frame = next(a for a in archetypes if isinstance(a, rr.CoordinateFrame))
+    return values(coordinate_frame.frame)[0]
+
+
+def test_scan_points_in_the_lidar_frame() -> None:
+    msg = LaserScan(angle_min=0.0, angle_increment=math.pi / 2, range_min=0.1, range_max=10.0,
+                    ranges=[1.0, math.inf, 2.0])
+    msg.header.frame_id = "lidar_frame"
+    archetypes = convert.scan(msg)
+    assert frame(archetypes) == "lidar_frame"
+    np.testing.assert_allclose(values(archetypes[1].positions), [[1, 0, 0], [-2, 0, 0]], atol=1e-6)
+
+
+def test_grid_at_its_origin_with_unknown_cells_as_255() -> None:
+    msg = OccupancyGrid()
+    msg.header.frame_id = "map"
+    msg.info.width, msg.info.height, msg.info.resolution = 3, 2, 0.05
+    msg.info.origin.position.x, msg.info.origin.position.y = -1.5, 2.0
+    msg.info.origin.orientation.w = 1.0
+    msg.data = [-1, 0, 100, 0, 0, 50]
+    archetypes = convert.grid(msg, rr.components.Colormap.RvizMap, lift_m=0.01)
+    grid = archetypes[1]
+    assert frame(archetypes) == "map"
+    assert list(values(grid.data)[0]) == [UNKNOWN_CELL, 0, 100, 0, 0, 50]
+    assert values(grid.cell_size) == [pytest.approx(0.05)]
+    assert values(grid.translation) == [[-1.5, 2.0, pytest.approx(0.01)]]
+
+
+def test_transform_is_a_tf_edge() -> None:
+    msg = TransformStamped()
+    msg.header.frame_id, msg.child_frame_id = "odom", "/base_link"
+    msg.transform.translation.x = 1.0
+    msg.transform.rotation.z, msg.transform.rotation.w = 0.0, 2.0  # not normalized
+    t = convert.transform(msg)
+    assert values(t.parent_frame) == ["odom"] and values(t.child_frame) == ["base_link"]
+    assert values(t.quaternion) == [[0.0, 0.0, 0.0, 1.0]]
+    assert values(t.translation) == [[1.0, 0.0, 0.0]]
+
+
+def test_path_is_a_line_and_an_empty_path_clears_it() -> None:
+    msg = Path()
+    msg.header.frame_id = "map"
+    for x in (0.0, 1.0, 2.0):
+        pose = PoseStamped()
+        pose.pose.position.x = x
+        msg.poses.append(pose)
+    line = convert.path(msg, convert.PLAN_COLOR)[1]
+    assert [[p[0] for p in strip] for strip in values(line.strips)] == [[0.0, 1.0, 2.0]]
+    assert values(convert.path(Path(), convert.PLAN_COLOR)[1].strips) == []
+
+
+def test_particles_are_heading_arrows() -> None:
+    msg = ParticleCloud()
+    msg.header.frame_id = "map"
+    for x, yaw in ((1.0, 0.0), (2.0, math.pi / 2)):
+        particle = Particle(weight=0.5)
+        particle.pose.position.x = x
+        particle.pose.orientation.z, particle.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+        msg.particles.append(particle)
+    arrows = convert.particles(msg, arrow_m=0.1)[1]
+    np.testing.assert_allclose(values(arrows.origins), [[1, 0, 0], [2, 0, 0]], atol=1e-6)
+    np.testing.assert_allclose(values(arrows.vectors), [[0.1, 0, 0], [0, 0.1, 0]], atol=1e-6)
+
+
+def test_pose_with_covariance_shows_its_ellipse() -> None:
+    msg = PoseWithCovarianceStamped()
+    msg.header.frame_id = "map"
+    msg.pose.pose.position.x, msg.pose.pose.orientation.w = 3.0, 1.0
+    covariance = [0.0] * 36
+    covariance[0], covariance[7] = 0.04, 0.01
+    msg.pose.covariance = covariance
+    archetypes = convert.pose_with_covariance(msg, sigmas=2.0)
+    ellipse, arrow = archetypes[1], archetypes[2]
+    half = values(ellipse.half_sizes)[0]
+    assert half[:2] == pytest.approx([0.4, 0.2])
+    assert values(ellipse.centers) == [[3.0, 0.0, 0.0]]
+    assert values(arrow.origins)[0][0] == pytest.approx(3.0)
+
+
+def test_markers_draw_the_slam_graph_and_clear() -> None:
+    nodes = Marker(type=Marker.SPHERE_LIST, action=Marker.ADD, id=0, ns="slam_toolbox")
+    nodes.header.frame_id = "map"
+    nodes.pose.orientation.w = 1.0
+    nodes.scale.x = 0.1
+    nodes.color = ColorRGBA(r=0.0, g=0.0, b=1.0, a=1.0)
+    nodes.points = [Point(x=0.0), Point(x=1.0)]
+    edges = Marker(type=Marker.LINE_LIST, action=Marker.ADD, id=1, ns="slam_toolbox")
+    edges.header.frame_id = "map"
+    edges.pose.position.y = 1.0  # a marker's pose moves its points
+    edges.pose.orientation.w = 1.0
+    edges.scale.x = 0.02
+    edges.points = [Point(x=0.0), Point(x=1.0)]
+    gone = Marker(action=Marker.DELETE, id=2, ns="slam_toolbox")
+    out = convert.markers(MarkerArray(markers=[nodes, edges, gone]))
+    assert set(out) == {"slam_toolbox/0", "slam_toolbox/1", "slam_toolbox/2"}
+    assert out["slam_toolbox/2"] is None
+    points = out["slam_toolbox/0"][1]  # type: ignore[index]
+    assert values(points.positions) == [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+    assert values(points.colors) == [0x0000FFFF]
+    segments = values(out["slam_toolbox/1"][1].strips)  # type: ignore[index]
+    assert segments == [[[0.0, 1.0, 0.0], [1.0, 1.0, 0.0]]]
+    assert convert.markers(MarkerArray(markers=[nodes, Marker(action=Marker.DELETEALL)])) == {"": None}
+
+
+def test_images_in_common_encodings() -> None:
+    rgb = Image(width=2, height=1, encoding="rgb8", step=6, data=bytes([255, 0, 0, 0, 255, 0]))
+    picture = convert.image(rgb)
+    assert values(picture.format)[0]["width"] == 2
+    padded = Image(width=1, height=2, encoding="mono8", step=4, data=bytes([7, 0, 0, 0, 9, 0, 0, 0]))
+    assert bytes(values(convert.image(padded).buffer)[0]) == bytes([7, 9])  # row padding dropped
+    with pytest.raises(ValueError, match="encoding 'yuv422' is not shown"):
+        convert.image(Image(width=1, height=1, encoding="yuv422", step=2, data=bytes(2)))
+    with pytest.raises(ValueError, match="needs step >= 6"):
+        convert.image(Image(width=2, height=1, encoding="rgb8", step=2, data=bytes(6)))
+    jpeg = convert.compressed_image(CompressedImage(format="jpeg", data=b"\xff\xd8"))
+    assert values(jpeg.media_type) == ["image/jpeg"]
+
+
+URDF = """<robot name="r">
+  <link name="base_link"/>
+  <link name="chassis"><visual><origin xyz="0.15 0 0.075"/><geometry><box size="0.3 0.3 0.15"/></geometry>
+    <material name="white"><color rgba="1 1 1 1"/></material></visual></link>
+  <link name="wheel"><visual><origin rpy="1.5707963 0 0"/><geometry><cylinder radius="0.05" length="0.04"/></geometry>
+    </visual></link>
+  <link name="arm"><visual><geometry><mesh filename="package://nowhere/arm.dae"/></geometry></visual></link>
+  <joint name="c" type="fixed"><parent link="base_link"/><child link="chassis"/></joint>
+  <joint name="w" type="continuous"><parent link="base_link"/><child link="wheel"/></joint>
+  <joint name="a" type="fixed"><parent link="base_link"/><child link="arm"/></joint>
+</robot>"""
+
+
+def test_robot_model_in_link_frames_and_missing_meshes_named() -> None:
+    visuals, warnings = convert.robot_visuals(URDF, resolve_mesh=lambda name: None)
+    by_path = {v.path: v.archetypes for v in visuals}
+    assert set(by_path) == {"robot/chassis/visual_0", "robot/wheel/visual_0"}
+    assert frame(by_path["robot/chassis/visual_0"]) == "chassis"
+    box = by_path["robot/chassis/visual_0"][1]
+    assert values(box.half_sizes) == [pytest.approx([0.15, 0.15, 0.075])]
+    assert values(box.centers) == [pytest.approx([0.15, 0.0, 0.075])]
+    cylinder = by_path["robot/wheel/visual_0"][1]
+    assert values(cylinder.radii) == [pytest.approx(0.05)] and values(cylinder.lengths) == [pytest.approx(0.04)]
+    assert warnings == ["link 'arm': mesh 'package://nowhere/arm.dae' not found; not drawn"]
