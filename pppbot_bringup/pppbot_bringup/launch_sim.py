@@ -14,6 +14,7 @@ it has joined (time starts when all have).
 from __future__ import annotations
 
 import enum
+import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
@@ -24,12 +25,11 @@ import yaml
 from pppbot_viz.viewer import ViewerKind
 
 from pppbot_bringup.paths import config_directory, maps_directory
+from pppbot_bringup.robot import PPP_BOT, RobotFacts, adapt_parameters
 from pppbot_bringup.supervisor import NodeSpec, ReadyCheck
 from pppbot_common.launch_args import Argument, ArgumentError, parse_assignments
 
 LOG_LEVELS = ("debug", "info", "warn", "error", "fatal")
-#: twist_mux's output (``cmd_vel_out``), remapped to the diff-drive controller's input.
-MUX_OUTPUT = "/diff_drive_base_controller/cmd_vel_unstamped"
 #: ``pppbot bag record``'s node name (rosbag2's).
 RECORDER_NODE = "rosbag2_recorder"
 
@@ -65,6 +65,10 @@ class LaunchArgs:
                                        "in another (navigation), as Nav2's bringup composes its servers "
                                        "(false: a process each)")
     slam_params_file: str = _arg("", "the slam node's parameters; default config/mapper_params_online_async.yaml")
+    description: str = _arg("", "the robot: a .urdf or .xacro file, by path or package://pkg/path (default: "
+                                "ppp_bot's robot.urdf.xacro)")
+    xacro_args: str = _arg("", "the description's xacro arguments, 'name:=value name:=value' (e.g. "
+                               "'use_ros2_control:=false' drives ppp_bot with Gazebo's DiffDrive plugin)")
     use_teleop: bool = _arg(True, "keyboard teleop in this terminal (other nodes' output goes to log files)")
     use_rviz: bool = _arg(True, "start rviz2 with config/ppp_bot.rviz when rviz2 is on PATH")
     use_viz: bool = _arg(True, "the live view (rerun): map, costmaps, scan, robot, plans, particles; "
@@ -80,7 +84,8 @@ class LaunchArgs:
                                  "(the same run on any machine; with real_time_factor:=0 as fast as they allow)")
     x: float = _arg(0.0, "spawn x (m)")
     y: float = _arg(0.0, "spawn y (m)")
-    z: float = _arg(0.05, "spawn z of base_link (m); ppp_bot rests at 0.05")
+    z: float = _arg(math.nan, "spawn z of the robot's root link (m); default (nan): resting on the ground "
+                              "(ppp_bot: 0.05)")
     yaw: float = _arg(0.0, "spawn yaw (rad)")
     seed: int = _arg(0, "seed of the simulator's sensor noise and wheel slip")
     wheel_slip: float = _arg(0.0, "wheel slip as the encoders see it (0.02 = 2 %): odometry drifts like a "
@@ -150,6 +155,8 @@ class Plan:
     notes: list[str]
     #: what the user should know once it is up (the live view's address)
     info: list[str] = field(default_factory=list)
+    #: files to write before starting (parameter files adapted to the robot), path → text
+    files: dict[Path, str] = field(default_factory=dict)
 
 
 #: Scans a view recording without a live view keeps per second (of 10): a fifth of the size.
@@ -238,13 +245,36 @@ def controllers_file() -> Path:
     return config_directory() / "my_controllers.yaml"
 
 
+def adapted_file(path: Path, robot: RobotFacts, directory: Path, files: dict[Path, str], notes: list[str]) -> Path:
+    """``path``, or a copy in ``directory`` (added to ``files``) with its frames and topics pointed
+    at ``robot``'s (:func:`pppbot_bringup.robot.adapt_parameters`).
+
+    Raises:
+        ArgumentError: the file is not YAML.
+    """
+    target = directory / path.name
+    if target in files:
+        return target
+    try:
+        document = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ArgumentError(f"{path}: cannot read the parameter file: {exc}") from exc
+    changes = adapt_parameters(document, robot)
+    if not changes:
+        return path
+    files[target] = yaml.safe_dump(document, sort_keys=False)
+    notes.append(f"{path.name} follows robot '{robot.name}': {'; '.join(changes)} (in {target})")
+    return target
+
+
 def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver, probes: Probes,  # noqa: C901, PLR0912, PLR0915
          terminal: bool, rviz: str | None, extra_participants: Sequence[str] = (),
-         viz: VizPlan | None = None, view_recording: Path | None = None) -> Plan:
+         viz: VizPlan | None = None, view_recording: Path | None = None, robot: RobotFacts = PPP_BOT) -> Plan:
     """The nodes to start, in ppp_bot's order, and notes for the user. ``extra_participants``:
     lockstep participants outside the launch that time must wait for from its start (the
     evaluation's own node). ``viz``: the live view's ports (with ``use_viz:=true``);
-    ``view_recording``: an ``.rrd`` file the view's stream is written to (the evaluation's).
+    ``view_recording``: an ``.rrd`` file the view's stream is written to (the evaluation's);
+    ``robot``: what the description at ``urdf_file`` declares (:func:`pppbot_bringup.robot.robot_facts`).
 
     Raises:
         ArgumentError: ``localization:=true`` without a map file, or a bag path that exists.
@@ -252,7 +282,8 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
     level = args.log_level
     lockstep = args.lockstep
     config = config_directory()
-    notes: list[str] = []
+    notes: list[str] = list(robot.notes)
+    files: dict[Path, str] = {}
     participants: list[str] = []
 
     def participant(name: str, description: str, check: ReadyCheck) -> tuple[dict[str, Any], ReadyCheck]:
@@ -265,7 +296,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
 
     mux_config = config / "twist_mux.yaml"
     mux_params, mux_ready = participant("twist_mux", "its inputs", ReadyCheck("its inputs", probes.endpoints(
-        "twist_mux", publishes=(MUX_OUTPUT,), subscribes=twist_mux_inputs(mux_config))))
+        "twist_mux", publishes=(robot.command_topic,), subscribes=twist_mux_inputs(mux_config))))
     # A participant too: its wheel transforms are on /tf, which the data path counts.
     rsp_params, rsp_ready = participant("robot_state_publisher", "/robot_description", ReadyCheck(
         "/robot_description", probes.first_message("/robot_description", "std_msgs/msg/String", True)))
@@ -274,7 +305,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                                            *ros_args(level, {"robot_description": urdf_file, **rsp_params})],
                  after=("simulator",), required=True, pppbot_node=True, ready=rsp_ready),
         NodeSpec("twist_mux", [resolve("pppbot_control", "twist_mux"), *ros_args(
-            level, mux_params, params_file=mux_config, remaps={"cmd_vel_out": MUX_OUTPUT})],
+            level, mux_params, params_file=mux_config, remaps={"cmd_vel_out": robot.command_topic})],
             after=("simulator",), required=True, pppbot_node=True, ready=mux_ready),
     ]
     if args.record:
@@ -293,7 +324,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
         if not map_file.is_file():
             raise ArgumentError(f"localization:=true needs a map; {map_file} does not exist "
                                 f"(save one while mapping, or give map:=path/to/map.yaml)")
-        nav2_params = config / "nav2_params.yaml"
+        nav2_params = adapted_file(config / "nav2_params.yaml", robot, urdf_file.parent, files, notes)
         # AMCL starts where the robot was spawned (the shipped maps' frame is the world's, the
         # spawn pose of a map made with the default spawn); RViz's 2D Pose Estimate moves it.
         # The launch's seed seeds AMCL's particles too: one seed makes the whole run repeatable.
@@ -326,6 +357,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
         slam_params = Path(args.slam_params_file or config / "mapper_params_online_async.yaml")
         if not slam_params.is_file():
             raise ArgumentError(f"slam_params_file: {slam_params} does not exist")
+        slam_params = adapted_file(slam_params, robot, urdf_file.parent, files, notes)
         # Ready once it has mapped its first scan: the map frame is where the robot was then, so
         # nothing should drive it before (eval relies on map = spawn pose). In lockstep the first
         # scan is mapped before time moves past it.
@@ -340,7 +372,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
     if args.navigation.enabled(args.localization):
         if localizer is None:
             raise ArgumentError("navigation:=true needs a map frame: localization:=true or use_slam:=true")
-        nav2_params = config / "nav2_params.yaml"
+        nav2_params = adapted_file(config / "nav2_params.yaml", robot, urdf_file.parent, files, notes)
         servers = {"planner_server": "/compute_path_to_pose", "controller_server": "/follow_path",
                    "navigator": "/navigate_to_pose"}
         probe = {name: probes.endpoints(name, action_servers=(action,)) for name, action in servers.items()}
@@ -356,8 +388,10 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                      "or the navigate_to_pose action")
     simulator_params: dict[str, Any] = {
         "world": world_file, "robot_description": urdf_file, "real_time_factor": args.real_time_factor,
-        "x": args.x, "y": args.y, "z": args.z, "yaw": args.yaw,
+        "x": args.x, "y": args.y, "z": args.z if math.isfinite(args.z) else robot.rest_height_m, "yaw": args.yaw,
         "seed": args.seed, "wheel_slip": args.wheel_slip, "viewer": not args.headless}
+    if robot.simulator_cmd_vel_topic:
+        simulator_params["cmd_vel_topic"] = robot.simulator_cmd_vel_topic
     if lockstep:
         simulator_params.update(lockstep=True, lockstep_participants=[*participants, *extra_participants])
     nodes.insert(0, NodeSpec("simulator", [resolve("pppbot_sim", "simulator"),
@@ -387,4 +421,4 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                                   after=tuple(n.name for n in nodes if n.required), terminal=True))
         else:
             notes.append("no terminal here for the keyboard teleop: run ./pppbot teleop in another terminal")
-    return Plan(nodes, notes, info)
+    return Plan(nodes, notes, info, files)

@@ -164,6 +164,14 @@ class GazeboPlugin:
     filename: str
     name: str
     settings: dict[str, str] = field(default_factory=dict)
+    #: the element itself (repeated tags such as DiffDrive's ``<left_joint>``), and the file it is in
+    element: etree._Element | None = field(default=None, compare=False, repr=False)
+    source: str = ""
+
+    def where(self, element: etree._Element | None = None) -> str:
+        """``source:line`` of ``element`` (default: the plugin element), for messages."""
+        shown = element if element is not None else self.element
+        return f"{self.source}:{shown.sourceline}" if shown is not None else self.source
 
 
 @dataclass(frozen=True)
@@ -396,7 +404,7 @@ def parse_urdf(text: str, source: str = "<robot_description>") -> RobotModel:  #
             for plugin in gazebo.findall("plugin"):
                 plugins.append(GazeboPlugin(plugin.get("filename", ""), plugin.get("name", ""),
                                             {child.tag: (child.text or "").strip() for child in plugin
-                                             if isinstance(child.tag, str)}))
+                                             if isinstance(child.tag, str)}, plugin, source))
             continue
         if reference not in links:
             raise _fail(gazebo, f"<gazebo reference='{reference}'> names no link", source)

@@ -8,6 +8,10 @@ class WorldError(PppbotError, ValueError):
     """A world file is missing, malformed or uses what is not supported; names file, line, element."""
 
 
+class PluginError(WorldError):
+    """A Gazebo plugin (DiffDrive) that cannot work as written; names the file, line and element."""
+
+
 class SpawnError(PppbotError, ValueError):
     """The robot cannot be put into the world (bad URDF for simulation, bad pose)."""
 

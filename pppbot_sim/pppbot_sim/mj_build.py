@@ -25,7 +25,9 @@ from pppbot_description.kinematics import rpy_quaternion
 from pppbot_description.urdf_model import Geometry, Joint, JointType, Origin, RobotModel
 from pppbot_sim.errors import SpawnError, WorldError
 from pppbot_sim.meshes import load_mesh
-from pppbot_sim.sdf_world import Shape, World
+from pppbot_sim.sdf_joints import JointKind, ModelJoint
+from pppbot_sim.sdf_world import Body, Shape, World, resource_paths
+from pppbot_sim.uris import UriError, resolve_uri
 
 ROBOT_GROUP = 3
 DEFAULT_FRICTION = 1.0
@@ -118,33 +120,100 @@ def _primitive(shape: Shape) -> tuple[mujoco.mjtGeom, list[float]]:
 
 
 def world_spec(world: World) -> mujoco.MjSpec:
-    """A MuJoCo spec of an SDF world: static shapes in the world body, free bodies for the rest."""
+    """A MuJoCo spec of an SDF world: static shapes in the world body; each link of a model that
+    is not static a body, nested in its joint's parent (free when no joint holds it)."""
     spec = mujoco.MjSpec()
     spec.modelname = world.name
     spec.option.timestep = world.step_size_s
     spec.option.gravity = list(world.gravity)
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.compiler.degree = False  # SDF's angles are radians
     for shape in world.static_shapes:
         _add_shape(spec, spec.worldbody, shape)
+    held = {joint.child: joint for joint in world.joints}
+    children: dict[str, list[Body]] = {}
     for body in world.bodies:
-        b = spec.worldbody.add_body(name=body.name, pos=body.pose[:3, 3], quat=quat_wxyz(body.pose[:3, :3]))
-        b.add_freejoint(name=f"{body.name}::free")
+        parent = held[body.name].parent if body.name in held else "world"
+        children.setdefault(parent, []).append(body)
+    stack: list[tuple[mujoco.MjsBody, np.ndarray, Body]] = [
+        (spec.worldbody, np.eye(4), body) for body in reversed(children.get("world", []))]
+    while stack:
+        parent_spec, parent_pose, body = stack.pop()
+        local = np.linalg.inv(parent_pose) @ body.pose
+        b = parent_spec.add_body(name=body.name, pos=local[:3, 3], quat=quat_wxyz(local[:3, :3]))
+        if body.name in held:
+            _add_model_joint(b, held[body.name], body.pose)
+        else:
+            b.add_freejoint(name=f"{body.name}::free")
         for shape in body.shapes:
             _add_shape(spec, b, shape)
-        if body.mass is not None and body.inertia is not None:
-            ixx, ixy, ixz, iyy, iyz, izz = body.inertia
-            com = body.inertial_pose if body.inertial_pose is not None else np.eye(4)
-            b.explicitinertial = True
-            b.mass = body.mass
-            b.ipos = com[:3, 3]
-            b.iquat = quat_wxyz(com[:3, :3])
-            b.fullinertia = [ixx, iyy, izz, ixy, ixz, iyz]
-        elif body.mass is not None:
-            # Mass without inertia: scale geom densities so the link weighs what the SDF says.
-            volume_mass = sum(1000.0 * _shape_volume(s) for s in body.shapes) or 1.0
-            for geom in b.geoms:
-                geom.density = 1000.0 * body.mass / volume_mass
+        _set_inertia(b, body)
+        stack.extend((b, body.pose, child) for child in reversed(children.get(body.name, [])))
     return spec
+
+
+def _set_inertia(b: mujoco.MjsBody, body: Body) -> None:
+    """The link's mass and inertia; without an inertia matrix (``auto``), from its shapes, scaled to its mass."""
+    if body.inertia is not None:
+        ixx, ixy, ixz, iyy, iyz, izz = body.inertia
+        com = body.inertial_pose if body.inertial_pose is not None else np.eye(4)
+        b.explicitinertial = True
+        b.mass = body.mass
+        b.ipos = com[:3, 3]
+        b.iquat = quat_wxyz(com[:3, :3])
+        b.fullinertia = [ixx, iyy, izz, ixy, ixz, iyz]
+        return
+    volume_mass = sum(1000.0 * _shape_volume(s) for s in body.shapes) or 1.0
+    for geom in b.geoms:
+        geom.density = 1000.0 * body.mass / volume_mass
+
+
+def _add_model_joint(b: mujoco.MjsBody, joint: ModelJoint, body_pose: np.ndarray) -> None:
+    """``joint`` on body ``b`` (its child link, at ``body_pose`` in the world): a hinge, slide,
+    ball, two hinges, or nothing for a fixed joint."""
+    rotation = body_pose[:3, :3]
+    pos = rotation.T @ (joint.anchor - body_pose[:3, 3])
+    if joint.kind is JointKind.BALL:
+        b.add_joint(name=joint.name, type=mujoco.mjtJoint.mjJNT_BALL, pos=pos)
+        return
+    kind = mujoco.mjtJoint.mjJNT_SLIDE if joint.kind is JointKind.PRISMATIC else mujoco.mjtJoint.mjJNT_HINGE
+    for i, axis in enumerate(joint.axes):
+        j = b.add_joint(name=joint.name if i == 0 else f"{joint.name}::axis2", type=kind, pos=pos,
+                        axis=rotation.T @ axis.direction, damping=axis.damping, frictionloss=axis.friction,
+                        stiffness=axis.spring_stiffness, springref=axis.spring_reference)
+        if axis.limited and joint.kind is not JointKind.CONTINUOUS:
+            j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+            j.range = [max(axis.lower, -1e10), min(axis.upper, 1e10)]
+
+
+def add_velocity_servos(spec: mujoco.MjSpec, joints: dict[str, tuple[float, float, float]],
+                        drive: WheelDrive) -> dict[str, str]:
+    """A velocity servo on each named world joint (its (min, max) velocity in rad/s or m/s and its
+    effort limit; inf: none); returns joint → actuator name.
+
+    Raises:
+        WorldError: a name that is not a hinge or slide of the world.
+    """
+    actuators = {}
+    for name, (low, high, effort) in joints.items():
+        joint = spec.joint(name)
+        if joint is None or joint.type not in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+            raise WorldError(f"joint '{name}' to drive is not a revolute, continuous or prismatic joint of the world")
+        joint.armature = max(joint.armature, drive.armature)
+        actuator = spec.add_actuator(name=f"{name}::velocity", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        actuator.set_to_velocity(kv=drive.kv)
+        _limit_servo(actuator, low, high, effort)
+        actuators[name] = actuator.name
+    return actuators
+
+
+def _limit_servo(actuator: mujoco.MjsActuator, low: float, high: float, effort: float) -> None:
+    if math.isfinite(low) and math.isfinite(high):
+        actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        actuator.ctrlrange = [low, high]
+    if math.isfinite(effort):
+        actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        actuator.forcerange = [-effort, effort]
 
 
 def _shape_volume(shape: Shape) -> float:
@@ -192,9 +261,12 @@ def _add_robot_geom(spec: mujoco.MjSpec, body: mujoco.MjsBody, name: str, geomet
     elif geometry.kind == "sphere":
         body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[geometry.size[0], 0, 0], **common)
     else:
-        path = Path(geometry.filename.removeprefix("file://"))
+        try:
+            path, _ = resolve_uri(geometry.filename, Path.cwd(), resource_paths())
+        except UriError as exc:
+            raise SpawnError(f"robot mesh of '{name}': {exc}") from exc
         if not path.is_file():
-            raise SpawnError(f"robot mesh '{geometry.filename}' of '{name}' not found (file paths only)")
+            raise SpawnError(f"robot mesh '{geometry.filename}' of '{name}' not found (looked at {path})")
         vertices, faces = load_mesh(path, geometry.scale)
         mesh_name = f"mesh{next(_mesh_ids)}_{path.stem}"
         spec.add_mesh(name=mesh_name, uservert=vertices.ravel().tolist(), userface=faces.ravel().tolist())
@@ -221,7 +293,8 @@ def _link_body(spec: mujoco.MjSpec, body: mujoco.MjsBody, model: RobotModel, lin
         _add_robot_geom(spec, body, f"{prefix}{link_name}::collision{i}", shape.geometry, shape.origin, friction)
 
 
-def _add_joint(body: mujoco.MjsBody, joint: Joint, drive: WheelDrive, prefix: str) -> None:
+def _add_joint(body: mujoco.MjsBody, joint: Joint, drive: WheelDrive, prefix: str, degrees: bool) -> None:
+    """``joint`` on ``body``; ``degrees``: the spec reads angles in degrees (an MJCF world's default)."""
     name = f"{prefix}{joint.name}"
     if joint.type in (JointType.CONTINUOUS, JointType.REVOLUTE):
         j = body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_HINGE, axis=list(joint.axis),
@@ -231,15 +304,43 @@ def _add_joint(body: mujoco.MjsBody, joint: Joint, drive: WheelDrive, prefix: st
                            armature=drive.armature, damping=drive.damping)
     if joint.type in (JointType.REVOLUTE, JointType.PRISMATIC) and math.isfinite(joint.lower):
         j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
-        j.range = [joint.lower, joint.upper]
+        scale = math.degrees(1.0) if degrees and joint.type is JointType.REVOLUTE else 1.0
+        j.range = [joint.lower * scale, joint.upper * scale]
+
+
+def robot_servos(model: RobotModel,
+                 wheel_torques: dict[str, float] | None = None) -> dict[str, tuple[float, float, float]]:
+    """The robot's joints with a velocity servo, each with its (min, max) velocity and effort
+    limit: those of the ``<ros2_control>`` block with a velocity command interface (its min/max,
+    the URDF's effort), and the wheels of a DiffDrive plugin (``wheel_torques``: joint → the
+    plugin's torque limit; the URDF's velocity and effort limits).
+
+    Raises:
+        SpawnError: a plugin's wheel that the robot does not have.
+    """
+    servos = {}
+    for joint_name, control in model.control_joints.items():
+        if "velocity" in control.command_interfaces and joint_name in model.joints:
+            low, high = control.command_interfaces["velocity"]
+            servos[joint_name] = (low, high, model.joints[joint_name].effort_limit)
+    for joint_name, torque in (wheel_torques or {}).items():
+        joint = model.joints.get(joint_name)
+        if joint is None:
+            raise SpawnError(f"the DiffDrive plugin's wheel joint '{joint_name}' is not a joint of robot "
+                             f"'{model.name}' (joints: {', '.join(model.joints)})")
+        if joint_name not in servos:
+            servos[joint_name] = (-joint.velocity_limit, joint.velocity_limit, min(torque, joint.effort_limit))
+    return servos
 
 
 def add_robot(spec: mujoco.MjSpec, model: RobotModel, pose: SpawnPose, name: str = "ppp_bot",
-              drive: WheelDrive = WheelDrive()) -> RobotHandles:
-    """Add ``model`` to ``spec`` at ``pose``; return the names it got.
+              drive: WheelDrive = WheelDrive(),
+              servos: dict[str, tuple[float, float, float]] | None = None) -> RobotHandles:
+    """Add ``model`` to ``spec`` at ``pose``; return the names it got. ``servos``: the joints with a
+    velocity servo (default: :func:`robot_servos` of the model).
 
     Raises:
-        SpawnError: a floating or planar joint, or a bad spawn pose.
+        SpawnError: a floating or planar joint, a bad spawn pose, a servo on a joint that does not move.
     """
     pose.validate()
     spec.compiler.fusestatic = True
@@ -259,25 +360,59 @@ def add_robot(spec: mujoco.MjSpec, model: RobotModel, pose: SpawnPose, name: str
         pos, quat = _origin_pose(joint.origin)
         body = parent_body.add_body(name=f"{prefix}{joint.child}", pos=pos, quat=quat)
         if joint.type is not JointType.FIXED:
-            _add_joint(body, joint, drive, prefix)
+            _add_joint(body, joint, drive, prefix, bool(spec.compiler.degree))
             handles.moving_joints.append(joint.name)
         _link_body(spec, body, model, joint.child, handles, prefix)
         stack.extend((body, j) for j in reversed(model.children_of(joint.child)))
-    for joint_name, control in model.control_joints.items():
-        if "velocity" not in control.command_interfaces or joint_name not in handles.moving_joints:
-            continue
-        low, high = control.command_interfaces["velocity"]
+    for joint_name, (low, high, effort) in (robot_servos(model) if servos is None else servos).items():
+        if joint_name not in handles.moving_joints:
+            raise SpawnError(f"joint '{joint_name}' to drive is not a continuous, revolute or prismatic joint of "
+                             f"robot '{model.name}'")
         actuator = spec.add_actuator(name=f"{prefix}{joint_name}::velocity", target=f"{prefix}{joint_name}",
                                      trntype=mujoco.mjtTrn.mjTRN_JOINT)
         actuator.set_to_velocity(kv=drive.kv)
-        if math.isfinite(low) and math.isfinite(high):
-            actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
-            actuator.ctrlrange = [low, high]
-        effort = model.joints[joint_name].effort_limit
-        if math.isfinite(effort):
-            actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
-            actuator.forcerange = [-effort, effort]
+        _limit_servo(actuator, low, high, effort)
         handles.wheel_joints.append(joint_name)
         handles.actuators[joint_name] = actuator.name
         handles.velocity_limits[joint_name] = (low, high)
     return handles
+
+
+def rest_height(model: RobotModel) -> float:
+    """How high the root link sits when the robot, joints at zero, rests on flat ground: the depth
+    of its lowest collision point below the root (m; 0 without collision shapes).
+
+    Raises:
+        SpawnError: the robot cannot be built.
+    """
+    spec = mujoco.MjSpec()
+    add_robot(spec, model, SpawnPose(0.0, 0.0, 0.0, 0.0), "rest")
+    try:
+        compiled = spec.compile()
+    except ValueError as exc:
+        raise SpawnError(f"robot '{model.name}' cannot be built: {exc}") from exc
+    data = mujoco.MjData(compiled)
+    mujoco.mj_kinematics(compiled, data)
+    lowest = 0.0
+    G = mujoco.mjtGeom
+    for gid in range(compiled.ngeom):
+        if compiled.geom_group[gid] != ROBOT_GROUP:
+            continue
+        rotation = data.geom_xmat[gid].reshape(3, 3)
+        size, kind = compiled.geom_size[gid], int(compiled.geom_type[gid])
+        if kind == int(G.mjGEOM_SPHERE):
+            reach = size[0]
+        elif kind == int(G.mjGEOM_BOX):
+            reach = float(np.abs(rotation[2]) @ size)
+        elif kind in (int(G.mjGEOM_CYLINDER), int(G.mjGEOM_CAPSULE)):
+            along = abs(rotation[2, 2])
+            radial = size[0] if kind == int(G.mjGEOM_CAPSULE) else size[0] * math.sqrt(max(0.0, 1 - along**2))
+            reach = along * size[1] + radial
+        else:  # a mesh: its vertices
+            mesh = compiled.geom_dataid[gid]
+            start, count = compiled.mesh_vertadr[mesh], compiled.mesh_vertnum[mesh]
+            lowest = min(lowest, float((compiled.mesh_vert[start:start + count] @ rotation.T)[:, 2].min()
+                                       + data.geom_xpos[gid][2]))
+            continue
+        lowest = min(lowest, float(data.geom_xpos[gid][2] - reach))
+    return round(-lowest, 6)  # to the micrometre: what the sums of the description give, without their noise

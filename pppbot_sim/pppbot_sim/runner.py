@@ -42,6 +42,14 @@ class ControlTick:
 
 
 @dataclass(frozen=True)
+class PluginTick:
+    """A Gazebo DiffDrive plugin's update is due (its index in ``Simulation.diff_drives``)."""
+
+    stamp_s: float
+    index: int
+
+
+@dataclass(frozen=True)
 class JointStatesReading:
     stamp_s: float
     state: WheelState
@@ -73,13 +81,13 @@ class CollisionReading:
     collision: Collision
 
 
-Reading = (ClockTick | ControlTick | JointStatesReading | GroundTruthReading | LidarReading | ImuReadingAt
+Reading = (ClockTick | ControlTick | PluginTick | JointStatesReading | GroundTruthReading | LidarReading | ImuReadingAt
            | CollisionReading)
 
 #: Readings at one instant go out in this order: controllers first (their odometry at a scan's
 #: time is then out before the scan), then the rest.
-_ORDER = {EventKind.CONTROL: 0, EventKind.CLOCK: 1, EventKind.JOINT_STATES: 2, EventKind.GROUND_TRUTH: 3,
-          EventKind.IMU: 4, EventKind.LIDAR: 5}
+_ORDER = {EventKind.CONTROL: 0, EventKind.PLUGIN: 0, EventKind.CLOCK: 1, EventKind.JOINT_STATES: 2,
+          EventKind.GROUND_TRUTH: 3, EventKind.IMU: 4, EventKind.LIDAR: 5}
 
 
 class PhysicsRunner:
@@ -144,19 +152,16 @@ class PhysicsRunner:
 
     def reading(self, event: Event) -> Reading:
         """The reading of ``event`` now."""
-        sim, now = self.sim, self.sim.time_s
-        kind = event.kind
-        if kind is EventKind.LIDAR:
-            return LidarReading(now, event.index, sim.lidar_scan(event.index))
-        if kind is EventKind.IMU:
-            return ImuReadingAt(now, event.index, sim.imu_sample(event.index))
-        if kind is EventKind.JOINT_STATES:
-            return JointStatesReading(now, sim.wheel_state())
-        if kind is EventKind.GROUND_TRUTH:
-            return GroundTruthReading(now, sim.ground_truth())
-        if kind is EventKind.CONTROL:
-            return ControlTick(now)
-        return ClockTick(now)
+        sim, now, i = self.sim, self.sim.time_s, event.index
+        make: dict[EventKind, Callable[[], Reading]] = {
+            EventKind.LIDAR: lambda: LidarReading(now, i, sim.lidar_scan(i)),
+            EventKind.IMU: lambda: ImuReadingAt(now, i, sim.imu_sample(i)),
+            EventKind.JOINT_STATES: lambda: JointStatesReading(now, sim.wheel_state()),
+            EventKind.GROUND_TRUTH: lambda: GroundTruthReading(now, sim.ground_truth()),
+            EventKind.CONTROL: lambda: ControlTick(now),
+            EventKind.PLUGIN: lambda: PluginTick(now, i),
+        }
+        return make.get(event.kind, lambda: ClockTick(now))()
 
 
 class Pacer:

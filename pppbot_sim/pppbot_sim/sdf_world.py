@@ -14,9 +14,14 @@ the identity in its frame. Poses compose
 world ∘ model ∘ nested model ∘ link ∘ collision, each ``x y z roll pitch yaw``
 (fixed axes, as Gazebo) or ``degrees="true"``.
 
-``<gui>``, ``<plugin>`` and ``<light>`` are skipped and summed up in one info
-line; other elements that carry no collision (visuals, scene, ...) are known and
-ignored; anything else is reported by name and line in ``World.warnings``.
+Links of models that are not static are bodies with their ``<inertial>`` (SDF's defaults
+where it says nothing: 1 kg, inertia 1 kg·m² about each axis, as Gazebo takes them;
+``<inertial auto="true">`` from the collisions at 1000 kg/m³, scaled to its ``<mass>``).
+Their ``<joint>`` elements join them (:mod:`pppbot_sim.sdf_joints`); a link that no joint holds
+is free. A model's ``<plugin>`` elements are kept for the simulator (Gazebo's DiffDrive);
+world ``<plugin>`` elements (Gazebo's system plugins), ``<gui>`` and ``<light>`` are skipped
+and summed up in one info line; other elements that carry no collision (visuals, scene,
+...) are known and ignored; anything else is reported by name and line in ``World.warnings``.
 """
 from __future__ import annotations
 
@@ -35,6 +40,7 @@ from transforms3d.quaternions import quat2mat
 from pppbot_description.kinematics import rpy_matrix
 from pppbot_sim.errors import WorldError
 from pppbot_sim.sdf_frames import FrameGraph
+from pppbot_sim.sdf_joints import JointKind, ModelJoint, joint_kind, read_axis
 from pppbot_sim.uris import UriError, fuel_caches, resolve_uri
 
 SKIPPED = {"gui", "plugin", "light"}
@@ -62,18 +68,38 @@ class Shape:
     friction: float | None = None
 
 
+#: SDF's inertial where a link has none: 1 kg, 1 kg·m² about each axis (what Gazebo simulates).
+DEFAULT_MASS_KG = 1.0
+DEFAULT_INERTIA = (1.0, 0.0, 0.0, 1.0, 0.0, 1.0)
+
+
 @dataclass
 class Body:
-    """A link of a model that is not static: a free body in the simulation."""
+    """A link of a model that is not static: a body in the simulation, free unless a joint holds it."""
 
     name: str
     pose: np.ndarray
     shapes: list[Shape]
-    mass: float | None = None
-    #: ixx, ixy, ixz, iyy, iyz, izz about the centre of mass, when the SDF gives them
-    inertia: tuple[float, float, float, float, float, float] | None = None
+    mass: float = DEFAULT_MASS_KG
+    #: ixx, ixy, ixz, iyy, iyz, izz about the centre of mass; None: from the shapes (``auto``)
+    inertia: tuple[float, float, float, float, float, float] | None = DEFAULT_INERTIA
     #: centre of mass pose in the link frame (4×4)
     inertial_pose: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class ModelPlugin:
+    """A ``<plugin>`` of a model, kept for the simulator; ``canonical_link`` is the model's first
+    link (or its ``canonical_link``), unscoped."""
+
+    model: str
+    element: etree._Element
+    file: Path
+    canonical_link: str
+
+    def where(self, element: etree._Element | None = None) -> str:
+        line = (element if element is not None else self.element).sourceline
+        return f"{self.file}:{line}"
 
 
 @dataclass(frozen=True)
@@ -94,6 +120,8 @@ class World:
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     static_shapes: list[Shape] = field(default_factory=list)
     bodies: list[Body] = field(default_factory=list)
+    joints: list[ModelJoint] = field(default_factory=list)
+    plugins: list[ModelPlugin] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     skipped: Counter[str] = field(default_factory=Counter)
 
@@ -137,6 +165,9 @@ class _Reader:
         self.search = search
         self.world = World(name=source.stem, source=source)
         self.including: list[str] = []
+        self.link_poses: dict[str, np.ndarray] = {}  # every link's world pose, by scoped name
+        self.static_links: set[str] = set()
+        self.canonical: dict[str, str] = {}  # model → its canonical link, scoped names
 
     # ---------------------------------------------------------------- helpers
     def fail(self, element: etree._Element | None, message: str, file: Path | None = None) -> WorldError:
@@ -195,11 +226,11 @@ class _Reader:
 
     def note_unknown(self, element: etree._Element, allowed: set[str], file: Path) -> None:
         for child in element:
-            if not isinstance(child.tag, str):
+            if not isinstance(child.tag, str) or child.tag in allowed:
                 continue
             if child.tag in SKIPPED:
                 self.world.skipped[child.tag] += 1
-            elif child.tag not in allowed and child.tag not in IGNORED:
+            elif child.tag not in IGNORED:
                 self.warn(child, f"unsupported element <{child.tag}> in <{element.tag}> ignored", file)
 
     # --------------------------------------------------------------- resolving
@@ -248,6 +279,9 @@ class _Reader:
         models = self.scope_models(world_el, self.source, graph, "world")
         for model in models:
             self.read_model(model, graph.resolve(model.name), prefix="")
+        # A free link with nothing to collide would only fall for ever.
+        kept = {j.child for j in self.world.joints} | {j.parent for j in self.world.joints}
+        self.world.bodies = [b for b in self.world.bodies if b.shapes or b.name in kept]
         return self.world
 
     def scope_models(self, scope: etree._Element, file: Path, graph: FrameGraph, root: str) -> list[ScopedModel]:
@@ -313,7 +347,8 @@ class _Reader:
         raise self.fail(element, f"model directory {directory} has no model.config or model.sdf", file)
 
     def read_model(self, scoped: ScopedModel, pose: np.ndarray, prefix: str, parent_static: bool = False) -> None:
-        """A model whose frame is at ``pose`` in the world: its frames, links and nested models."""
+        """A model whose frame is at ``pose`` in the world: its frames, links, nested models, joints
+        and plugins."""
         model, file = scoped.element, scoped.file
         full = f"{prefix}{scoped.name}"
         static = scoped.static
@@ -321,15 +356,14 @@ class _Reader:
             static_el = model.find("static")
             static = parent_static or (static_el is not None and (static_el.text or "").strip() in ("1", "true"))
         self.including.append(str(file))
-        self.note_unknown(model, {"link", "model", "include", "joint", "static", "pose", "frame"}, file)
+        self.note_unknown(model, {"link", "model", "include", "joint", "static", "pose", "frame", "plugin"}, file)
         graph = FrameGraph("__model__", f"model '{full}'")
         links = [child for child in model if child.tag == "link"]
         for link in links:
             relative, link_pose = self.placed_pose(link, file)
             graph.add(self.frame_name(link, file), relative or "__model__", link_pose, file, link.sourceline)
-        for joint in model.findall("joint"):
-            self.warn(joint, f"joint '{joint.get('name')}' of model '{full}' ignored: model joints are "
-                             "not simulated (links move independently)", file)
+        joints = model.findall("joint")
+        for joint in joints:
             child_el = joint.find("child")
             relative, joint_pose = self.placed_pose(joint, file)
             default = (child_el.text or "").strip() if child_el is not None else "__model__"
@@ -339,7 +373,81 @@ class _Reader:
             self.read_link(link, pose, graph, file, full, static)
         for child in nested:
             self.read_model(child, pose @ graph.resolve(child.name), f"{full}::", static)
+        canonical = model.get("canonical_link") or (links[0].get("name") if links else None)
+        if canonical is not None:
+            self.canonical[full] = f"{full}::{canonical}"
+        elif nested and f"{full}::{nested[0].name}" in self.canonical:
+            self.canonical[full] = self.canonical[f"{full}::{nested[0].name}"]
+        if not static:
+            for joint in joints:
+                self.read_joint(joint, file, full, pose, graph)
+        for plugin in model.findall("plugin"):
+            link = self.canonical.get(full, f"{full}::").removeprefix(f"{full}::")
+            self.world.plugins.append(ModelPlugin(full, plugin, file, link))
         self.including.pop()
+
+    def joint_end(self, joint: etree._Element, tag: str, file: Path, model: str) -> str:
+        """A joint's ``<parent>``/``<child>`` as a scoped link name, or ``world``."""
+        element = joint.find(tag)
+        name = (element.text or "").strip() if element is not None else ""
+        if not name:
+            raise self.fail(joint, f"joint '{joint.get('name')}' needs a <{tag}>", file)
+        if name == "world":
+            return name
+        scoped = f"{model}::{name}"
+        if scoped in self.link_poses:
+            return scoped
+        if scoped in self.canonical:  # a nested model: its canonical link
+            return self.canonical[scoped]
+        links = sorted(n.removeprefix(f"{model}::") for n in self.link_poses if n.startswith(f"{model}::"))
+        raise self.fail(element, f"joint '{joint.get('name')}' of model '{model}': no link '{name}' "
+                                 f"(links: {', '.join(links) or 'none'}, or world)", file)
+
+    def read_joint(self, joint: etree._Element, file: Path, model: str, model_pose: np.ndarray,
+                   graph: FrameGraph) -> None:
+        """A joint of a model that is not static, as a :class:`ModelJoint` in world coordinates."""
+        name = f"{model}::{joint.get('name')}"
+        kind = joint_kind(joint, self, file)
+        parent, child = self.joint_end(joint, "parent", file, model), self.joint_end(joint, "child", file, model)
+        where = f"{file}:{joint.sourceline}"
+        if kind is None:
+            self.warn(joint, f"joint '{name}' of type {joint.get('type')} is not simulated: its child link "
+                             f"'{child}' is held fixed to '{parent}'", file)
+            kind = JointKind.FIXED
+        if child in self.static_links:
+            return  # a static link does not move, whatever holds it
+        if parent in self.static_links:
+            parent = "world"
+        if child == parent:
+            raise self.fail(joint, f"joint '{name}' joins link '{child}' to itself", file)
+        held = {j.child: j for j in self.world.joints}
+        if child in held:
+            self.warn(joint, f"joint '{name}' ignored: link '{child}' is already the child of joint "
+                             f"'{held[child].name}' (kinematic loops are not simulated)", file)
+            return
+        up = parent
+        while up in held:
+            up = held[up].parent
+            if up == child:
+                self.warn(joint, f"joint '{name}' ignored: it would close a kinematic loop through '{child}' "
+                                 "(loops are not simulated)", file)
+                return
+        relative, raw = self.placed_pose(joint, file)
+        frame = model_pose @ graph.resolve(joint.get("name", ""), f"{where}: ") if relative \
+            else self.link_poses[child] @ raw
+        axes = []
+        for tag in ("axis", "axis2")[:kind.axis_count]:
+            element = joint.find(tag)
+            rotation = frame[:3, :3]
+            xyz = element.find("xyz") if element is not None else None
+            expressed = xyz.get("expressed_in") if xyz is not None else None
+            legacy = element is not None and (element.findtext("use_parent_model_frame") or "").strip() in ("1", "true")
+            if expressed == "__model__" or (expressed is None and legacy):
+                rotation = model_pose[:3, :3]
+            elif expressed and xyz is not None:
+                rotation = (model_pose @ graph.resolve(expressed, f"{file}:{xyz.sourceline}: "))[:3, :3]
+            axes.append(read_axis(element, rotation, self, file, name))
+        self.world.joints.append(ModelJoint(name, kind, parent, child, frame[:3, 3].copy(), tuple(axes), where))
 
     def read_link(self, link: etree._Element, model_pose: np.ndarray, graph: FrameGraph, file: Path,
                   model: str, static: bool) -> None:
@@ -360,28 +468,32 @@ class _Reader:
                 asked = f"{file}:{collision.sourceline}: "
                 in_link = np.linalg.inv(in_model) @ graph.resolve(relative, asked) @ raw
             shapes.append(self.read_collision(collision, file, name, in_link))
+        self.link_poses[name] = pose
         if static:
+            self.static_links.add(name)
             for s in shapes:
                 self.world.static_shapes.append(Shape(s.name, s.kind, s.size, pose @ s.pose, s.mesh,
                                                       s.scale, s.friction))
             return
-        mass = inertia = inertial_pose = None
+        body = Body(name, pose, shapes)
         inertial = link.find("inertial")
-        if inertial is not None and inertial.find("mass") is not None:
-            mass = self.number(inertial, "mass", None, file)
-            if mass <= 0:
-                raise self.fail(inertial.find("mass"), f"link '{name}' has mass {mass}; it must be positive", file)
-            inertial_pose = self.pose(inertial, file)
+        if inertial is not None:
+            body.mass = self.number(inertial, "mass", DEFAULT_MASS_KG, file)
+            if body.mass <= 0:
+                raise self.fail(inertial.find("mass"), f"link '{name}' has mass {body.mass}; it must be positive", file)
+            body.inertial_pose = self.pose(inertial, file)
             matrix = inertial.find("inertia")
-            if matrix is not None:
-                values = tuple(self.number(matrix, k, 0.0, file) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"))
+            if inertial.get("auto") in ("true", "1"):
+                body.inertia = None
+            elif matrix is not None:
+                values = tuple(self.number(matrix, k, 1.0 if k in ("ixx", "iyy", "izz") else 0.0, file)
+                               for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"))
                 full = np.array([[values[0], values[1], values[2]], [values[1], values[3], values[4]],
                                  [values[2], values[4], values[5]]])
                 if np.linalg.eigvalsh(full).min() <= 0:
                     raise self.fail(matrix, f"link '{name}': the inertia matrix must be positive definite", file)
-                inertia = (values[0], values[1], values[2], values[3], values[4], values[5])
-        if shapes:
-            self.world.bodies.append(Body(name, pose, shapes, mass, inertia, inertial_pose))
+                body.inertia = (values[0], values[1], values[2], values[3], values[4], values[5])
+        self.world.bodies.append(body)
 
     def read_collision(self, collision: etree._Element, file: Path, link: str, pose: np.ndarray) -> Shape:
         name = f"{link}::{collision.get('name', 'collision')}"

@@ -9,7 +9,7 @@ from __future__ import annotations
 import enum
 import logging
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,17 +18,21 @@ import numpy as np
 
 from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_description.urdf_model import RobotModel, Sensor
-from pppbot_sim.errors import SimulationDiverged, SpawnError, WorldError
+from pppbot_sim.errors import PluginError, SimulationDiverged, SpawnError, WorldError
+from pppbot_sim.gz_plugins import DiffDriveSpec, Plugins, robot_plugins, world_plugins
 from pppbot_sim.mj_build import (
     ROBOT_GROUP,
     RobotHandles,
     SpawnPose,
     WheelDrive,
     add_robot,
+    add_velocity_servos,
     mjcf_world_spec,
+    robot_servos,
     rpy_quat_wxyz,
     world_spec,
 )
+from pppbot_sim.sdf_joints import JointKind
 from pppbot_sim.sdf_world import World, read_sdf_world
 from pppbot_sim.sensors import Imu, ImuReading, ImuSpec, Lidar, LidarSpec, finalize_ranges, sensor_specs
 from pppbot_sim.wheel_slip import SlipModel, WheelSlip
@@ -56,6 +60,7 @@ class EventKind(enum.Enum):
     JOINT_STATES = "joint_states"
     GROUND_TRUTH = "ground_truth"
     CONTROL = "control"  # a controller hosted in the simulator's process (gz_ros2_control's update)
+    PLUGIN = "plugin"  # a Gazebo DiffDrive plugin's update (its index in Simulation.diff_drives)
     LIDAR = "lidar"
     IMU = "imu"
 
@@ -68,7 +73,8 @@ class Event:
     index: int = 0
 
     def __str__(self) -> str:
-        return f"{self.kind.value}{self.index if self.kind in (EventKind.LIDAR, EventKind.IMU) else ''}"
+        indexed = (EventKind.LIDAR, EventKind.IMU, EventKind.PLUGIN)
+        return f"{self.kind.value}{self.index if self.kind in indexed else ''}"
 
 
 @dataclass
@@ -185,10 +191,25 @@ class Simulation:
 
     def __init__(self, spec: mujoco.MjSpec, robot: RobotModel, spawn: SpawnPose = SpawnPose(),
                  name: str = "ppp_bot", seed: int = 0, drive: WheelDrive = WheelDrive(),
-                 slip: SlipModel = SlipModel()) -> None:
+                 slip: SlipModel = SlipModel(), world: World | None = None) -> None:
+        """``spec``: the world (:func:`load_world`), ``world`` its SDF data when it has one (its
+        models' joints and plugins).
+
+        Raises:
+            SpawnError: the robot cannot be built into the world.
+            PluginError: a DiffDrive plugin that cannot work as written.
+        """
         route_mujoco_warnings()
         self.spawn = spawn
-        self.handles: RobotHandles = add_robot(spec, robot, spawn, name, drive)
+        on_robot = robot_plugins(robot.plugins, robot.name, robot.root)
+        on_world = world_plugins(world.plugins) if world is not None else Plugins([], [])
+        #: the Gazebo DiffDrive plugins of the robot and the world's models, in that order
+        self.diff_drives: list[DiffDriveSpec] = [*on_robot.diff_drives, *on_world.diff_drives]
+        self.plugin_warnings = [*on_robot.warnings, *on_world.warnings]
+        torques = {joint: d.max_wheel_torque for d in on_robot.diff_drives for joint in d.joints}
+        self.handles: RobotHandles = add_robot(spec, robot, spawn, name, drive, robot_servos(robot, torques))
+        world_servos = _world_servos(world, on_world.diff_drives) if world is not None else {}
+        world_actuators = add_velocity_servos(spec, world_servos, drive)
         lidar_specs, imu_specs, self.unsimulated_sensors = sensor_specs(list(robot.sensors))
         sensor_sites = {s.name: self._add_sensor_site(spec, name, s.name, s.link, s.pose) for s in lidar_specs}
         sensor_sites.update({s.name: self._add_sensor_site(spec, name, s.name, s.link, s.pose) for s in imu_specs})
@@ -209,6 +230,8 @@ class Simulation:
             self.schedule.add(Event(EventKind.LIDAR, i), lidar.spec.rate_hz)
         for i, imu in enumerate(self.imus):
             self.schedule.add(Event(EventKind.IMU, i), imu.spec.rate_hz)
+        for i, diff_drive in enumerate(self.diff_drives):
+            self.schedule.add(Event(EventKind.PLUGIN, i), diff_drive.update_rate_hz)
         prefix = f"{name}/"
         self._root_body = self.model.body(self.handles.root_body).id
         free = self.model.joint(self.handles.free_joint)
@@ -219,6 +242,11 @@ class Simulation:
         self._joint_qpos = np.array([int(j.qposadr[0]) for j in joints], dtype=int)
         self._joint_qvel = np.array([int(j.dofadr[0]) for j in joints], dtype=int)
         self._actuator = {j: self.model.actuator(a).id for j, a in self.handles.actuators.items()}
+        self._velocity_limits = dict(self.handles.velocity_limits)
+        for joint, actuator in world_actuators.items():
+            self._actuator[joint] = self.model.actuator(actuator).id
+            self._velocity_limits[joint] = world_servos[joint][:2]
+        self._world_joint_qpos = {j: int(self.model.joint(j).qposadr[0]) for j in world_actuators}
         self._effort_index = np.array([self._actuator.get(j, -1) for j in self.joint_names], dtype=int)
         wheels = np.array([j in self.handles.wheel_joints for j in self.joint_names], dtype=bool)
         # Its own generator: slip does not change the sensor noise of a seed.
@@ -342,7 +370,7 @@ class Simulation:
         if bad:
             raise ValueError(f"non-finite velocity command: {', '.join(bad)}")
         for name, value in commands.items():
-            low, high = self.handles.velocity_limits[name]
+            low, high = self._velocity_limits[name]
             self._ctrl[self._actuator[name]] = min(max(value, low), high)
 
     def stop_wheels(self) -> None:
@@ -361,6 +389,40 @@ class Simulation:
         state = WheelState(list(self.joint_names), positions, velocities, efforts)
         self._wheel_state = (float(self.data.time), state)
         return state
+
+    def joint_positions(self, names: Sequence[str]) -> list[float]:
+        """Positions (rad or m) of driven joints: the robot's wheels as their encoders report them
+        (:meth:`wheel_state`), a world model's joints (``model::joint``) as they are.
+
+        Raises:
+            KeyError: a name that is not a driven joint.
+        """
+        state: WheelState | None = None
+        positions = []
+        for name in names:
+            if name in self._world_joint_qpos:
+                positions.append(float(self._qpos[self._world_joint_qpos[name]]))
+                continue
+            if name not in self._actuator:
+                raise KeyError(f"not a driven joint: {name}")
+            state = state or self.wheel_state()
+            positions.append(float(state.positions[state.names.index(name)]))
+        return positions
+
+    def planar_state(self, body: str = "") -> tuple[float, float, float, float, float]:
+        """(x, y, yaw, forward speed, yaw rate) of a world body (``model::link``) in the world, or
+        of the robot's root with ``body`` empty (m, rad, m/s, rad/s)."""
+        if not body:
+            truth = self.ground_truth()
+            return (float(truth.position[0]), float(truth.position[1]), truth.yaw,
+                    float(truth.linear_velocity[0]), float(truth.angular_velocity[2]))
+        index = self.model.body(body).id
+        rotation = self.data.xmat[index].reshape(3, 3)
+        velocity = np.zeros(6)  # angular, then linear, in the world frame
+        mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, index, velocity, 0)
+        x, y = self.data.xpos[index][:2]
+        return (float(x), float(y), math.atan2(rotation[1, 0], rotation[0, 0]),
+                float((rotation.T @ velocity[3:])[0]), float(velocity[2]))
 
     # --------------------------------------------------------------- readings
     def ground_truth(self) -> GroundTruth:
@@ -405,6 +467,26 @@ class Simulation:
         self._wheel_state = None
         self._last_contact_s = -math.inf
         mujoco.mj_forward(self.model, self.data)
+
+
+def _world_servos(world: World, diff_drives: Sequence[DiffDriveSpec]) -> dict[str, tuple[float, float, float]]:
+    """The world joints the DiffDrive plugins drive: (min, max) velocity and effort from each joint's
+    ``<limit>``.
+
+    Raises:
+        PluginError: a wheel that is not a revolute or continuous joint of the world.
+    """
+    joints = {joint.name: joint for joint in world.joints}
+    servos = {}
+    for diff_drive in diff_drives:
+        for name in diff_drive.joints:
+            joint = joints.get(name)
+            if joint is None or joint.kind not in (JointKind.REVOLUTE, JointKind.CONTINUOUS):
+                raise PluginError(f"{diff_drive.where}: the DiffDrive plugin's wheel '{name}' is not a revolute or "
+                                  f"continuous joint of model '{diff_drive.model}'")
+            axis = joint.axes[0]
+            servos[name] = (-axis.velocity, axis.velocity, axis.effort)
+    return servos
 
 
 def unsimulated_summary(sensors: list[Sensor]) -> str:

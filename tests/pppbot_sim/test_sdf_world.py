@@ -78,18 +78,18 @@ def test_collada_mesh_reaches_mujoco_with_its_size(world, placed_vertices):
     np.testing.assert_allclose(world_vertices.max(axis=0)[2], 0.7, atol=1e-6)
 
 
-def test_dynamic_model_becomes_a_free_body_with_its_mass(world):
+def test_dynamic_link_held_by_a_fixed_joint_to_the_world_is_welded_there(world):
     (body,) = world.bodies
     assert body.name == "loose::box" and body.mass == 2.0
     model = world_spec(world).compile()
-    assert model.body("loose::box").mass[0] == pytest.approx(2.0)
-    assert model.jnt_type[model.joint("loose::box::free").id] == mujoco.mjtJoint.mjJNT_FREE
+    box = model.body("loose::box").id
+    assert model.body_mass[box] == pytest.approx(2.0)
+    assert model.body_parentid[box] == 0 and model.body_jntnum[box] == 0 and model.njnt == 0
 
 
 def test_skipped_and_unsupported_elements_are_reported(world):
     assert world.skipped_summary() == "skipped gui, light, plugin ×2"
     assert any("unsupported element <actor> in <world>" in w and "features.sdf:" in w for w in world.warnings)
-    assert any("joint 'fixed_to_world'" in w for w in world.warnings)
     # elements that change physics are named, not silently dropped
     assert any("unsupported element <kinematic> in <link>" in w for w in world.warnings)
     assert any("unsupported element <self_collide> in <link>" in w for w in world.warnings)
@@ -108,6 +108,7 @@ def test_free_link_with_full_inertia(tmp_path):
     assert body.mass[0] == pytest.approx(3.0)
     np.testing.assert_allclose(sorted(body.inertia), [0.1, 0.2, 0.3])
     np.testing.assert_allclose(body.ipos, [0.1, 0.0, 0.0])
+    assert model.jnt_type[model.joint("m::l::free").id] == mujoco.mjtJoint.mjJNT_FREE  # no joint holds it
     (tmp_path / "bad.sdf").write_text(world_text("""
         <model name="m"><link name="l"><inertial><mass>1</mass><inertia><ixx>-1</ixx><iyy>1</iyy><izz>1</izz>
         </inertia></inertial><collision name="c"><geometry><sphere><radius>0.2</radius></sphere></geometry>

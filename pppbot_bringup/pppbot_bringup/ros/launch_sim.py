@@ -19,15 +19,15 @@ from typing import Any
 
 from pppbot_viz.errors import VizError
 
-from pppbot_bringup.launch_sim import ARGUMENTS, LaunchArgs, VizPlan, controllers_file, plan
-from pppbot_bringup.paths import checkout_root, log_root
+from pppbot_bringup.launch_sim import ARGUMENTS, LaunchArgs, VizPlan, controllers_file, plan, twist_mux_inputs
+from pppbot_bringup.paths import checkout_root, config_directory, log_root
+from pppbot_bringup.robot import load_description, robot_facts
 from pppbot_bringup.ros.graph_probe import GraphProbe
 from pppbot_bringup.run import RunError, find_executable
 from pppbot_bringup.supervisor import Output, Supervisor
 from pppbot_common.launch_args import ArgumentError, describe
 from pppbot_description.errors import DescriptionError
-from pppbot_description.xacro_model import process_xacro
-from pppbot_sim.errors import WorldError
+from pppbot_sim.errors import SpawnError, WorldError
 from pppbot_sim.worlds import find_world
 from pppbot_viz import viewer
 
@@ -60,12 +60,13 @@ def run(argv: Sequence[str]) -> int:
         args = LaunchArgs.parse(argv)
         sigint_timeout_s, sigterm_timeout_s = args.stop_timeouts()
         world_file = find_world(args.world)
-        urdf = process_xacro(mappings={"controllers_file": str(controllers_file())})
+        urdf, urdf_source = load_description(args.description, args.xacro_args, controllers_file())
+        robot = robot_facts(urdf, urdf_source, twist_mux_inputs(config_directory() / "twist_mux.yaml"))
         run_dir = log_root() / time.strftime("%Y-%m-%d-%H-%M-%S")
         urdf_file = run_dir / "robot.urdf"
         viz, viz_notes = viz_plan(args) if args.use_viz else (None, [])
         probe = GraphProbe()
-    except (ArgumentError, WorldError, DescriptionError, RunError, VizError, OSError) as exc:
+    except (ArgumentError, WorldError, SpawnError, DescriptionError, RunError, VizError, OSError) as exc:
         print(f"launch_sim: {exc}", file=sys.stderr)
         return 2
     os.environ["PYTHONUNBUFFERED"] = "1"  # children's print() reaches the log as it happens
@@ -74,12 +75,14 @@ def run(argv: Sequence[str]) -> int:
             the_plan = plan(args, world_file, urdf_file,
                             lambda pkg, exe: str(find_executable(pkg, exe)),
                             probe,
-                            terminal and args.use_teleop, shutil.which("rviz2"), viz=viz)
+                            terminal and args.use_teleop, shutil.which("rviz2"), viz=viz, robot=robot)
         except (ArgumentError, RunError) as exc:
             print(f"launch_sim: {exc}", file=sys.stderr)
             return 2
         run_dir.mkdir(parents=True, exist_ok=True)
         urdf_file.write_text(urdf)
+        for path, text in the_plan.files.items():
+            path.write_text(text)
         teleop_owns_terminal = any(n.terminal for n in the_plan.nodes)
         output = Output(sys.stdout, log_dir=run_dir if teleop_owns_terminal else None)
         output.event("INFO", "launch", f"log directory: {run_dir}")
@@ -98,7 +101,7 @@ def run(argv: Sequence[str]) -> int:
                 announced = True
                 probe.close()  # its subscriptions are not needed any more
                 drive = "the teleop keys" if teleop_owns_terminal else "./pppbot teleop (in another terminal)"
-                output.event("INFO", "launch", f"ppp_bot is up in '{world_file.stem}': drive with {drive}; "
+                output.event("INFO", "launch", f"{robot.name} is up in '{world_file.stem}': drive with {drive}; "
                                                "Ctrl-C stops everything")
                 for line in the_plan.info:
                     output.event("INFO", "launch", line)

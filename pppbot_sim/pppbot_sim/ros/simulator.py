@@ -42,10 +42,12 @@ from pppbot_control.ros.diff_drive_controller import DiffDriveController
 from pppbot_description.errors import DescriptionError
 from pppbot_description.urdf_model import parse_urdf
 from pppbot_description.xacro_model import read_robot_description
+from pppbot_sim.controllers import controllers_file, read_plan
 from pppbot_sim.errors import SpawnError, WorldError
 from pppbot_sim.mj_build import SpawnPose
 from pppbot_sim.ros.coordinator import Coordinator
-from pppbot_sim.ros.hosted import SimWheels, controller_arguments, controllers_file, drive_clock, read_plan
+from pppbot_sim.ros.gz_diff_drive import host_diff_drives
+from pppbot_sim.ros.hosted import SimWheels, controller_arguments, drive_clock
 from pppbot_sim.runner import (
     ClockTick,
     CollisionReading,
@@ -56,6 +58,7 @@ from pppbot_sim.runner import (
     LidarReading,
     Pacer,
     PhysicsRunner,
+    PluginTick,
     Reading,
 )
 from pppbot_sim.sdf_world import World
@@ -75,6 +78,8 @@ class SimulatorParameters:
     world: str = param("empty", "world name (worlds/<name>.sdf) or path to an SDF or MJCF file")
     robot_description: str = param("", "URDF XML, or a .urdf/.xacro path; empty = ppp_bot's robot.urdf.xacro")
     robot_name: str = param("ppp_bot", "name of the spawned robot")
+    cmd_vel_topic: str = param("", "the topic the robot's Gazebo DiffDrive plugin listens on instead of its <topic> "
+                                   "(what a ros_gz_bridge remapping does); empty: the plugin's own")
     x: float = param(0.0, "spawn x (m)")
     y: float = param(0.0, "spawn y (m)")
     z: float = param(0.05, "spawn z of the robot's root link (m); ppp_bot rests at 0.05")
@@ -137,7 +142,7 @@ class Simulator(Node):
         urdf, urdf_source = read_robot_description(p.robot_description)
         robot = parse_urdf(urdf, urdf_source)
         self.sim = Simulation(spec, robot, SpawnPose(p.x, p.y, p.z, p.yaw), p.robot_name, p.seed,
-                              slip=SlipModel(p.wheel_slip, p.wheel_slip_correlation))
+                              slip=SlipModel(p.wheel_slip, p.wheel_slip_correlation), world=world)
         self.root_frame = robot.root
         self._report_world(world_file, world)
 
@@ -179,6 +184,14 @@ class Simulator(Node):
             count_deliveries(self, self._commands_sub)  # an external controller's wheel commands
         self.controllers = self._host_controllers(robot)
         self.composed_nodes = list(self.controllers)
+        self.diff_drives = host_diff_drives(self, self.sim, p.cmd_vel_topic, self.runner.command)
+        for hosted in self.diff_drives:
+            d = hosted.spec
+            self.get_logger().info(
+                f"DiffDrive plugin of '{d.model}' ({d.where}): {hosted.topic} → wheels "
+                f"{', '.join(d.joints)}; odometry {d.frame_id} → {d.child_frame_id} "
+                + ", ".join(f"on {t}" for t in (d.odom_topic if d.publish_odom else None, d.tf_topic) if t)
+                + f" at {d.odom_rate_hz:g} Hz")
         on_valid_update(self, lambda: self.params, self._apply)
 
     def _host_controllers(self, robot: Any) -> list[DiffDriveController]:
@@ -208,7 +221,7 @@ class Simulator(Node):
 
     def _apply(self, params: SimulatorParameters) -> None:
         """Runtime updates: real_time_factor, command_timeout, step_count take effect now."""
-        fixed = ("world", "robot_description", "robot_name", "x", "y", "z", "yaw", "seed",
+        fixed = ("world", "robot_description", "robot_name", "cmd_vel_topic", "x", "y", "z", "yaw", "seed",
                  "wheel_slip", "wheel_slip_correlation", "lockstep", "lockstep_participants",
                  "joint_states_rate", "ground_truth_rate", "clock_rate")
         changed = [n for n in fixed if getattr(params, n) != getattr(self.params, n)]
@@ -275,8 +288,9 @@ class Simulator(Node):
                      + (f"; {summary}" if summary else ""))
             for warning in world.warnings:
                 log.warning(warning)
-        else:
-            log.info(f"MJCF world from {world_file}, step {self.sim.step_s * 1000:g} ms")
+        for warning in self.sim.plugin_warnings:
+            log.warning(warning)
+        log.info(f"MJCF world from {world_file}, step {self.sim.step_s * 1000:g} ms")
         p = self.params
         log.info(f"robot '{p.robot_name}' spawned at x={p.x} y={p.y} z={p.z} yaw={p.yaw}; driven joints: "
                  f"{', '.join(self.sim.handles.wheel_joints) or 'none'}")
@@ -317,6 +331,9 @@ class Simulator(Node):
 
     def _reset(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
         at = self.runner.reset_robot()
+        for hosted in self.diff_drives:
+            if not hosted.spec.body:  # the robot's plugin: its odometry starts over with it
+                hosted.reset()
         self.get_logger().info(f"robot reset to its spawn pose at t = {at:.3f} s")
         return response
 
@@ -336,6 +353,8 @@ class Simulator(Node):
                 self._published_since_sync = True
             if isinstance(r, ControlTick):
                 self._update_controllers()
+            elif isinstance(r, PluginTick):
+                self.diff_drives[r.index].update(r.stamp_s, self.sim.time_ns)
             elif isinstance(r, ClockTick):
                 self._publish_clock()
             elif isinstance(r, JointStatesReading):
