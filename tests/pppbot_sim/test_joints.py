@@ -169,6 +169,7 @@ def test_unsimulated_joints_and_loops_are_named_once(tmp_path: Path) -> None:
 
 def test_static_model_has_no_joints_and_links_default_to_sdf_inertia(tmp_path: Path) -> None:
     world = read_sdf_world(BUILT, model_paths(BUILT))
+    assert world.warnings == []  # a world built as Gazebo users build it: nothing left out
     names = {j.name for j in world.joints}
     assert "swing_door::hinge" in names and not any(n.startswith("locked_door") for n in names)
     hinge = next(j for j in world.joints if j.name == "swing_door::hinge")
@@ -223,6 +224,11 @@ def test_ground_truth_and_lidar_see_the_built_world() -> None:
     assert not occupied(2.0, 0.6) and not occupied(2.1, 0.0)
     # the vehicle's chassis, turned 90° at (-3, -3): x -3.2..-2.8, y -3.3..-2.7
     assert occupied(-3.0, -3.25) and occupied(-3.15, -2.75) and not occupied(-3.3, -3.0)
+    # the inch pyramid ×10 at frame "markers" (0, -4) + (1, 0): base ±0.254 m about x = 1 + 0.508, y = -4,
+    # apex 0.762 m up; at 0.25 m, a third of the way up, the section is ±0.254·(1 - 0.25/0.762) m
+    half = 0.254 * (1 - 0.25 / 0.762)
+    assert occupied(1.508, -4.0) and occupied(1.508 + half - 0.03, -4.0) and not occupied(1.508 + half + 0.03, -4.0)
+    assert not occupied(1.0, -4.0)
     sim = built_sim(SpawnPose(0.0, 0.0))
     scan = sim.lidar_scan(0)
     ahead = scan.ranges[int(round(-scan.spec.angle_min / scan.spec.angle_increment))]
