@@ -84,8 +84,8 @@ class LaunchArgs:
                                  "(the same run on any machine; with real_time_factor:=0 as fast as they allow)")
     x: float = _arg(0.0, "spawn x (m)")
     y: float = _arg(0.0, "spawn y (m)")
-    z: float = _arg(math.nan, "spawn z of the robot's root link (m); default (nan): resting on the ground "
-                              "(ppp_bot: 0.05)")
+    z: float = _arg(math.nan, "spawn z of the robot's root link (m); default (nan): resting on whatever lies "
+                              "beneath x, y (ppp_bot on the ground: 0.05)")
     yaw: float = _arg(0.0, "spawn yaw (rad)")
     seed: int = _arg(0, "seed of the simulator's sensor noise and wheel slip")
     wheel_slip: float = _arg(0.0, "wheel slip as the encoders see it (0.02 = 2 %): odometry drifts like a "
@@ -388,7 +388,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                      "or the navigate_to_pose action")
     simulator_params: dict[str, Any] = {
         "world": world_file, "robot_description": urdf_file, "real_time_factor": args.real_time_factor,
-        "x": args.x, "y": args.y, "z": args.z if math.isfinite(args.z) else robot.rest_height_m, "yaw": args.yaw,
+        "x": args.x, "y": args.y, "z": args.z, "yaw": args.yaw,
         "seed": args.seed, "wheel_slip": args.wheel_slip, "viewer": not args.headless}
     if robot.simulator_cmd_vel_topic:
         simulator_params["cmd_vel_topic"] = robot.simulator_cmd_vel_topic

@@ -10,7 +10,6 @@ way. What it declares decides:
   ``~/cmd_vel_unstamped``), or a Gazebo DiffDrive plugin (the simulator runs it; twist_mux feeds
   its topic, or, when that topic is one of twist_mux's inputs, twist_mux keeps its own output
   ``cmd_vel_out`` and the plugin is remapped there, as a bridge remapping would do);
-- **where it spawns**: with ``z:=`` not given, resting on the ground (its lowest collision point);
 - **frames and topics** SLAM, AMCL and the costmaps use: the odometry frame and topic of the
   drive, ``base_footprint`` (else the root link) for SLAM and AMCL, ``base_link`` (else the root
   link) for the costmaps and the navigator, the first lidar's topic for the scans.
@@ -27,7 +26,6 @@ from pppbot_description.urdf_model import RobotModel, parse_urdf
 from pppbot_description.xacro_model import declared_arguments, default_xacro_path, process_xacro
 from pppbot_sim.controllers import controller_parameters, controllers_file, read_plan
 from pppbot_sim.gz_plugins import robot_plugins
-from pppbot_sim.mj_build import rest_height
 from pppbot_sim.uris import resolve_uri
 
 #: twist_mux's own name for its output, used when the drive's topic is one of its inputs.
@@ -56,7 +54,6 @@ class RobotFacts:
     localization_base_frame: str  # SLAM's base_frame, AMCL's base_frame_id
     navigation_base_frame: str  # the costmaps' and the navigator's robot_base_frame
     scan_topic: str | None
-    rest_height_m: float = 0.05  # the root link's height when the robot rests on the ground
     notes: tuple[str, ...] = ()
 
 
@@ -138,7 +135,7 @@ def robot_facts(urdf: str, source: str, mux_inputs: Sequence[str]) -> RobotFacts
     nav_base = "base_link" if "base_link" in robot.links else robot.root
     drive, command, remap, odom_topic, odom_frame = _drive(robot, mux_inputs, notes)
     return RobotFacts(robot.name, drive, command, remap, odom_topic, odom_frame, base, nav_base, scan_topic,
-                      rest_height(robot), tuple(notes))
+                      tuple(notes))
 
 
 def _drive(robot: RobotModel, mux_inputs: Sequence[str], notes: list[str]) -> tuple[Drive, str, str, str, str]:

@@ -144,6 +144,7 @@ class Recording:
     wall_seconds: float = 0.0
     drive_wall_seconds: float = 0.0  # wall time of the scenario itself (without start and stop)
     failure: str | None = None
+    not_upright: str | None = None  # when the robot tipped over or sank into the ground: what and when
     final_map: OccupancyGrid | None = None  # the last /map, for scenarios that map
     final_map_stamp_s: float = -1.0
     slam_health: dict[str, str] = field(default_factory=dict)  # the last /diagnostics of the slam node

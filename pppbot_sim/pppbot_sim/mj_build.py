@@ -23,6 +23,7 @@ from transforms3d.quaternions import mat2quat
 
 from pppbot_description.kinematics import rpy_quaternion
 from pppbot_description.urdf_model import Geometry, Joint, JointType, Origin, RobotModel
+from pppbot_sim.contacts import DEFAULT_MU, UNSIMULATED_DEFAULTS, URDF_UNSIMULATED, Surface, friction_priorities
 from pppbot_sim.errors import SpawnError, WorldError
 from pppbot_sim.meshes import load_mesh
 from pppbot_sim.sdf_joints import JointKind, ModelJoint
@@ -30,7 +31,6 @@ from pppbot_sim.sdf_world import Body, Shape, World, resource_paths
 from pppbot_sim.uris import UriError, resolve_uri
 
 ROBOT_GROUP = 3
-DEFAULT_FRICTION = 1.0
 _mesh_ids = itertools.count()
 
 
@@ -40,14 +40,15 @@ class SpawnPose:
 
     x: float = 0.0
     y: float = 0.0
-    z: float = 0.05
+    z: float = 0.05  # NaN: resting on whatever lies beneath (x, y)
     yaw: float = 0.0
 
     def validate(self) -> None:
         for name in ("x", "y", "z", "yaw"):
             value = getattr(self, name)
-            if not math.isfinite(value):
-                raise SpawnError(f"spawn {name} = {value}: must be a finite number")
+            if not (math.isfinite(value) or (name == "z" and math.isnan(value))):
+                raise SpawnError(f"spawn {name} = {value}: must be a finite number" + (" (or nan: resting on the "
+                                                                                      "ground)" if name == "z" else ""))
 
 
 @dataclass(frozen=True)
@@ -67,6 +68,8 @@ class RobotHandles:
     root_body: str
     free_joint: str
     sites: dict[str, str] = field(default_factory=dict)  # link → site
+    surfaces: dict[str, Surface] = field(default_factory=dict)  # link → its friction
+    warnings: list[str] = field(default_factory=list)  # what of the description is not simulated
     wheel_joints: list[str] = field(default_factory=list)  # joint names with a velocity servo
     actuators: dict[str, str] = field(default_factory=dict)  # joint → actuator
     velocity_limits: dict[str, tuple[float, float]] = field(default_factory=dict)
@@ -86,7 +89,7 @@ def rpy_quat_wxyz(roll: float, pitch: float, yaw: float) -> list[float]:
 def _add_shape(spec: mujoco.MjSpec, body: mujoco.MjsBody, shape: Shape, group: int = 0) -> None:
     pos = shape.pose[:3, 3]
     quat = quat_wxyz(shape.pose[:3, :3])
-    friction = [shape.friction if shape.friction is not None else DEFAULT_FRICTION, 0.005, 0.0001]
+    friction = [shape.surface.isotropic, 0.005, 0.0001]
     if shape.kind == "mesh":
         if shape.mesh is None:
             raise WorldError(f"collision '{shape.name}': mesh without a file")
@@ -246,13 +249,11 @@ def _origin_pose(origin: Origin) -> tuple[list[float], list[float]]:
 
 
 def _add_robot_geom(spec: mujoco.MjSpec, body: mujoco.MjsBody, name: str, geometry: Geometry, origin: Origin,
-                    friction: float | None) -> None:
+                    surface: Surface) -> None:
     pos, quat = _origin_pose(origin)
-    # MuJoCo takes the larger friction of two touching geoms unless one has a higher
-    # priority: a link's own Gazebo mu (the caster's 0.001) must win over the ground's.
+    # Priorities come last, from every geom's friction (apply_friction_rule).
     common = {"name": name, "pos": pos, "quat": quat, "group": ROBOT_GROUP, "mass": 0.0, "density": 0.0,
-              "friction": [DEFAULT_FRICTION if friction is None else friction, 0.005, 0.0001],
-              "priority": 0 if friction is None else 1}
+              "friction": [surface.isotropic, 0.005, 0.0001]}
     if geometry.kind == "box":
         body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[v / 2 for v in geometry.size], **common)
     elif geometry.kind == "cylinder":
@@ -284,13 +285,55 @@ def _link_body(spec: mujoco.MjSpec, body: mujoco.MjsBody, model: RobotModel, lin
         body.ipos, body.iquat = _origin_pose(link.inertial.origin)
         ixx, ixy, ixz, iyy, iyz, izz = link.inertial.inertia
         body.fullinertia = [ixx, iyy, izz, ixy, ixz, iyz]
-    settings = model.gazebo_settings.get(link_name, {})
-    try:
-        friction = float(settings["mu1"]) if "mu1" in settings else None
-    except ValueError:
-        raise SpawnError(f"<gazebo reference='{link_name}'><mu1> must be a number, not {settings['mu1']!r}") from None
+    surface = link_surface(model, link_name, handles.warnings)
+    if link.collisions:
+        handles.surfaces[link_name] = surface
     for i, shape in enumerate(link.collisions):
-        _add_robot_geom(spec, body, f"{prefix}{link_name}::collision{i}", shape.geometry, shape.origin, friction)
+        _add_robot_geom(spec, body, f"{prefix}{link_name}::collision{i}", shape.geometry, shape.origin, surface)
+
+
+#: ``<gazebo reference="link">`` settings with no bearing on physics or the sensors.
+_GAZEBO_COSMETIC = {"material", "visual", "laserRetro", "provideFeedback", "maxContacts", "fdir1", "sensor"}
+
+
+def link_surface(model: RobotModel, link: str, warnings: list[str]) -> Surface:
+    """A link's friction from its ``<gazebo reference>`` ``mu1``/``mu2`` (SDF's 1 without); the
+    settings pppbot does not simulate are added to ``warnings``.
+
+    Raises:
+        SpawnError: ``mu1`` or ``mu2`` is not a non-negative number.
+    """
+    settings = model.gazebo_settings.get(link, {})
+    values = []
+    for key in ("mu1", "mu2"):
+        try:
+            value = float(settings.get(key, DEFAULT_MU))
+        except ValueError:
+            value = -1.0
+        if not value >= 0:
+            raise SpawnError(f"<gazebo reference='{link}'><{key}> must be a non-negative number, not "
+                             f"{settings[key]!r}")
+        values.append(value)
+    for key, text in settings.items():
+        if key in ("mu1", "mu2") or key in _GAZEBO_COSMETIC:
+            continue
+        sdf = URDF_UNSIMULATED.get(key)
+        try:
+            unchanged = sdf is not None and float(text) == UNSIMULATED_DEFAULTS[sdf]
+        except ValueError:
+            unchanged = False
+        if not unchanged:
+            warnings.append(f"<gazebo reference='{link}'><{key}> {text} of robot '{model.name}' is not simulated")
+    return Surface(values[0], values[1])
+
+
+def apply_friction_rule(spec: mujoco.MjSpec) -> None:
+    """Every geom's priority from its friction, so that two touching geoms get the smaller of
+    their frictions, as Gazebo's ODE gives them (:func:`pppbot_sim.contacts.friction_priorities`)."""
+    geoms = list(spec.geoms)
+    priorities = friction_priorities(float(g.friction[0]) for g in geoms)
+    for geom in geoms:
+        geom.priority = priorities[float(geom.friction[0])]
 
 
 def _add_joint(body: mujoco.MjsBody, joint: Joint, drive: WheelDrive, prefix: str, degrees: bool) -> None:
@@ -346,7 +389,8 @@ def add_robot(spec: mujoco.MjSpec, model: RobotModel, pose: SpawnPose, name: str
     spec.compiler.fusestatic = True
     prefix = f"{name}/"
     root = model.root
-    base = spec.worldbody.add_body(name=f"{prefix}{root}", pos=[pose.x, pose.y, pose.z],
+    z = pose.z if math.isfinite(pose.z) else 0.0  # NaN: the simulation puts it down once the world is built
+    base = spec.worldbody.add_body(name=f"{prefix}{root}", pos=[pose.x, pose.y, z],
                                    quat=rpy_quat_wxyz(0.0, 0.0, pose.yaw))
     handles = RobotHandles(name=name, root_body=f"{prefix}{root}", free_joint=f"{prefix}free")
     base.add_freejoint(name=handles.free_joint)
@@ -378,41 +422,39 @@ def add_robot(spec: mujoco.MjSpec, model: RobotModel, pose: SpawnPose, name: str
     return handles
 
 
-def rest_height(model: RobotModel) -> float:
-    """How high the root link sits when the robot, joints at zero, rests on flat ground: the depth
-    of its lowest collision point below the root (m; 0 without collision shapes).
-
-    Raises:
-        SpawnError: the robot cannot be built.
-    """
-    spec = mujoco.MjSpec()
-    add_robot(spec, model, SpawnPose(0.0, 0.0, 0.0, 0.0), "rest")
-    try:
-        compiled = spec.compile()
-    except ValueError as exc:
-        raise SpawnError(f"robot '{model.name}' cannot be built: {exc}") from exc
-    data = mujoco.MjData(compiled)
-    mujoco.mj_kinematics(compiled, data)
-    lowest = 0.0
+def depth_below(model: mujoco.MjModel, data: mujoco.MjData, body: int, group: int = ROBOT_GROUP) -> float:
+    """How far the lowest point of the geoms of ``group`` lies below body ``body``'s origin, as
+    placed now (after kinematics): the height ``body`` rests at on flat ground (m; 0 without
+    geoms). Boxes, spheres, cylinders and capsules exactly; meshes by their vertices."""
+    lowest = float(data.xpos[body][2])
     G = mujoco.mjtGeom
-    for gid in range(compiled.ngeom):
-        if compiled.geom_group[gid] != ROBOT_GROUP:
-            continue
+    for gid in np.flatnonzero(model.geom_group == group):
         rotation = data.geom_xmat[gid].reshape(3, 3)
-        size, kind = compiled.geom_size[gid], int(compiled.geom_type[gid])
-        if kind == int(G.mjGEOM_SPHERE):
-            reach = size[0]
+        size, kind = model.geom_size[gid], int(model.geom_type[gid])
+        if kind == int(G.mjGEOM_MESH):
+            mesh = model.geom_dataid[gid]
+            start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+            bottom = float((model.mesh_vert[start:start + count] @ rotation.T)[:, 2].min())
+        elif kind == int(G.mjGEOM_SPHERE):
+            bottom = -size[0]
         elif kind == int(G.mjGEOM_BOX):
-            reach = float(np.abs(rotation[2]) @ size)
+            bottom = -float(np.abs(rotation[2]) @ size)
         elif kind in (int(G.mjGEOM_CYLINDER), int(G.mjGEOM_CAPSULE)):
             along = abs(rotation[2, 2])
             radial = size[0] if kind == int(G.mjGEOM_CAPSULE) else size[0] * math.sqrt(max(0.0, 1 - along**2))
-            reach = along * size[1] + radial
-        else:  # a mesh: its vertices
-            mesh = compiled.geom_dataid[gid]
-            start, count = compiled.mesh_vertadr[mesh], compiled.mesh_vertnum[mesh]
-            lowest = min(lowest, float((compiled.mesh_vert[start:start + count] @ rotation.T)[:, 2].min()
-                                       + data.geom_xpos[gid][2]))
+            bottom = -(along * size[1] + radial)
+        else:
             continue
-        lowest = min(lowest, float(data.geom_xpos[gid][2] - reach))
-    return round(-lowest, 6)  # to the micrometre: what the sums of the description give, without their noise
+        lowest = min(lowest, float(data.geom_xpos[gid][2]) + bottom)
+    # to the micrometre: what the description's sums give, without their rounding noise
+    return round(float(data.xpos[body][2]) - lowest, 6)
+
+
+def surface_below(model: mujoco.MjModel, data: mujoco.MjData, x: float, y: float) -> float | None:
+    """The height of the highest world surface (not the robot's) under (x, y), or None (nothing there)."""
+    groups = np.ones(6, dtype=np.uint8)
+    groups[ROBOT_GROUP] = 0
+    top = 1e4
+    hit = np.array([-1], dtype=np.int32)
+    distance = mujoco.mj_ray(model, data, np.array([x, y, top]), np.array([0.0, 0.0, -1.0]), groups, 1, -1, hit)
+    return None if distance < 0 else top - float(distance)

@@ -4,7 +4,8 @@ Supported: ``<world>`` with ``<physics><max_step_size>`` and ``<gravity>``;
 ``<model>`` (static or not, nested) with ``<pose>``, ``<link>`` with ``<pose>``,
 ``<inertial><mass>`` and ``<collision>`` (``<pose>``, ``<geometry>`` box, cylinder,
 sphere, capsule, ellipsoid, plane, mesh with ``<uri>`` and ``<scale>``,
-``<surface><friction><ode><mu>``); ``<include>`` with ``<name>``, ``<pose>``,
+``<surface><friction><ode>`` ``<mu>``/``<mu2>``, combined as Gazebo combines them:
+:mod:`pppbot_sim.contacts`); ``<include>`` with ``<name>``, ``<pose>``,
 ``<static>``; URIs (``model://`` through ``GZ_SIM_RESOURCE_PATH``, ``IGN_GAZEBO_RESOURCE_PATH``
 and ``worlds/models/``, ``package://``, ``file://``, paths, Fuel URLs) as
 :mod:`pppbot_sim.uris` resolves them. Poses follow SDF 1.7's frame semantics
@@ -14,7 +15,9 @@ the identity in its frame. Poses compose
 world ∘ model ∘ nested model ∘ link ∘ collision, each ``x y z roll pitch yaw``
 (fixed axes, as Gazebo) or ``degrees="true"``.
 
-Links of models that are not static are bodies with their ``<inertial>`` (SDF's defaults
+A saved world's ``<state>`` puts models, free links and joints where Gazebo classic puts them
+at load (:mod:`pppbot_sim.sdf_state`). Links of models that are not static are bodies with
+their ``<inertial>`` (SDF's defaults
 where it says nothing: 1 kg, inertia 1 kg·m² about each axis, as Gazebo takes them;
 ``<inertial auto="true">`` from the collisions at 1000 kg/m³, scaled to its ``<mass>``).
 Their ``<joint>`` elements join them (:mod:`pppbot_sim.sdf_joints`); a link that no joint holds
@@ -38,9 +41,11 @@ from transforms3d.axangles import axangle2mat
 from transforms3d.quaternions import quat2mat
 
 from pppbot_description.kinematics import rpy_matrix
+from pppbot_sim.contacts import DEFAULT_MU, UNSIMULATED_DEFAULTS, Surface
 from pppbot_sim.errors import WorldError
 from pppbot_sim.sdf_frames import FrameGraph
 from pppbot_sim.sdf_joints import JointKind, ModelJoint, joint_kind, read_axis
+from pppbot_sim.sdf_state import WorldState, move_free_links, named, read_state
 from pppbot_sim.uris import UriError, fuel_caches, resolve_uri
 
 SKIPPED = {"gui", "plugin", "light"}
@@ -65,7 +70,7 @@ class Shape:
     pose: np.ndarray = field(compare=False)
     mesh: Path | None = None
     scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    friction: float | None = None
+    surface: Surface = Surface()
 
 
 #: SDF's inertial where a link has none: 1 kg, 1 kg·m² about each axis (what Gazebo simulates).
@@ -121,6 +126,8 @@ class World:
     static_shapes: list[Shape] = field(default_factory=list)
     bodies: list[Body] = field(default_factory=list)
     joints: list[ModelJoint] = field(default_factory=list)
+    #: joint → {axis: angle (rad) or position (m)} from the world's <state>
+    joint_positions: dict[str, dict[int, float]] = field(default_factory=dict)
     plugins: list[ModelPlugin] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     skipped: Counter[str] = field(default_factory=Counter)
@@ -168,6 +175,8 @@ class _Reader:
         self.link_poses: dict[str, np.ndarray] = {}  # every link's world pose, by scoped name
         self.static_links: set[str] = set()
         self.canonical: dict[str, str] = {}  # model → its canonical link, scoped names
+        self.named_surfaces: set[str] = set()  # unsimulated surface settings already named
+        self.state = WorldState()  # the world's <state>, when it has one
 
     # ---------------------------------------------------------------- helpers
     def fail(self, element: etree._Element | None, message: str, file: Path | None = None) -> WorldError:
@@ -264,7 +273,12 @@ class _Reader:
         if world_el is None:
             raise self.fail(root, "expected <sdf><world>...</world></sdf>")
         self.world.name = world_el.get("name") or self.source.stem
-        self.note_unknown(world_el, {"physics", "gravity", "model", "include", "frame"}, self.source)
+        self.note_unknown(world_el, {"physics", "gravity", "model", "include", "frame", "state"}, self.source)
+        state_el = world_el.find("state")
+        if state_el is not None:
+            self.state = read_state(state_el, lambda e: self.pose(e, self.source),
+                                    lambda e: self.floats(e, 1, self.source)[0])
+            self.world.warnings += [named(e, self.source) for e in self.state.ignored]
         physics = world_el.find("physics")
         if physics is not None:
             step = self.number(physics, "max_step_size", 0.001, self.source)
@@ -278,7 +292,10 @@ class _Reader:
         graph = FrameGraph("world", f"world '{self.world.name}'")
         models = self.scope_models(world_el, self.source, graph, "world")
         for model in models:
-            self.read_model(model, graph.resolve(model.name), prefix="")
+            self.read_model(model, self.state.models.get(model.name, graph.resolve(model.name)), prefix="")
+        self.world.joints = move_free_links(self.world.bodies, self.world.joints, self.state.links)
+        known = {j.name for j in self.world.joints}
+        self.world.joint_positions = {name: angles for name, angles in self.state.joints.items() if name in known}
         # A free link with nothing to collide would only fall for ever.
         kept = {j.child for j in self.world.joints} | {j.parent for j in self.world.joints}
         self.world.bodies = [b for b in self.world.bodies if b.shapes or b.name in kept]
@@ -372,7 +389,8 @@ class _Reader:
         for link in links:
             self.read_link(link, pose, graph, file, full, static)
         for child in nested:
-            self.read_model(child, pose @ graph.resolve(child.name), f"{full}::", static)
+            self.read_model(child, self.state.models.get(f"{full}::{child.name}", pose @ graph.resolve(child.name)),
+                            f"{full}::", static)
         canonical = model.get("canonical_link") or (links[0].get("name") if links else None)
         if canonical is not None:
             self.canonical[full] = f"{full}::{canonical}"
@@ -473,7 +491,7 @@ class _Reader:
             self.static_links.add(name)
             for s in shapes:
                 self.world.static_shapes.append(Shape(s.name, s.kind, s.size, pose @ s.pose, s.mesh,
-                                                      s.scale, s.friction))
+                                                      s.scale, s.surface))
             return
         body = Body(name, pose, shapes)
         inertial = link.find("inertial")
@@ -502,10 +520,7 @@ class _Reader:
         if geometry is None or len(geometry) == 0:
             raise self.fail(collision, f"collision '{name}' needs a <geometry>", file)
         g = geometry[0]
-        friction = None
-        mu = collision.find("surface/friction/ode/mu")
-        if mu is not None:
-            friction = self.floats(mu, 1, file)[0]
+        surface = self.read_surface(collision, file, name)
         if g.tag == "box":
             size = tuple(self.floats(self.child(g, "size", file), 3, file))
         elif g.tag in ("cylinder", "capsule"):
@@ -529,13 +544,41 @@ class _Reader:
             scale_el = g.find("scale")
             scale = self.floats(scale_el, 3, file) if scale_el is not None else [1.0, 1.0, 1.0]
             return Shape(name, "mesh", (), pose, self.mesh_path((uri.text or "").strip(), uri, file),
-                         (scale[0], scale[1], scale[2]), friction)
+                         (scale[0], scale[1], scale[2]), surface)
         else:
             raise self.fail(g, f"collision '{name}': geometry <{g.tag}> is not supported "
                                f"(supported: {', '.join(sorted(SHAPES))})", file)
         if any(v <= 0 for v in size):
             raise self.fail(g, f"collision '{name}': <{g.tag}> sizes must be positive, not {size}", file)
-        return Shape(name, g.tag, tuple(float(v) for v in size), pose, friction=friction)
+        return Shape(name, g.tag, tuple(float(v) for v in size), pose, surface=surface)
+
+    def read_surface(self, collision: etree._Element, file: Path, name: str) -> Surface:
+        """A collision's ``<surface>`` friction; contact settings pppbot does not simulate, set away
+        from SDF's defaults, are named once.
+
+        Raises:
+            WorldError: a coefficient that is not a number or is negative.
+        """
+        surface = collision.find("surface")
+        if surface is None:
+            return Surface()
+        values = []
+        for tag in ("mu", "mu2"):
+            element = surface.find(f"friction/ode/{tag}")
+            value = DEFAULT_MU if element is None else self.floats(element, 1, file)[0]
+            if value < 0:
+                raise self.fail(element, f"collision '{name}': <{tag}> {value} must not be negative", file)
+            values.append(value)
+        for path, default in UNSIMULATED_DEFAULTS.items():
+            element = surface.find(path)
+            if element is not None and (element.text or "").strip():
+                value = self.floats(element, 1, file)[0]
+                if value != default and path not in self.named_surfaces:
+                    self.named_surfaces.add(path)
+                    self.warn(element, f"<surface><{path.replace('/', '><')}> {value:g} of collision '{name}' is not "
+                                       f"simulated (SDF's default {default:g} is; MuJoCo's contacts have no such "
+                                       "setting)", file)
+        return Surface(values[0], values[1])
 
     def child(self, parent: etree._Element, tag: str, file: Path) -> etree._Element:
         element = parent.find(tag)

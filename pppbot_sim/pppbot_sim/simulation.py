@@ -6,6 +6,7 @@ became due; between events MuJoCo steps in C (``mj_step`` with ``nstep``).
 """
 from __future__ import annotations
 
+import dataclasses
 import enum
 import logging
 import math
@@ -18,6 +19,7 @@ import numpy as np
 
 from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_description.urdf_model import RobotModel, Sensor
+from pppbot_sim.contacts import anisotropic_pairs
 from pppbot_sim.errors import PluginError, SimulationDiverged, SpawnError, WorldError
 from pppbot_sim.gz_plugins import DiffDriveSpec, Plugins, robot_plugins, world_plugins
 from pppbot_sim.mj_build import (
@@ -27,9 +29,12 @@ from pppbot_sim.mj_build import (
     WheelDrive,
     add_robot,
     add_velocity_servos,
+    apply_friction_rule,
+    depth_below,
     mjcf_world_spec,
     robot_servos,
     rpy_quat_wxyz,
+    surface_below,
     world_spec,
 )
 from pppbot_sim.sdf_joints import JointKind
@@ -201,15 +206,9 @@ class Simulation:
         """
         route_mujoco_warnings()
         self.spawn = spawn
-        on_robot = robot_plugins(robot.plugins, robot.name, robot.root)
-        on_world = world_plugins(world.plugins) if world is not None else Plugins([], [])
-        #: the Gazebo DiffDrive plugins of the robot and the world's models, in that order
-        self.diff_drives: list[DiffDriveSpec] = [*on_robot.diff_drives, *on_world.diff_drives]
-        self.plugin_warnings = [*on_robot.warnings, *on_world.warnings]
-        torques = {joint: d.max_wheel_torque for d in on_robot.diff_drives for joint in d.joints}
-        self.handles: RobotHandles = add_robot(spec, robot, spawn, name, drive, robot_servos(robot, torques))
-        world_servos = _world_servos(world, on_world.diff_drives) if world is not None else {}
+        world_servos = self._add_robot_and_drives(spec, robot, name, drive, world)
         world_actuators = add_velocity_servos(spec, world_servos, drive)
+        apply_friction_rule(spec)
         lidar_specs, imu_specs, self.unsimulated_sensors = sensor_specs(list(robot.sensors))
         sensor_sites = {s.name: self._add_sensor_site(spec, name, s.name, s.link, s.pose) for s in lidar_specs}
         sensor_sites.update({s.name: self._add_sensor_site(spec, name, s.name, s.link, s.pose) for s in imu_specs})
@@ -259,10 +258,56 @@ class Simulation:
         self.collisions: list[Collision] = []
         # Views into MjData's buffers (each attribute access would build a new one).
         self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
+        if world is not None:
+            self._set_joint_positions(world.joint_positions)
+        if math.isnan(spawn.z):
+            self._put_down()
         mujoco.mj_forward(self.model, self.data)
         self._spawn_qpos = self._qpos.copy()
         self._resume_at_s = 0.0
         self._wheel_state: tuple[float, WheelState] | None = None  # the last reading and its time
+
+    def _put_down(self) -> None:
+        """Spawned without a height: the robot rests on whatever lies beneath its (x, y), its lowest
+        collision shape touching it."""
+        mujoco.mj_kinematics(self.model, self.data)
+        root = self.model.body(self.handles.root_body).id
+        depth = depth_below(self.model, self.data, root)
+        surface = surface_below(self.model, self.data, self.spawn.x, self.spawn.y)
+        z = (0.0 if surface is None else surface) + depth
+        self._qpos[self._free_qpos + 2] = z
+        self.spawn = dataclasses.replace(self.spawn, z=z)
+
+    def _add_robot_and_drives(self, spec: mujoco.MjSpec, robot: RobotModel, name: str, drive: WheelDrive,
+                              world: World | None) -> dict[str, tuple[float, float, float]]:
+        """Add the robot; find the DiffDrive plugins and what is not simulated; return the world
+        joints a plugin drives, with their limits."""
+        on_robot = robot_plugins(robot.plugins, robot.name, robot.root)
+        on_world = world_plugins(world.plugins) if world is not None else Plugins([], [])
+        #: the Gazebo DiffDrive plugins of the robot and the world's models, in that order
+        self.diff_drives: list[DiffDriveSpec] = [*on_robot.diff_drives, *on_world.diff_drives]
+        torques = {joint: d.max_wheel_torque for d in on_robot.diff_drives for joint in d.joints}
+        self.handles: RobotHandles = add_robot(spec, robot, self.spawn, name, drive, robot_servos(robot, torques))
+        #: what of the robot's description and the world is not simulated, one line each
+        self.warnings = [*on_robot.warnings, *on_world.warnings, *self.handles.warnings]
+        if world is None:
+            return {}
+        shapes = [*world.static_shapes, *(s for body in world.bodies for s in body.shapes)]
+        self.warnings += anisotropic_pairs([(f"link '{k}'", v) for k, v in self.handles.surfaces.items()],
+                                           [(f"'{s.name}'", s.surface) for s in shapes])
+        return _world_servos(world, on_world.diff_drives)
+
+    def _set_joint_positions(self, positions: Mapping[str, Mapping[int, float]]) -> None:
+        """World joints' starting positions (a saved world's ``<state>``): ``{joint: {axis: value}}``."""
+        for name, axes in positions.items():
+            for axis, value in axes.items():
+                joint = name if axis == 0 else f"{name}::axis2"
+                try:
+                    found = self.model.joint(joint)
+                except KeyError:
+                    continue  # a fixed or ball joint: no angle to set
+                if int(found.type[0]) in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+                    self._qpos[int(found.qposadr[0])] = value
 
     @staticmethod
     def _add_sensor_site(spec: mujoco.MjSpec, robot: str, sensor: str, link: str,

@@ -32,8 +32,8 @@ def test_defaults_are_ppp_bots():
     v = values()
     assert (v.world, v.localization, v.use_teleop, v.use_rviz, v.headless) == ("cones", False, True, True, True)
     assert (v.real_time_factor, v.log_level, v.navigation) == (1.0, "info", NavigationMode.AUTO)
-    # z:= not given: the robot rests on the ground, where ppp_bot's base_link is 0.05 m up
-    assert math.isnan(v.z) and "-p z:=0.05 " in " ".join(fake_plan()[0].nodes[0].cmd) + " "
+    # z:= not given: the simulator puts the robot down on what lies beneath it
+    assert math.isnan(v.z) and "-p z:=nan " in " ".join(fake_plan()[0].nodes[0].cmd) + " "
 
 
 def test_the_arguments_are_the_dataclass_fields_with_their_defaults():

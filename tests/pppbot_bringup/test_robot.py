@@ -54,14 +54,12 @@ def test_ppp_bot_with_ignition_control_puts_twist_mux_in_front_of_its_plugin() -
                            "on /cmd_vel_out and the plugin listens there",)
 
 
-def test_a_users_robot_declares_its_own_frames_topics_and_height() -> None:
+def test_a_users_robot_declares_its_own_frames_and_topics() -> None:
     robot = facts(str(MY_BOT), "wheel_radius:=0.08")
     assert (robot.name, robot.drive, robot.command_topic) == ("my_bot", Drive.GAZEBO_PLUGIN, "/my_bot/cmd_vel")
     assert (robot.odom_topic, robot.odom_frame, robot.scan_topic) == ("/my_bot/odom", "my_bot/odom", "/laser_scan")
     # no base_footprint or base_link: its root link, "base", for SLAM, AMCL and the costmaps
     assert (robot.localization_base_frame, robot.navigation_base_frame) == ("base", "base")
-    # wheels of 0.08 m (the xacro argument) on the root link's axis: it rests 0.08 m up
-    assert robot.rest_height_m == pytest.approx(0.08)
 
 
 def test_parameter_files_follow_the_robot_where_they_say_ppp_bots() -> None:
@@ -87,7 +85,7 @@ def test_the_plan_wires_the_users_robot(tmp_path: Path) -> None:
              tmp_path / "robot.urdf", lambda pkg, exe: f"/bin/{pkg}/{exe}", _Probes(), False, None, robot=robot)
     nodes = {n.name: " ".join(n.cmd) for n in p.nodes}
     assert "-r cmd_vel_out:=/my_bot/cmd_vel" in nodes["twist_mux"]
-    assert "-p z:=0.07 " in nodes["simulator"] + " " and "cmd_vel_topic" not in nodes["simulator"]
+    assert "-p z:=nan " in nodes["simulator"] + " " and "cmd_vel_topic" not in nodes["simulator"]
     slam_file = tmp_path / "mapper_params_online_async.yaml"
     assert f"--params-file {slam_file}" in nodes["slam_toolbox"]
     slam = yaml.safe_load(p.files[slam_file])["slam_toolbox"]["ros__parameters"]

@@ -247,6 +247,9 @@ class Run:
             if not thread.is_alive():
                 rec.failure = f"the stack stopped during the run (see {self.out / 'logs'})"
                 return
+            if rec.not_upright is not None:  # a robot on its side is not scored
+                rec.failure = rec.not_upright
+                return
             if time.monotonic() - node.last_truth_wall_s > STALL_TIMEOUT_S:
                 rec.failure = f"no ground truth for {STALL_TIMEOUT_S:.0f} s (the simulator stalled)"
                 return

@@ -32,6 +32,7 @@ from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.planar import planar_transforms, stamp_seconds
 from pppbot_common.ros.qos import DEFAULT, LATCHED
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
+from pppbot_common.upright import UprightWatch
 from pppbot_eval.ros.behaviors import TICK_S, Behavior
 from pppbot_eval.scenarios import Estimate, Recording
 
@@ -70,6 +71,7 @@ class EvalNode:
         self.last_truth_wall_s = time.monotonic()
         self.sim_now_s: float | None = None
         self.truth_pose: tuple[float, float, float] | None = None
+        self.upright = UprightWatch()
         node = self.node
         self.cmd_pub = node.create_publisher(Twist, "/cmd_vel_teleop", DEFAULT)
         if not navigates:
@@ -186,6 +188,9 @@ class EvalNode:
         yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
         self.sim_now_s = t
         self.truth_pose = (p.x, p.y, yaw)
+        changed = self.upright.update(t, p.z, (q.x, q.y, q.z, q.w))
+        if changed is not None and not changed.upright and self.recording.not_upright is None:
+            self.recording.not_upright = f"the robot is not upright: {changed.describe()}"
         self.last_truth_wall_s = time.monotonic()
         if self.driving:
             self.recording.truth_rows.append((t, p.x, p.y, yaw))

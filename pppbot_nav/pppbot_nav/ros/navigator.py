@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, Twist
 from nav2_msgs.action import ComputePathToPose, FollowPath, NavigateToPose
 from nav2_msgs.srv import ClearEntireCostmap
@@ -51,6 +52,7 @@ from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.tf_listener import TfListener
 from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_common.transforms import TransformError
+from pppbot_common.upright import UPRIGHT_STATUS
 from pppbot_nav.behaviors import BackUp, Recovery, Spin, Wait, collision_ahead
 from pppbot_nav.navigation_policy import FollowDecision, NavigationPolicy, PlanDecision, PolicySettings
 
@@ -75,6 +77,10 @@ class NavigatorParameters:
         check_finite_range("backup_dist", self.backup_dist, 0.0, 10.0)
         check_finite_range("backup_speed", self.backup_speed, 0.0, 2.0, low_open=True)
         check_finite_range("number_of_retries", self.number_of_retries, 0, 1000)
+
+
+class NotUpright(Exception):  # noqa: N818 (a signal of the navigator's own, not an error record)
+    """The robot's base reports it is not upright: the goal ends at once, with no recovery."""
 
 
 class Failed(Exception):
@@ -121,6 +127,10 @@ class Navigator(Node):
         self._self_client = ActionClient(self, NavigateToPose, "navigate_to_pose")
         self.server = GoalServer(self, NavigateToPose, "navigate_to_pose", self._on_goal)
         self.create_subscription(PoseStamped, "goal_pose", guarded(self, self._on_goal_pose, "PoseStamped"), 10)
+        #: why the robot is not upright, from its base's /diagnostics (the simulator's, or a driver's); None: upright
+        self.not_upright: str | None = None
+        on_diagnostics = guarded(self, self._on_diagnostics, "DiagnosticArray")
+        self.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
         # Ticks while a goal runs (an idle navigator makes no sync times in lockstep).
         self.timer = create_timer(self, TICK_S, self._tick)
         self.timer.cancel()
@@ -133,6 +143,13 @@ class Navigator(Node):
     # ----------------------------------------------------------------- inputs
     def _on_local_costmap(self, msg: OccupancyGridMsg) -> None:
         self._local_costmap = msg
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name.endswith(UPRIGHT_STATUS):
+                upright = status.level == DiagnosticStatus.OK
+                self.not_upright = None if upright else f"{status.name.removesuffix(UPRIGHT_STATUS)} is not upright: " \
+                                                        f"{status.message}"
 
     def _on_goal_pose(self, msg: PoseStamped) -> None:
         """As bt_navigator does: a goal on the topic becomes a goal of the action."""
@@ -181,6 +198,8 @@ class Navigator(Node):
 
     def _check(self, handle: ServerGoalHandle) -> None:
         check_running(handle, None if self._active is None else self._active[0])
+        if self.not_upright is not None:  # no goal succeeds with a robot on its side
+            raise NotUpright(self.not_upright)
 
     def stop(self) -> None:
         self.cmd_pub.publish(Twist())
@@ -206,6 +225,8 @@ class Navigator(Node):
         self.stop()
         if isinstance(error, Failed):
             result.error_code, result.error_msg = error.code, str(error)
+        elif isinstance(error, NotUpright):
+            result.error_code, result.error_msg = 0, str(error)
         else:
             result.error_code, result.error_msg = 0, f"{type(error).__name__}: {error}"
         self.get_logger().warning(f"navigation failed: {result.error_msg}")

@@ -2,7 +2,8 @@
 
 Publishes ``/clock``, ``/scan``, ``/imu``, ``/joint_states``, ``/ground_truth/odom`` and
 ``/ground_truth/collisions`` (a PointStamped in ``world`` where each contact episode
-between the robot and anything but the ground began); takes wheel velocity commands on
+between the robot and anything but the ground began), ``/diagnostics`` (whether the robot is
+upright: :mod:`pppbot_common.upright`); takes wheel velocity commands on
 ``/joint_commands`` (JointState, by name) from a controller outside; services
 ``pause_physics``, ``unpause_physics``, ``reset_world`` (std_srvs/Empty) and
 ``step_physics`` (std_srvs/Trigger, ``step_count`` steps while paused). The node is the
@@ -25,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from builtin_interfaces.msg import Time as TimeMsg
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
@@ -38,6 +40,7 @@ from pppbot_common.ros.lockstep import count_deliveries
 from pppbot_common.ros.node_main import Process, Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values, vector
+from pppbot_common.upright import MAX_TILT_RAD, MIN_HEIGHT_M, UPRIGHT_STATUS, UprightWatch
 from pppbot_control.ros.diff_drive_controller import DiffDriveController
 from pppbot_description.errors import DescriptionError
 from pppbot_description.urdf_model import parse_urdf
@@ -70,6 +73,8 @@ WARN_PERIOD_S = 5.0
 #: How often (wall time) the loop serves ROS callbacks when running flat out.
 SERVICE_PERIOD_S = 0.005
 RTF_LOG_PERIOD_S = 10.0
+#: /diagnostics every this many sim seconds (diagnostic_updater's 1 Hz), and at once on a change
+DIAGNOSTICS_PERIOD_S = 1.0
 VIEWER_PERIOD_S = 1.0 / 30.0
 
 
@@ -82,7 +87,8 @@ class SimulatorParameters:
                                    "(what a ros_gz_bridge remapping does); empty: the plugin's own")
     x: float = param(0.0, "spawn x (m)")
     y: float = param(0.0, "spawn y (m)")
-    z: float = param(0.05, "spawn z of the robot's root link (m); ppp_bot rests at 0.05")
+    z: float = param(math.nan, "spawn z of the robot's root link (m); nan: resting on whatever lies beneath (x, y) "
+                               "(ppp_bot on the ground: 0.05)")
     yaw: float = param(0.0, "spawn yaw (rad)")
     real_time_factor: float = param(1.0, "simulated seconds per wall second; 0 = as fast as possible "
                                          "(with lockstep: as fast as the participants allow)")
@@ -100,14 +106,22 @@ class SimulatorParameters:
     step_count: int = param(1, "physics steps per step_physics call")
     paused: bool = param(False, "start paused")
     viewer: bool = param(False, "open MuJoCo's viewer window (needs a display)")
+    upright_max_tilt: float = param(MAX_TILT_RAD, "roll or pitch (rad) past which the robot has tipped over "
+                                                  "(reported in the log and on /diagnostics)")
+    upright_min_height: float = param(MIN_HEIGHT_M, "height (m, world z) of the robot's root link below which it "
+                                                    "has sunk into the ground")
 
     def validate(self) -> None:
-        for name in ("x", "y", "z", "yaw"):
+        for name in ("x", "y", "yaw"):
             check_finite_range(name, getattr(self, name))
+        if not math.isnan(self.z):
+            check_finite_range("z", self.z)
         check_finite_range("real_time_factor", self.real_time_factor, 0.0, 1000.0)
         check_finite_range("command_timeout", self.command_timeout, 0.0, 3600.0)
         check_finite_range("lockstep_timeout", self.lockstep_timeout, 0.0, 86400.0, low_open=True)
         check_finite_range("wheel_slip", self.wheel_slip, 0.0, MAX_SLIP_STDDEV)
+        check_finite_range("upright_max_tilt", self.upright_max_tilt, 0.0, math.pi, low_open=True)
+        check_finite_range("upright_min_height", self.upright_min_height, -1000.0, 1000.0)
         check_finite_range("wheel_slip_correlation", self.wheel_slip_correlation, 0.0, 3600.0, low_open=True)
         for name in ("joint_states_rate", "ground_truth_rate", "clock_rate"):
             check_finite_range(name, getattr(self, name), 0.0, 10000.0, low_open=True)
@@ -176,8 +190,11 @@ class Simulator(Node):
         # Readings nobody listens to are not even computed (each sensor has its own noise
         # generator, so skipping one never changes another's readings).
         self._listeners: dict[EventKind, list[Any]] = {
-            EventKind.JOINT_STATES: [self.joint_pub], EventKind.GROUND_TRUTH: [self.truth_pub],
-            EventKind.LIDAR: self.scan_pubs, EventKind.IMU: self.imu_pubs}
+            EventKind.JOINT_STATES: [self.joint_pub], EventKind.LIDAR: self.scan_pubs, EventKind.IMU: self.imu_pubs}
+        # Ground truth is always read: the upright watch needs it, whoever listens.
+        self.upright = UprightWatch(p.upright_max_tilt, p.upright_min_height)
+        self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._next_diagnostics_s = 0.0
         self.coordinator = (Coordinator(self, p.expected_participants(), p.lockstep_timeout,
                                         lambda text: self.get_logger().info(text)) if p.lockstep else None)
         if self.coordinator is not None:
@@ -288,11 +305,12 @@ class Simulator(Node):
                      + (f"; {summary}" if summary else ""))
             for warning in world.warnings:
                 log.warning(warning)
-        for warning in self.sim.plugin_warnings:
+        for warning in self.sim.warnings:
             log.warning(warning)
         log.info(f"MJCF world from {world_file}, step {self.sim.step_s * 1000:g} ms")
         p = self.params
-        log.info(f"robot '{p.robot_name}' spawned at x={p.x} y={p.y} z={p.z} yaw={p.yaw}; driven joints: "
+        log.info(f"robot '{p.robot_name}' spawned at x={p.x} y={p.y} z={self.sim.spawn.z:.4g} yaw={p.yaw}; "
+                 "driven joints: "
                  f"{', '.join(self.sim.handles.wheel_joints) or 'none'}")
         for lidar in self.sim.lidars:
             s = lidar.spec
@@ -391,7 +409,36 @@ class Simulator(Node):
                                                        "position": state.positions, "velocity": state.velocities,
                                                        "effort": state.efforts}))
 
+    def _watch_posture(self, reading: GroundTruthReading) -> None:
+        """Report a robot that tips over or sinks into the ground (and one upright again) in the log
+        and on /diagnostics at once; the status goes out every second of sim time too."""
+        truth = reading.truth
+        x, y, z, w = truth.orientation_xyzw.tolist()
+        changed = self.upright.update(reading.stamp_s, float(truth.position[2]), (x, y, z, w))
+        if changed is not None:
+            text = f"robot '{self.params.robot_name}' {changed.describe()}"
+            (self.get_logger().info if changed.upright else self.get_logger().error)(text)
+        if changed is not None or reading.stamp_s >= self._next_diagnostics_s:
+            self._next_diagnostics_s = reading.stamp_s + DIAGNOSTICS_PERIOD_S
+            self.diagnostics_pub.publish(self._diagnostics(reading.stamp_s))
+
+    def _diagnostics(self, stamp_s: float) -> DiagnosticArray:
+        now = self.upright.last
+        assert now is not None
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.OK if now.upright else DiagnosticStatus.ERROR,
+            name=f"{self.params.robot_name}{UPRIGHT_STATUS}", hardware_id=self.params.robot_name,
+            message="upright" if now.upright else now.reason,
+            values=[KeyValue(key=key, value=f"{value:.4f}")
+                    for key, value in (("roll", now.roll_rad), ("pitch", now.pitch_rad), ("z", now.height_m))])
+        array = DiagnosticArray(status=[status])
+        set_stamp(array.header.stamp, stamp_s)
+        return array
+
     def _publish_truth(self, reading: GroundTruthReading) -> None:
+        self._watch_posture(reading)
+        if self.truth_pub.get_subscription_count() == 0:
+            return
         truth = reading.truth
         (px, py, pz), (qx, qy, qz, qw) = truth.position.tolist(), truth.orientation_xyzw.tolist()
         (vx, vy, vz), (wx, wy, wz) = truth.linear_velocity.tolist(), truth.angular_velocity.tolist()
