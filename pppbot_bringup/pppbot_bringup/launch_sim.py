@@ -30,6 +30,8 @@ from pppbot_bringup.supervisor import NodeSpec, ReadyCheck
 from pppbot_common.launch_args import Argument, ArgumentError, parse_assignments
 
 LOG_LEVELS = ("debug", "info", "warn", "error", "fatal")
+#: the simulator's largest ``wheel_slip`` (pppbot_sim.wheel_slip.MAX_SLIP_STDDEV)
+MAX_WHEEL_SLIP = 0.2
 #: ``pppbot bag record``'s node name (rosbag2's).
 RECORDER_NODE = "rosbag2_recorder"
 
@@ -116,6 +118,35 @@ class LaunchArgs:
             typed["viz_viewer"] = ViewerKind(typed["viz_viewer"])
         return cls(**typed)
 
+    def validate(self, environ: Mapping[str, str]) -> None:
+        """Check every value before anything starts (files and the world are checked where they are
+        read); ``environ``: for a display with ``headless:=false`` or ``viz_viewer:=native``.
+
+        Raises:
+            ArgumentError: the first bad value, named with what is allowed.
+        """
+        from pppbot_viz.viewer import has_display
+        ranges = {"real_time_factor": (0.0, 1000.0), "x": (-1e6, 1e6), "y": (-1e6, 1e6), "yaw": (-1e3, 1e3),
+                  "wheel_slip": (0.0, MAX_WHEEL_SLIP)}
+        for name, (low, high) in ranges.items():
+            value = float(getattr(self, name))
+            if not low <= value <= high:
+                raise ArgumentError(f"{name}:={value:g}: must be a number from {low:g} to {high:g}")
+        if not (math.isnan(self.z) or -1e6 <= self.z <= 1e6):
+            raise ArgumentError(f"z:={self.z:g}: must be a number (or nan: resting on the ground)")
+        if not 0 <= self.seed < 2**63:
+            raise ArgumentError(f"seed:={self.seed}: must be a whole number from 0")
+        if not 0 <= self.viz_port <= 65535:
+            raise ArgumentError(f"viz_port:={self.viz_port}: must be a port number from 0 (a free one) to 65535")
+        self.stop_timeouts()
+        wants_window = not self.headless, self.use_viz and self.viz_viewer is ViewerKind.NATIVE
+        for name, wants in zip(("headless:=false", "viz_viewer:=native"), wants_window, strict=True):
+            if wants and not has_display(environ):
+                raise ArgumentError(f"{name} opens a window, and there is no display here (DISPLAY and WAYLAND_DISPLAY "
+                                    "are not set): leave it out, or run where a desktop is")
+        if self.record and self.bag_path and Path(self.bag_path).exists():
+            raise ArgumentError(f"bag_path:={self.bag_path}: exists already; a bag is never overwritten")
+
     def stop_timeouts(self) -> tuple[float, float]:
         """(seconds after SIGINT, seconds after SIGTERM) before the launch escalates.
 
@@ -152,11 +183,14 @@ class Probes(Protocol):
 @dataclass(frozen=True)
 class Plan:
     nodes: list[NodeSpec]
+    #: what the user should act on (printed as warnings before the start)
     notes: list[str]
     #: what the user should know once it is up (the live view's address)
     info: list[str] = field(default_factory=list)
     #: files to write before starting (parameter files adapted to the robot), path → text
     files: dict[Path, str] = field(default_factory=dict)
+    #: what the launch does, for the user's information (printed before the start)
+    start_info: list[str] = field(default_factory=list)
 
 
 #: Scans a view recording without a live view keeps per second (of 10): a fifth of the size.
@@ -245,9 +279,9 @@ def controllers_file() -> Path:
     return config_directory() / "my_controllers.yaml"
 
 
-def adapted_file(path: Path, robot: RobotFacts, directory: Path, files: dict[Path, str], notes: list[str]) -> Path:
+def adapted_file(path: Path, robot: RobotFacts, directory: Path, files: dict[Path, str], info: list[str]) -> Path:
     """``path``, or a copy in ``directory`` (added to ``files``) with its frames and topics pointed
-    at ``robot``'s (:func:`pppbot_bringup.robot.adapt_parameters`).
+    at ``robot``'s (:func:`pppbot_bringup.robot.adapt_parameters`); ``info`` says so.
 
     Raises:
         ArgumentError: the file is not YAML.
@@ -263,7 +297,7 @@ def adapted_file(path: Path, robot: RobotFacts, directory: Path, files: dict[Pat
     if not changes:
         return path
     files[target] = yaml.safe_dump(document, sort_keys=False)
-    notes.append(f"{path.name} follows robot '{robot.name}': {'; '.join(changes)} (in {target})")
+    info.append(f"{path.name} follows robot '{robot.name}': {'; '.join(changes)} (in {target})")
     return target
 
 
@@ -283,6 +317,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
     lockstep = args.lockstep
     config = config_directory()
     notes: list[str] = list(robot.notes)
+    start_info: list[str] = list(robot.info)
     files: dict[Path, str] = {}
     participants: list[str] = []
 
@@ -318,13 +353,13 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                                                 "--use-sim-time", "-o", str(bag)],
                                  after=("simulator",), ready=ReadyCheck("recording /clock", probes.endpoints(
                                      RECORDER_NODE, subscribes=("/clock",)))))
-        notes.append(f"recording every topic to {bag} (ends when the launch ends)")
+        start_info.append(f"recording every topic to {bag} (ends when the launch ends)")
     if args.localization:
         map_file = Path(args.map) if args.map else maps_directory() / f"{world_file.stem}.yaml"
         if not map_file.is_file():
             raise ArgumentError(f"localization:=true needs a map; {map_file} does not exist "
                                 f"(save one while mapping, or give map:=path/to/map.yaml)")
-        nav2_params = adapted_file(config / "nav2_params.yaml", robot, urdf_file.parent, files, notes)
+        nav2_params = adapted_file(config / "nav2_params.yaml", robot, urdf_file.parent, files, start_info)
         # AMCL starts where the robot was spawned (the shipped maps' frame is the world's, the
         # spawn pose of a map made with the default spawn); RViz's 2D Pose Estimate moves it.
         # The launch's seed seeds AMCL's particles too: one seed makes the whole run repeatable.
@@ -352,12 +387,12 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
             nodes.append(NodeSpec("amcl", [resolve("pppbot_nav", "amcl"), *ros_args(
                 level, {**amcl_params, **extra}, params_file=nav2_params)],
                 after=("map_server", "robot_state_publisher"), required=True, pppbot_node=True, ready=localized))
-        notes.append(f"localizing on {map_file}")
+        start_info.append(f"localizing on {map_file}")
     elif args.use_slam:
         slam_params = Path(args.slam_params_file or config / "mapper_params_online_async.yaml")
         if not slam_params.is_file():
             raise ArgumentError(f"slam_params_file: {slam_params} does not exist")
-        slam_params = adapted_file(slam_params, robot, urdf_file.parent, files, notes)
+        slam_params = adapted_file(slam_params, robot, urdf_file.parent, files, start_info)
         # Ready once it has mapped its first scan: the map frame is where the robot was then, so
         # nothing should drive it before (eval relies on map = spawn pose). In lockstep the first
         # scan is mapped before time moves past it.
@@ -372,7 +407,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
     if args.navigation.enabled(args.localization):
         if localizer is None:
             raise ArgumentError("navigation:=true needs a map frame: localization:=true or use_slam:=true")
-        nav2_params = adapted_file(config / "nav2_params.yaml", robot, urdf_file.parent, files, notes)
+        nav2_params = adapted_file(config / "nav2_params.yaml", robot, urdf_file.parent, files, start_info)
         servers = {"planner_server": "/compute_path_to_pose", "controller_server": "/follow_path",
                    "navigator": "/navigate_to_pose"}
         probe = {name: probes.endpoints(name, action_servers=(action,)) for name, action in servers.items()}
@@ -384,7 +419,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
             extra, check = participant(name, name, ready)
             nodes.append(NodeSpec(name, [resolve("pppbot_nav", name), *ros_args(level, extra, params_file=nav2_params)],
                                   after=(localizer,), required=True, pppbot_node=True, ready=check))
-        notes.append("navigating: send goals with RViz's 2D Goal Pose, ./pppbot nav goto X Y YAW, "
+        start_info.append("navigating: send goals with RViz's 2D Goal Pose, ./pppbot nav goto X Y YAW, "
                      "or the navigate_to_pose action")
     simulator_params: dict[str, Any] = {
         "world": world_file, "robot_description": urdf_file, "real_time_factor": args.real_time_factor,
@@ -401,7 +436,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                              required=True, pppbot_node=True))
     if args.use_rviz:
         if rviz is None:
-            notes.append("rviz2 is not on PATH: no RViz (use_rviz:=false silences this); "
+            start_info.append("rviz2 is not on PATH: no RViz (use_rviz:=false silences this); "
                          "with ROS 2 Jazzy installed, run rviz2 -d config/ppp_bot.rviz on the same ROS_DOMAIN_ID")
         else:
             nodes.append(NodeSpec("rviz2", [rviz, "-d", str(config / "ppp_bot.rviz"), *ros_args(level)],
@@ -420,5 +455,5 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                                                       *ros_args(level, sim_time=False)],
                                   after=tuple(n.name for n in nodes if n.required), terminal=True))
         else:
-            notes.append("no terminal here for the keyboard teleop: run ./pppbot teleop in another terminal")
-    return Plan(nodes, notes, info, files)
+            start_info.append("no terminal here for the keyboard teleop: run ./pppbot teleop in another terminal")
+    return Plan(nodes, notes, info, files, start_info)

@@ -54,7 +54,8 @@ class RobotFacts:
     localization_base_frame: str  # SLAM's base_frame, AMCL's base_frame_id
     navigation_base_frame: str  # the costmaps' and the navigator's robot_base_frame
     scan_topic: str | None
-    notes: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()  # what the user should act on
+    info: tuple[str, ...] = ()  # what the bringup does about the description
 
 
 def parse_xacro_args(text: str) -> dict[str, str]:
@@ -126,6 +127,7 @@ def robot_facts(urdf: str, source: str, mux_inputs: Sequence[str]) -> RobotFacts
     """
     robot = parse_urdf(urdf, source)
     notes: list[str] = []
+    info: list[str] = []
     lidars = [s for s in robot.sensors if s.type in LIDAR_TYPES]
     scan_topic = _absolute(lidars[0].topic) if lidars else None
     if not lidars:
@@ -133,12 +135,13 @@ def robot_facts(urdf: str, source: str, mux_inputs: Sequence[str]) -> RobotFacts
                      "AMCL and the costmaps get no scans")
     base = "base_footprint" if "base_footprint" in robot.links else robot.root
     nav_base = "base_link" if "base_link" in robot.links else robot.root
-    drive, command, remap, odom_topic, odom_frame = _drive(robot, mux_inputs, notes)
+    drive, command, remap, odom_topic, odom_frame = _drive(robot, mux_inputs, notes, info)
     return RobotFacts(robot.name, drive, command, remap, odom_topic, odom_frame, base, nav_base, scan_topic,
-                      tuple(notes))
+                      tuple(notes), tuple(info))
 
 
-def _drive(robot: RobotModel, mux_inputs: Sequence[str], notes: list[str]) -> tuple[Drive, str, str, str, str]:
+def _drive(robot: RobotModel, mux_inputs: Sequence[str], notes: list[str],
+           info: list[str]) -> tuple[Drive, str, str, str, str]:
     """(drive, twist_mux's output, the plugin's remap, odometry topic, odometry frame)."""
     path = controllers_file(robot)
     if path is not None:
@@ -157,7 +160,7 @@ def _drive(robot: RobotModel, mux_inputs: Sequence[str], notes: list[str]) -> tu
                          f"on {spec.tf_topic or 'no topic'}, not /tf: SLAM and AMCL see no odometry frame "
                          "(set <tf_topic>/tf</tf_topic>, or <publish_odom_tf>true in Gazebo classic)")
         if spec.topic in {_absolute(t) for t in mux_inputs}:
-            notes.append(f"the DiffDrive plugin's topic {spec.topic} is one of twist_mux's inputs: twist_mux "
+            info.append(f"the DiffDrive plugin's topic {spec.topic} is one of twist_mux's inputs: twist_mux "
                          f"publishes on {MUX_OWN_OUTPUT} and the plugin listens there")
             return Drive.GAZEBO_PLUGIN, MUX_OWN_OUTPUT, MUX_OWN_OUTPUT, spec.odom_topic, spec.frame_id
         return Drive.GAZEBO_PLUGIN, spec.topic, "", spec.odom_topic, spec.frame_id

@@ -13,7 +13,10 @@ each path to the controller. When something fails it asks this policy what to do
   local costmap and replans (the tree's ``FollowPath`` recovery); the next fails;
 * a failed plan-and-follow (:meth:`NavigationPolicy.after_failure`): the next recovery of
   the round robin (:class:`pppbot_nav.behaviors.RecoveryRoundRobin`), until
-  ``number_of_retries`` recoveries have run; then the goal fails.
+  ``number_of_retries`` recoveries have run; then the goal fails. As Jazzy's tree (its
+  ``WouldAPlannerRecoveryHelp`` condition), no recovery runs for a planner error that no
+  recovery can mend: a start or goal outside the map or in an obstacle, or no valid path once
+  the global costmap has been cleared; the goal fails at once with the planner's error code.
 """
 from __future__ import annotations
 
@@ -21,6 +24,10 @@ import enum
 from dataclasses import dataclass, field
 
 from pppbot_nav.behaviors import Recovery, RecoveryRoundRobin
+
+#: ComputePathToPose's error codes (nav2_msgs) that no recovery can mend.
+START_OUTSIDE_MAP, GOAL_OUTSIDE_MAP, START_OCCUPIED, GOAL_OCCUPIED, NO_VALID_PATH = 203, 204, 205, 206, 208
+HOPELESS = frozenset({START_OUTSIDE_MAP, GOAL_OUTSIDE_MAP, START_OCCUPIED, GOAL_OCCUPIED, NO_VALID_PATH})
 
 
 class PlanDecision(enum.Enum):
@@ -64,9 +71,10 @@ class NavigationPolicy:
         return FollowDecision.FAIL if failures >= self.settings.follow_failures_before_recovery \
             else FollowDecision.CLEAR_AND_REPLAN
 
-    def after_failure(self) -> Recovery | None:
-        """Plan-and-follow failed: the recovery to run next, or None when the retries are spent."""
-        if self.recoveries >= self.settings.number_of_retries:
+    def after_failure(self, error_code: int = 0) -> Recovery | None:
+        """Plan-and-follow failed with ``error_code``: the recovery to run next, or None when the
+        retries are spent or no recovery can help (:data:`HOPELESS`)."""
+        if self.recoveries >= self.settings.number_of_retries or error_code in HOPELESS:
             return None
         self.recoveries += 1
         return self._robin.next()

@@ -41,6 +41,7 @@ from pppbot_sim.sdf_joints import JointKind
 from pppbot_sim.sdf_world import World, read_sdf_world
 from pppbot_sim.sensors import Imu, ImuReading, ImuSpec, Lidar, LidarSpec, finalize_ranges, sensor_specs
 from pppbot_sim.wheel_slip import SlipModel, WheelSlip
+from pppbot_sim.worlds import model_paths
 
 _log = logging.getLogger("pppbot_sim.mujoco")
 
@@ -189,6 +190,22 @@ def load_world(path: Path, model_paths: list[Path]) -> tuple[mujoco.MjSpec, Worl
             raise WorldError(f"{path}: world file not found")
         return mjcf_world_spec(path), None
     raise WorldError(f"{path}: unknown world format '{suffix}' (use .sdf, .world or MJCF .xml)")
+
+
+def check_world(path: Path) -> None:
+    """Load and build the world at ``path`` as the simulator will (a bringup calls this before it
+    starts anything).
+
+    Raises:
+        WorldError: the file cannot be read or built; the message names the file, line and element.
+    """
+    spec, world = load_world(path, model_paths(path))
+    if world is not None:
+        _world_servos(world, world_plugins(world.plugins).diff_drives)
+    try:
+        spec.compile()
+    except ValueError as exc:
+        raise WorldError(f"{path}: MuJoCo cannot build the world: {exc}") from exc
 
 
 class Simulation:

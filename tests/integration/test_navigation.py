@@ -102,3 +102,24 @@ def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spaw
     t0 = time.monotonic()
     wait_until(lambda: math.hypot(*truth_pose(truths[-1])[:2]) < 0.3 and abs(truths[-1].twist.twist.linear.x) < 0.02
                and time.monotonic() - t0 > 1.0, 120, "the robot back at (0, 0)", node=ros_node)
+
+    # 4. A goal no recovery can help fails at once, with Nav2's error code and no recovery run.
+    status, result = run_goal(ros_node, client, 1000.0, 1000.0)
+    assert status == GoalStatus.STATUS_ABORTED
+    assert result.error_code == 204 and result.error_msg.endswith("(after 0 recoveries)"), result.error_msg
+
+    # 5. A goal in the west wall (x = -2.5) is moved by the planner's tolerance (0.5 m) to the nearest
+    #    free pose: reached, and the result says where it went.
+    status, result = run_goal(ros_node, client, -2.5, 0.0)
+    assert status == GoalStatus.STATUS_SUCCEEDED, result.error_msg
+    assert "the goal (-2.50, 0.00) is in an obstacle: navigating to the nearest free pose" in result.error_msg
+    x, y, _ = truth_pose(truths[-1])
+    assert 0.2 < math.hypot(x + 2.5, y) < 0.6
+
+
+def run_goal(node: Any, client: Any, x: float, y: float) -> tuple[int, Any]:
+    sent = client.send_goal_async(NavigateToPose.Goal(pose=goal_pose(x, y, 0.0)))
+    handle = wait_until(lambda: sent.result() if sent.done() else None, 10, "the goal accepted", node=node)
+    done = handle.get_result_async()
+    wait_until(done.done, 120, f"the result of ({x}, {y})", node=node)
+    return done.result().status, done.result().result

@@ -169,9 +169,9 @@ def test_twist_mux_inputs_come_from_its_parameter_file(tmp_path):
 def test_plan_without_terminal_rviz_or_mapping_says_so():
     p, _ = fake_plan("use_slam:=false")
     assert [n.name for n in p.nodes][-1] == "twist_mux"
-    notes = " ".join(p.notes)
-    assert "run ./pppbot teleop in another terminal" in notes
-    assert "rviz2 is not on PATH" in notes
+    info = " ".join(p.start_info)  # information, not warnings: nothing to act on
+    assert "run ./pppbot teleop in another terminal" in info
+    assert "rviz2 is not on PATH" in info and p.notes == []
     assert "bag_record" not in [n.name for n in p.nodes]
     assert [n.name for n in fake_plan()[0].nodes][-1] == "slam_toolbox"
 
@@ -458,3 +458,53 @@ def test_a_taken_viz_port_moves_the_page_instead_of_stopping_the_robot(monkeypat
     assert (tmp_path / "config" / "rerun" / "analytics.json").is_file()
     with pytest.raises(VizError, match="viz_port:=70000: must be a port number"):
         ros_launch_sim.viz_plan(values("viz_port:=70000"))
+
+
+@pytest.mark.ros
+def test_a_second_launch_on_a_busy_domain_is_refused_and_the_first_runs_on(ros_node, spawn):
+    first = spawn([PPPBOT, "launch_sim", "world:=empty", "use_teleop:=false", "use_rviz:=false", "use_viz:=false",
+                   "use_slam:=false"], name="launch_sim")
+    first.wait_for_output(r"ppp_bot is up in 'empty'", 60)
+    second = spawn([PPPBOT, "launch_sim", "world:=room", "use_teleop:=false", "use_rviz:=false", "use_viz:=false"],
+                   name="second launch_sim")
+    assert second.wait(timeout_s=60) == 2
+    domain = os.environ["ROS_DOMAIN_ID"]
+    assert f"launch_sim: ROS_DOMAIN_ID={domain} already has a simulation running (something publishes /clock" \
+        in second.output
+    assert f"ROS_DOMAIN_ID={1 if domain != '1' else 2} make run" in second.output
+    assert "process started" not in second.output  # refused before anything started
+    truths: list[Odometry] = []
+    ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
+    wait_until(lambda: len(truths) > 20, 20, "the first stack's ground truth", node=ros_node)
+    assert first.running() and "moved backwards in time" not in first.output
+
+
+@pytest.mark.parametrize(("argv", "environ", "message"), [
+    (["real_time_factor:=-1"], {}, "real_time_factor:=-1: must be a number from 0 to 1000"),
+    (["wheel_slip:=0.5"], {}, "wheel_slip:=0.5: must be a number from 0 to 0.2"),
+    (["x:=nan"], {}, "x:=nan: must be a number from -1e+06 to 1e+06"),
+    (["z:=inf"], {}, "z:=inf: must be a number (or nan: resting on the ground)"),
+    (["seed:=-3"], {}, "seed:=-3: must be a whole number from 0"),
+    (["viz_port:=70000"], {}, "viz_port:=70000: must be a port number from 0 (a free one) to 65535"),
+    (["sigterm_timeout:=0"], {}, "sigterm_timeout:=0: must be a positive number of seconds"),
+    (["headless:=false"], {}, "headless:=false opens a window, and there is no display here"),
+    (["viz_viewer:=native"], {}, "viz_viewer:=native opens a window, and there is no display here"),
+])
+def test_every_argument_is_checked_before_anything_starts(argv, environ, message):
+    with pytest.raises(ArgumentError) as info:
+        values(*argv).validate(environ)
+    assert message in str(info.value)
+    values(*argv[:0]).validate({})  # the defaults pass
+    values("headless:=false").validate({"DISPLAY": ":0"})  # with a display, a window is fine
+
+
+def test_a_bad_value_or_world_stops_the_launch_before_any_process(tmp_path):
+    broken = tmp_path / "broken.sdf"
+    broken.write_text("<sdf><world name='w'><model name='m'><link name='l'><collision name='c'><geometry>"
+                      "<box><size>1 1</size></box></geometry></collision></link></model></world></sdf>")
+    for argv, message in ((["real_time_factor:=-1"], "launch_sim: real_time_factor:=-1: must be a number"),
+                          ([f"world:={broken}"], f"launch_sim: {broken}:1: <size> needs 3 numbers, not '1 1'")):
+        result = subprocess.run([PPPBOT, "launch_sim", "use_teleop:=false", *argv], capture_output=True, text=True,
+                                timeout=60)
+        assert result.returncode == 2 and message in result.stderr, result.stderr
+        assert "process started" not in result.stdout

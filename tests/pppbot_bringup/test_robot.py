@@ -50,8 +50,9 @@ def test_ppp_bot_with_ignition_control_puts_twist_mux_in_front_of_its_plugin() -
     assert robot.drive is Drive.GAZEBO_PLUGIN
     # the plugin's /cmd_vel is twist_mux's navigation input: the mux keeps cmd_vel_out, the plugin listens there
     assert (robot.command_topic, robot.simulator_cmd_vel_topic) == (MUX_OWN_OUTPUT, MUX_OWN_OUTPUT)
-    assert robot.notes == ("the DiffDrive plugin's topic /cmd_vel is one of twist_mux's inputs: twist_mux publishes "
-                           "on /cmd_vel_out and the plugin listens there",)
+    assert robot.notes == ()  # nothing to act on: it is told, not warned
+    assert robot.info == ("the DiffDrive plugin's topic /cmd_vel is one of twist_mux's inputs: twist_mux publishes "
+                          "on /cmd_vel_out and the plugin listens there",)
 
 
 def test_a_users_robot_declares_its_own_frames_and_topics() -> None:
@@ -90,7 +91,7 @@ def test_the_plan_wires_the_users_robot(tmp_path: Path) -> None:
     assert f"--params-file {slam_file}" in nodes["slam_toolbox"]
     slam = yaml.safe_load(p.files[slam_file])["slam_toolbox"]["ros__parameters"]
     assert (slam["odom_frame"], slam["base_frame"], slam["scan_topic"]) == ("my_bot/odom", "base", "/laser_scan")
-    assert any("mapper_params_online_async.yaml follows robot 'my_bot'" in note for note in p.notes)
+    assert any("mapper_params_online_async.yaml follows robot 'my_bot'" in note for note in p.start_info)
 
 
 class _Probes:

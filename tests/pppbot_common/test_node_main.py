@@ -13,7 +13,7 @@ from rclpy.node import Node
 
 from pppbot_common.errors import PppbotError
 from pppbot_common.process import block_stop_signals
-from pppbot_common.ros.node_main import run_node
+from pppbot_common.ros.node_main import Warnings, run_node
 
 pytestmark = pytest.mark.ros
 
@@ -192,3 +192,28 @@ def test_composed_nodes_share_one_tf_listener_and_each_hears_of_new_transforms()
         source.destroy_node()
     finally:
         rclpy.try_shutdown()
+
+
+def test_warnings_that_are_normal_while_a_stack_comes_up_are_debug_until_settled() -> None:
+    class Log:
+        def __init__(self) -> None:
+            self.lines: list[tuple[str, str]] = []
+
+        def debug(self, text: str) -> None:
+            self.lines.append(("debug", text))
+
+        def warning(self, text: str) -> None:
+            self.lines.append(("warning", text))
+
+    log = Log()
+    node = type("FakeNode", (), {"get_logger": lambda self: log})()
+    warn = Warnings(node, 0.0, settling=("transform",))
+    warn("transform", "no transform yet")
+    warn("scan", "a malformed scan")  # not a settling kind: a warning at once
+    warn.settled("transform")
+    warn("transform", "no transform any more")
+    late = Warnings(node, 0.0, settling=("transform",))
+    late.quiet_until = 0.0  # the node started long ago: a frame that never came is a warning
+    late("transform", "still no transform")
+    assert log.lines == [("debug", "no transform yet"), ("warning", "a malformed scan"),
+                         ("warning", "no transform any more"), ("warning", "still no transform")]

@@ -1,6 +1,8 @@
 """The navigator's failure policy without ROS: Nav2's default tree's retries, clears and recoveries."""
 from __future__ import annotations
 
+import pytest
+
 from pppbot_nav.behaviors import Recovery
 from pppbot_nav.navigation_policy import FollowDecision, NavigationPolicy, PlanDecision, PolicySettings
 
@@ -47,3 +49,17 @@ def test_each_goal_has_its_own_count_and_place_in_the_robin():
     first.after_failure()
     first.after_failure()
     assert second.after_failure() is Recovery.CLEAR_COSTMAPS and second.recoveries == 1
+
+
+@pytest.mark.parametrize("code", [203, 204, 205, 206, 208])
+def test_no_recovery_for_planner_errors_no_recovery_can_mend(code: int) -> None:
+    """Jazzy's tree (WouldAPlannerRecoveryHelp): outside the map, occupied start or goal, no path once
+    the global costmap was cleared: the goal fails at once."""
+    policy = NavigationPolicy()
+    assert policy.after_failure(code) is None and policy.recoveries == 0
+
+
+@pytest.mark.parametrize("code", [0, 200, 207, 104, 105])
+def test_recoveries_for_errors_a_recovery_may_mend(code: int) -> None:
+    """Unknown, timeouts, a controller that failed or made no progress: the round robin runs."""
+    assert NavigationPolicy().after_failure(code) is Recovery.CLEAR_COSTMAPS

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
+import time
 from collections.abc import Callable, Sequence
 
 import rclpy
@@ -17,11 +18,53 @@ from rclpy.action import get_action_server_names_and_types_by_node
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
 
 from pppbot_common.ros.lockstep import STATUS_QOS, STATUS_TOPIC
 from pppbot_common.ros.messages import get_interface
 from pppbot_common.ros.qos import DEFAULT, LATCHED
 from pppbot_interfaces.msg import LockstepStatus
+
+#: how long a new launch listens for another simulation's /clock on its domain (a simulation
+#: publishes it at 100 Hz; discovering and matching its publisher takes one to three seconds)
+DOMAIN_CHECK_S = 4.0
+#: with no other node in the graph after this long, the domain is taken to be empty
+EMPTY_DOMAIN_S = 1.0
+
+
+def domain_taken_message(what: str, environ: dict[str, str] | None = None) -> str:
+    """The refusal: what runs on which domain, and how to pick another."""
+    import os
+    domain = (environ or dict(os.environ)).get("ROS_DOMAIN_ID", "0")
+    other = 1 if domain != "1" else 2
+    return (f"ROS_DOMAIN_ID={domain} already has {what}; a second one would mix with it (its clock, maps and "
+            f"transforms). Stop it, or run on another domain: ROS_DOMAIN_ID={other} make run (every terminal of "
+            "a stack needs the same ROS_DOMAIN_ID)")
+
+
+def free_domain(candidates: Sequence[int], wait_s: float = DOMAIN_CHECK_S) -> int:
+    """The first of ``candidates`` (ROS_DOMAIN_IDs) on which no other node shows up within ``wait_s``.
+
+    Raises:
+        RuntimeError: every candidate is in use.
+    """
+    for domain in candidates:
+        context = rclpy.Context()
+        rclpy.init(args=[], context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
+        try:
+            node = rclpy.create_node("_pppbot_domain_probe", context=context, start_parameter_services=False,
+                                     enable_rosout=False)
+            deadline = time.monotonic() + wait_s
+            others: list[str] = []
+            while not others and time.monotonic() < deadline:
+                time.sleep(0.1)
+                others = [n for n, _ in node.get_node_names_and_namespaces() if n != "_pppbot_domain_probe"]
+            node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=context)
+        if not others:
+            return domain
+    raise RuntimeError(f"every ROS_DOMAIN_ID tried ({', '.join(map(str, candidates))}) has nodes on it")
 
 
 class GraphProbe:
@@ -48,6 +91,7 @@ class GraphProbe:
         seen = threading.Event()
         qos = latched if isinstance(latched, QoSProfile) else LATCHED if latched else DEFAULT
         self.node.create_subscription(get_interface(type_name), topic, lambda _msg: seen.set(), qos, raw=True)
+        self.executor.wake()
         return seen.is_set
 
     def endpoints(self, node: str, publishes: Sequence[str] = (), subscribes: Sequence[str] = (),
@@ -71,6 +115,30 @@ class GraphProbe:
                 seen.set()
             return seen.is_set()
         return probe
+
+    def running_stack(self, wait_s: float = DOMAIN_CHECK_S) -> str | None:
+        """What already runs a simulation on this domain (something publishing ``/clock``), heard
+        within ``wait_s``; None when nothing does. A probe's own readiness checks would be fooled by
+        it, and its nodes would mix with this launch's."""
+        heard = threading.Event()
+        subscription = self.node.create_subscription(Clock, "/clock", lambda _msg: heard.set(), DEFAULT, raw=True)
+        self.executor.wake()  # the spinning thread waits on the entities it had: take the new one in
+        try:
+            # An empty domain shows no node after a second; a simulation's /clock needs the
+            # subscription matched first, which takes a second or two more.
+            start = time.monotonic()
+            while not heard.wait(0.1) and time.monotonic() - start < wait_s:
+                if time.monotonic() - start > EMPTY_DOMAIN_S and not self._other_nodes():
+                    break
+        finally:
+            self.node.destroy_subscription(subscription)
+        if not heard.is_set():
+            return None
+        names = self._other_nodes()
+        return "a simulation running (something publishes /clock" + (f"; nodes: {', '.join(names)})" if names else ")")
+
+    def _other_nodes(self) -> list[str]:
+        return sorted({name for name, _ in self.node.get_node_names_and_namespaces() if not name.startswith("_")})
 
     def joined(self, participant: str) -> Callable[[], bool]:
         """A probe that turns true once the simulator lists ``participant`` as joined on /lockstep/status."""

@@ -22,12 +22,13 @@ from pppbot_viz.errors import VizError
 from pppbot_bringup.launch_sim import ARGUMENTS, LaunchArgs, VizPlan, controllers_file, plan, twist_mux_inputs
 from pppbot_bringup.paths import checkout_root, config_directory, log_root
 from pppbot_bringup.robot import load_description, robot_facts
-from pppbot_bringup.ros.graph_probe import GraphProbe
+from pppbot_bringup.ros.graph_probe import GraphProbe, domain_taken_message
 from pppbot_bringup.run import RunError, find_executable
 from pppbot_bringup.supervisor import Output, Supervisor
 from pppbot_common.launch_args import ArgumentError, describe
 from pppbot_description.errors import DescriptionError
 from pppbot_sim.errors import SpawnError, WorldError
+from pppbot_sim.simulation import check_world
 from pppbot_sim.worlds import find_world
 from pppbot_viz import viewer
 
@@ -58,14 +59,20 @@ def run(argv: Sequence[str]) -> int:
     terminal = sys.stdin.isatty() and sys.stdout.isatty()
     try:
         args = LaunchArgs.parse(argv)
+        args.validate(os.environ)
         sigint_timeout_s, sigterm_timeout_s = args.stop_timeouts()
         world_file = find_world(args.world)
+        check_world(world_file)
         urdf, urdf_source = load_description(args.description, args.xacro_args, controllers_file())
         robot = robot_facts(urdf, urdf_source, twist_mux_inputs(config_directory() / "twist_mux.yaml"))
         run_dir = log_root() / time.strftime("%Y-%m-%d-%H-%M-%S")
         urdf_file = run_dir / "robot.urdf"
         viz, viz_notes = viz_plan(args) if args.use_viz else (None, [])
         probe = GraphProbe()
+        running = probe.running_stack()
+        if running is not None:
+            probe.close()
+            raise ArgumentError(domain_taken_message(running))
     except (ArgumentError, WorldError, SpawnError, DescriptionError, RunError, VizError, OSError) as exc:
         print(f"launch_sim: {exc}", file=sys.stderr)
         return 2
@@ -88,6 +95,8 @@ def run(argv: Sequence[str]) -> int:
         output.event("INFO", "launch", f"log directory: {run_dir}")
         if teleop_owns_terminal:
             output.event("INFO", "launch", "node output goes to the log directory; warnings and errors show here")
+        for note in the_plan.start_info:
+            output.event("INFO", "launch", note)
         for note in [*viz_notes, *the_plan.notes]:
             output.event("WARNING", "launch", note)
         supervisor = Supervisor(the_plan.nodes, output, sigint_timeout_s=sigint_timeout_s,

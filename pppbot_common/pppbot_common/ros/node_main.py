@@ -25,7 +25,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from types import FrameType
 from typing import Any, TypeVar
 
@@ -229,16 +229,33 @@ def _shutting_down(grace_s: float = 2.0) -> bool:
     return True
 
 
+#: While a stack comes up, transforms and maps are missing for a few seconds: warnings about them
+#: in this first stretch of a node's life are debug messages, not warnings.
+STARTUP_SETTLE_S = 10.0
+
+
 class Warnings:
     """A node's warnings, at most one per ``period_s`` for each kind of problem
-    (rclpy's own throttling is per call site, so different problems would hide each other)."""
+    (rclpy's own throttling is per call site, so different problems would hide each other).
+    Kinds in ``settling`` (no transform yet, no map yet: what is normal while a stack comes up)
+    are debug messages until :meth:`settled` says that kind once went well, or for at most
+    :data:`STARTUP_SETTLE_S` after the node's start (a frame that never comes is a warning)."""
 
-    def __init__(self, node: Node, period_s: float = 5.0) -> None:
+    def __init__(self, node: Node, period_s: float = 5.0, settling: Collection[str] = ()) -> None:
         self.node = node
         self.throttle = Throttle(period_s)
+        self.settling = set(settling)
+        self.quiet_until = time.monotonic() + STARTUP_SETTLE_S
+
+    def settled(self, kind: str) -> None:
+        """What ``kind`` warns about went well once: from now on its problems are warnings."""
+        self.settling.discard(kind)
 
     def __call__(self, kind: str, text: str) -> None:
-        if self.throttle.allow(kind, time.monotonic()):
+        now = time.monotonic()
+        if kind in self.settling and now < self.quiet_until:
+            self.node.get_logger().debug(text)
+        elif self.throttle.allow(kind, now):
             self.node.get_logger().warning(text)
 
 

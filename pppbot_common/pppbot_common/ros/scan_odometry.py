@@ -73,4 +73,5 @@ class ScanOdometry:
                 self._warn("transform", f"dropping a scan: no transform {odom} → {base} → {frame} "
                                         f"at t = {stamp:.3f} s ({exc})")
                 continue
+            self._warn.settled("transform")
             self._ready(msg, stamp, frame, odom_pose, sensor)

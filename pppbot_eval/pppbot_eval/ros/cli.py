@@ -23,6 +23,7 @@ import argparse
 import functools
 import math
 import os
+import random
 import signal
 import sys
 import threading
@@ -35,7 +36,7 @@ import yaml
 
 from pppbot_bringup.launch_sim import LaunchArgs, NavigationMode, controllers_file, plan
 from pppbot_bringup.paths import config_directory
-from pppbot_bringup.ros.graph_probe import GraphProbe
+from pppbot_bringup.ros.graph_probe import GraphProbe, domain_taken_message, free_domain
 from pppbot_bringup.run import RunError, find_executable
 from pppbot_bringup.supervisor import Output, Supervisor
 from pppbot_common.errors import PppbotError
@@ -149,6 +150,10 @@ class Run:
         urdf_file.write_text(process_xacro(mappings={"controllers_file": str(controllers_file())}))
         probe = GraphProbe()
         try:
+            running = probe.running_stack()
+            if running is not None:
+                self.recording.failure = f"cannot start the stack: {domain_taken_message(running)}"
+                return
             try:
                 the_plan = plan(self._launch_args(), self.world_file, urdf_file,
                                 lambda p, e: str(find_executable(p, e)), probe, terminal=False, rviz=None,
@@ -538,6 +543,15 @@ def main(args: argparse.Namespace) -> int:
         print(f"pppbot eval: --out {exc.filename or args.out}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     os.environ["PYTHONUNBUFFERED"] = "1"
+    if "ROS_DOMAIN_ID" not in os.environ:  # a domain of its own: nothing else's nodes mix with the run's
+        try:
+            domain = free_domain(random.Random().sample(range(1, 102), 8))
+        except RuntimeError as exc:
+            print(f"pppbot eval: {exc}; set ROS_DOMAIN_ID to one that is free", file=sys.stderr)
+            return 2
+        os.environ["ROS_DOMAIN_ID"] = str(domain)
+        print(f"pppbot eval: on ROS_DOMAIN_ID={domain}, which nothing else uses (set ROS_DOMAIN_ID to choose)",
+              file=sys.stderr)
     progress = Progress(sys.stderr, f"{scenario.value} {world_file.stem}/{route.name if route else 'goals'}")
     run = Run(config, world_file, route, out, truth_map, goals)
     # Ctrl-C, SIGTERM, SIGHUP: stop the stack and still write the report.

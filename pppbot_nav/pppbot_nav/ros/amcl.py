@@ -176,7 +176,7 @@ class Amcl(Node):
         self.localizer: Localizer | None = None
         self._pose: tuple[np.ndarray, np.ndarray] | None = None  # the last initial pose asked for (mean, cov)
         self._map_to_odom: np.ndarray | None = None
-        self._warn = Warnings(self)
+        self._warn = Warnings(self, settling=("no map", "transform"))
         self._no_pose = Warnings(self, NO_POSE_WARN_PERIOD_S)
         self.scans = ScanOdometry(self, p.odom_frame_id, p.base_frame_id, self._on_scan_with_odometry, self._warn,
                                   p.tf_buffer_duration)

@@ -135,7 +135,7 @@ class CostmapNode(Node):
         super().__init__(name, namespace=name, **kwargs)
         self.costmap_name = name
         self.params = p = declare_parameters(self, CostmapParameters)
-        self._warn = Warnings(self)
+        self._warn = Warnings(self, settling=("robot pose", "scan transform"))
         self._pending: deque[LaserScan] = deque()  # scans waiting for their transform
         self._observations: deque[_Observation] = deque()  # scans with their sensor pose, oldest first
         self._applied: tuple[tuple[_Observation, ...], tuple[float, float]] | None = None  # and where
@@ -185,10 +185,12 @@ class CostmapNode(Node):
     def robot_pose(self) -> tuple[float, float, float] | None:
         """The robot's newest (x, y, yaw) in the costmap's frame, or None without TF."""
         try:
-            return self.tf.lookup(self.params.global_frame, self.params.robot_base_frame)
+            pose = self.tf.lookup(self.params.global_frame, self.params.robot_base_frame)
         except TransformError as exc:
             self._warn("robot pose", f"no robot pose: {exc}")
             return None
+        self._warn.settled("robot pose")
+        return pose
 
     def _on_scan(self, msg: LaserScan) -> None:
         """As tf2's message filter: a scan is marked with the sensor's pose at its stamp, waiting
@@ -223,6 +225,7 @@ class CostmapNode(Node):
                 self._warn("scan transform", f"dropping a scan: {exc}")
                 continue
             self._pending.popleft()
+            self._warn.settled("scan transform")
             self._buffer(_Observation(stamp, msg, sensor))
 
     def _buffer(self, observation: _Observation) -> None:

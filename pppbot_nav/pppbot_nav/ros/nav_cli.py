@@ -60,10 +60,14 @@ def main(args: argparse.Namespace) -> int:
                   "(is launch_sim running with navigation?)")
             return 2
         last = [0.0]
+        recoveries = [0]
 
         def feedback(msg: NavigateToPose.Impl.FeedbackMessage) -> None:
             fb = msg.feedback
-            if time.monotonic() - last[0] < 1.0:
+            if fb.number_of_recoveries > recoveries[0]:  # each recovery as it starts
+                recoveries[0] = fb.number_of_recoveries
+                print(f"recovery {fb.number_of_recoveries} started, {fb.distance_remaining:.2f} m to go", flush=True)
+            elif time.monotonic() - last[0] < 1.0:
                 return
             last[0] = time.monotonic()
             p = fb.current_pose.pose.position
@@ -82,7 +86,8 @@ def main(args: argparse.Namespace) -> int:
         response = result_future.result()
         status = STATUS.get(response.status, f"status {response.status}")
         detail = f": {response.result.error_msg} (error code {response.result.error_code})" \
-            if response.status != GoalStatus.STATUS_SUCCEEDED else ""
+            if response.status != GoalStatus.STATUS_SUCCEEDED else \
+            (f" ({response.result.error_msg})" if response.result.error_msg else "")
         print(f"goal {status}{detail}")
         return 0 if response.status == GoalStatus.STATUS_SUCCEEDED else 1
     except KeyboardInterrupt:

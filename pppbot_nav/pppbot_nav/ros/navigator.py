@@ -79,6 +79,10 @@ class NavigatorParameters:
         check_finite_range("number_of_retries", self.number_of_retries, 0, 1000)
 
 
+#: a planned path ending further than this from the goal means the planner moved the goal (m)
+GOAL_MOVED_M = 0.05
+
+
 class NotUpright(Exception):  # noqa: N818 (a signal of the navigator's own, not an error record)
     """The robot's base reports it is not upright: the goal ends at once, with no recovery."""
 
@@ -186,7 +190,7 @@ class Navigator(Node):
             return
         handle, flow, state = self._active
         flow.tick()
-        if not flow.ended and state.path is not None:
+        if not flow.ended:  # recoveries included: a client sees the robot and the count all along
             self._feedback(handle, state)
 
     # ---------------------------------------------------------------- helpers
@@ -212,6 +216,7 @@ class Navigator(Node):
         if error is None:
             self.get_logger().info(f"goal reached in {self._now_s() - state.start_s:.1f} s "
                                    f"({state.recoveries} recoveries)")
+            result.error_msg = state.moved_note or ""
             self.server.finish(handle, GoalEnd.SUCCEEDED, result)
             return
         self._cancel_follow(state)
@@ -256,7 +261,7 @@ class Navigator(Node):
                 yield from self._plan_and_follow(request, state)
                 return
             except Failed as exc:
-                recovery = state.policy.after_failure()
+                recovery = state.policy.after_failure(exc.code)
                 if recovery is None:
                     raise Failed(exc.code, f"{exc} (after {state.recoveries} recoveries)") from exc
                 self._cancel_follow(state)
@@ -317,6 +322,7 @@ class Navigator(Node):
                 next_plan = now + 1.0 / self.params.replanning_frequency
                 path = yield from self._plan(request, state.policy)
                 state.path = np.array([[ps.pose.position.x, ps.pose.position.y] for ps in path.poses])
+                self._note_moved_goal(request, state)
                 follow = FollowPath.Goal()
                 follow.path = path
                 handle = yield self.controller.send_goal_async(follow, feedback_callback=state.on_feedback)
@@ -337,12 +343,23 @@ class Navigator(Node):
             # Until the follow ends or the next plan is due, whichever comes first.
             yield Sleep(next_plan, wake=state.follow_result)
 
+    def _note_moved_goal(self, request: PoseStamped, state: _Progress) -> None:
+        """The planner moved an unreachable goal to the nearest free pose within its tolerance: say so
+        once (the log, and the result's message)."""
+        assert state.path is not None
+        end = state.path[-1]
+        moved = math.hypot(end[0] - request.pose.position.x, end[1] - request.pose.position.y)
+        if moved > GOAL_MOVED_M and state.moved_note is None:
+            state.moved_note = (f"the goal ({request.pose.position.x:.2f}, {request.pose.position.y:.2f}) is in an "
+                                f"obstacle: navigating to the nearest free pose ({end[0]:.2f}, {end[1]:.2f}), "
+                                f"{moved:.2f} m away (the planner's tolerance)")
+            self.get_logger().info(state.moved_note)
+
     def _feedback(self, handle: ServerGoalHandle, state: _Progress) -> None:
         try:
             x, y, yaw = self._pose(self.params.global_frame)
-        except TransformError as exc:
-            self._warn("pose", f"no feedback pose: {exc}")
-            return
+        except TransformError:
+            return  # no pose yet (a stack starting): the flow says so if it lasts
         fb = NavigateToPose.Feedback()
         fb.current_pose.header.frame_id = self.params.global_frame
         fb.current_pose.header.stamp = self.get_clock().now().to_msg()
@@ -417,6 +434,7 @@ class _Progress:
         self.follow: Any = None
         self.follow_result: Future | None = None
         self.speed = 0.0
+        self.moved_note: str | None = None  # set when the planner moved an unreachable goal
 
     @property
     def recoveries(self) -> int:

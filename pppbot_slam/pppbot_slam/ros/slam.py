@@ -171,7 +171,7 @@ class Slam(Node):
         on_valid_update(self, lambda: self.params, self._set_params)
         self._diagnostics_lock = threading.Lock()  # one health reading published at a time
         self.paused = False
-        self._warn = Warnings(self, WARN_PERIOD_S)
+        self._warn = Warnings(self, WARN_PERIOD_S, settling=("transform",))
         events = AsyncMapperEvents(keyframe=self._on_keyframe, loops=self._on_loops, map_built=self._on_map,
                                    warn=self._warn)
         first = self._load(p.map_file_name) if p.map_file_name else Mapper(p.mapper_settings())
