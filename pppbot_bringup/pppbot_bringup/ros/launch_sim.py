@@ -3,10 +3,11 @@
     ./pppbot launch_sim [world:=cones] [localization:=false] [use_teleop:=true] ...
     ./pppbot launch_sim --show-args
 
-Start order, each step waiting for real readiness (a first message, not a sleep):
-simulator (first /clock) → robot_state_publisher (/robot_description) and
-diff_drive_base_controller (first /odom) → twist_mux → mapping or localization
-(when built) → RViz (when on PATH) → keyboard teleop.
+Start order, each step waiting for real readiness (a first message or a node's endpoints on
+the graph, never a sleep): simulator (first /clock; the robot's controllers or DiffDrive plugin
+run in it) → robot_state_publisher (/robot_description) → twist_mux (its output and inputs) →
+mapping or localization → navigation → RViz (when on PATH) → the live view → keyboard teleop.
+Every argument is checked, and the domain looked at, before anything starts.
 """
 from __future__ import annotations
 
