@@ -1,4 +1,5 @@
-"""``pppbot bag record|play|info|reindex``: record, play, inspect and reindex rosbag2 (MCAP) bags, like ``ros2 bag``.
+"""``pppbot bag record|play|info|reindex|from-carmen``: record, play, inspect and reindex rosbag2 (MCAP) bags, like
+``ros2 bag``; and turn a real robot's CARMEN laser log into one.
 
 Arguments are parsed and checked here (no rclpy), so a bad flag is refused before any
 node starts; recording and playing run in ``pppbot_bag.ros.record`` and
@@ -152,6 +153,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                        "whose recorder was killed")
     p.add_argument("bag_path")
 
+    p = sub.add_parser("from-carmen", help="a CARMEN laser log (.log, .log.gz) as a bag: /scan, /odom, /tf, "
+                                           "/tf_static on the log's clock, odometry made with AMCL's noise model")
+    p.add_argument("log", help="the CARMEN log, e.g. ../shared/datasets/carmen/intel.log.gz")
+    p.add_argument("-o", "--output", help="the bag directory (default: <log name>_bag); never overwritten")
+    p.add_argument("--alphas", type=float, nargs=4, default=[0.05, 0.05, 0.05, 0.05], metavar="A",
+                   help="odometry noise as AMCL's alpha1..alpha4 (the corrected logs have none of their own)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the odometry noise")
+    p.add_argument("--scans", type=int, default=0, help="only the log's first N scans (0: all)")
+    p.add_argument("--base-frame", default="base_footprint", help="the robot's frame (the slam node's base_frame)")
+    p.add_argument("--laser-frame", default="laser_frame", help="the scans' frame")
+
 
 def _selection(args: argparse.Namespace, positional: list[str], all_topics: bool) -> TopicSelection:
     return TopicSelection(
@@ -205,6 +217,8 @@ def main(args: argparse.Namespace) -> int:
             report = reindex(Path(args.bag_path))
             print(report)
             return 0
+        if args.bag_verb == "from-carmen":
+            return from_carmen(args)
         if args.bag_verb == "record":
             options: RecordOptions | PlayOptions = record_options(args)
             module = "pppbot_bag.ros.record"
@@ -215,3 +229,27 @@ def main(args: argparse.Namespace) -> int:
         print(f"pppbot bag {args.bag_verb}: {exc}", file=sys.stderr)
         return 1
     return int(importlib.import_module(module).main(options))
+
+
+def from_carmen(args: argparse.Namespace) -> int:
+    """``pppbot bag from-carmen``: the log as a bag (:func:`pppbot_bag.carmen.write_bag`).
+
+    Raises:
+        BagError: a bad log, output or value.
+    """
+    import numpy as np
+
+    from pppbot_bag.carmen import BagFrames, read_carmen, synthesize_odometry, write_bag
+    if any(not (math.isfinite(a) and a >= 0) for a in args.alphas):
+        raise BagError(f"--alphas must be four numbers >= 0, not {args.alphas}")
+    if args.scans < 0:
+        raise BagError(f"--scans must be 0 (all) or more, not {args.scans}")
+    log = read_carmen(Path(args.log))
+    if args.scans:
+        log = log.head(args.scans)
+    output = Path(args.output) if args.output else Path(f"{log.name}_bag")
+    odometry = synthesize_odometry(log.poses, tuple(args.alphas), np.random.default_rng(args.seed))
+    count = write_bag(log, odometry, output, BagFrames(base=args.base_frame, laser=args.laser_frame))
+    print(f"{output}: {len(log.poses)} scans of {log.name} over {log.duration_s:.0f} s, {count} messages "
+          f"(/scan in {args.laser_frame}, /odom and /tf odom → {args.base_frame}, seed {args.seed})")
+    return 0

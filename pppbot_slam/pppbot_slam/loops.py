@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pppbot_common.se2 import se2_compose, se2_inverse, wrap_angles
+from pppbot_common.se2 import se2_apply, se2_compose, se2_inverse, wrap_angles
 from pppbot_slam.matcher import ScanMatcher
 from pppbot_slam.occupancy import ScanRays
 from pppbot_slam.pose_graph import Edge, PoseGraph
@@ -50,6 +50,8 @@ LOOP_AGREE_RAD = 0.15
 #: see through people and glass (true closures of the CARMEN logs reach several %), which is
 #: why corrections within LOOP_AGREE_M are taken without it.
 LOOP_SEE_THROUGH_MAX = 0.01
+#: A partial-overlap match is judged on at least this many points, whatever the share.
+MIN_OVERLAP_POINTS = 20
 
 
 @dataclass(frozen=True)
@@ -59,6 +61,7 @@ class LoopChain:
     points: np.ndarray  # their hits in the map
     normals: np.ndarray  # and the hits' surface normals
     views: tuple[View, ...] = ()  # their scans where they were taken (empty: not checked for see-through)
+    remote: bool = True  # not on the path that led to the search's keyframe (see Mapper.walked_from)
 
 
 @dataclass(frozen=True)
@@ -69,6 +72,7 @@ class LoopMatch:
     covariance: np.ndarray  # in the source's frame
     response: float
     see_through: float = 0.0  # the share of hits in view that the other side's beams passed (see LOOP_SEE_THROUGH_MAX)
+    partial: bool = False  # taken on the part of the scan the chain saw (see LoopSearch.overlap_response)
 
 
 @dataclass(frozen=True)
@@ -85,28 +89,64 @@ class LoopSearch:
     sensor_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))  # the lidar in the base frame
 
     def run(self, settings: MapperSettings) -> list[LoopMatch]:
-        """Each chain matched in the large window (coarse response ≥
-        ``loop_match_minimum_response_coarse``, variance ≤ ``loop_match_maximum_variance_coarse``),
-        then finely (response ≥ ``loop_match_minimum_response_fine``), unpolished: a closure
-        keeps the pose the search found, on which its checks were measured (polished, on the
-        real logs, the closures that got in changed, and no better)."""
+        """Each chain matched in the large window (variance ≤ ``loop_match_maximum_variance_coarse``),
+        then finely, unpolished: a closure keeps the pose the search found, on which its checks
+        were measured (polished, on the real logs, the closures that got in changed, and no better).
+
+        A chain within ``loop_search_maximum_distance`` is taken as slam_toolbox takes it: coarse
+        response ≥ ``loop_match_minimum_response_coarse`` and fine ≥
+        ``loop_match_minimum_response_fine``, over the whole scan. A place revisited a few metres
+        off (a wide hall crossed on another line) shares only part of what either scan saw, and
+        scores low over the whole scan however right the match: a remote chain (within
+        ``loop_search_overlap_distance`` when that is above 0, not on the path that led here)
+        is also taken when the part of the scan its keyframes had in view is at least
+        ``loop_match_minimum_overlap`` of it and scores at least
+        ``loop_match_minimum_response_overlap`` (:meth:`overlap_response`)."""
         matches = []
         wide, near = (replace(m, polish_iterations=0) for m in (settings.loop_matcher, settings.matcher))
-        for chain in self.chains:
+        chains = list(self.chains)
+        if len(chains) > 1:  # every pass near here at once: more of what this scan sees (see overlap_response)
+            chains.append(LoopChain(np.concatenate([c.indices for c in chains]),
+                                    np.vstack([c.poses for c in chains]), np.vstack([c.points for c in chains]),
+                                    np.vstack([c.normals for c in chains]),
+                                    tuple(v for c in chains for v in c.views), all(c.remote for c in chains)))
+        for chain in chains:
             coarse = ScanMatcher(chain.points, wide, chain.normals).match(self.points, self.pose, self.normals)
             variance = max(coarse.covariance[0, 0], coarse.covariance[1, 1])
-            if (coarse.response < settings.loop_match_minimum_response_coarse
-                    or variance > settings.loop_match_maximum_variance_coarse):
+            if variance > settings.loop_match_maximum_variance_coarse:
                 continue
-            fine = ScanMatcher(chain.points, near, chain.normals).match(self.points, coarse.pose, self.normals)
-            if fine.response < settings.loop_match_minimum_response_fine:
+            close = float(np.hypot(*(chain.poses[:, :2] - self.pose[:2]).T).min()) \
+                <= settings.loop_search_maximum_distance
+            fine_matcher = ScanMatcher(chain.points, near, chain.normals)
+            fine = fine_matcher.match(self.points, coarse.pose, self.normals)
+            whole = close and coarse.response >= settings.loop_match_minimum_response_coarse \
+                and fine.response >= settings.loop_match_minimum_response_fine
+            partial = not whole and chain.remote and settings.loop_search_overlap_distance > 0
+            if not whole and not (partial and self.overlap_response(fine_matcher, chain, fine.pose, settings)
+                                  >= settings.loop_match_minimum_response_overlap):
                 continue
             k = int(np.argmin(np.hypot(*(chain.poses[:, :2] - fine.pose[:2]).T)))
             matches.append(LoopMatch(int(chain.indices[k]), self.index,
                                      np.asarray(se2_compose(se2_inverse(chain.poses[k]), fine.pose)),
                                      in_frame_of(fine.covariance, float(chain.poses[k][2])), fine.response,
-                                     self.see_through(chain, fine.pose, settings.max_laser_range)))
+                                     self.see_through(chain, fine.pose, settings.max_laser_range), not whole))
         return matches
+
+    def overlap_response(self, matcher: ScanMatcher, chain: LoopChain, pose: np.ndarray,
+                         settings: MapperSettings) -> float:
+        """The mean likelihood, at ``pose``, of the scan's points the chain's keyframes had in view
+        (:meth:`pppbot_slam.visibility.View.in_view`): what both could have seen. 0 when that is
+        less than ``loop_match_minimum_overlap`` of the scan (too little to judge by), or when
+        the chain's scans are not known."""
+        if self.rays is None or not chain.views or not len(self.points):
+            return 0.0
+        placed = np.asarray(se2_apply(pose, self.points))
+        seen = np.zeros(len(placed), dtype=bool)
+        for view in chain.views:
+            seen |= view.in_view(placed, settings.max_laser_range)[1]
+        if seen.sum() < max(MIN_OVERLAP_POINTS, settings.loop_match_minimum_overlap * len(placed)):
+            return 0.0
+        return float(matcher.likelihoods(self.points[seen], pose, self.normals[seen]).mean())
 
     def see_through(self, chain: LoopChain, pose: np.ndarray, limit_m: float) -> float:
         """How much this keyframe's scan, at ``pose``, and the chain's scans pass through each other's walls."""

@@ -96,6 +96,11 @@ class MapperSettings:
     loop_match_maximum_variance_coarse: float = 3.0
     loop_match_minimum_response_coarse: float = 0.35
     loop_match_minimum_response_fine: float = 0.45
+    # pppbot's: loops over a partial overlap (see LoopSearch.run); 0: none. On the CARMEN logs
+    # 10 m found more closures and mapped no better (benchmarks/RESULTS.md): off by default.
+    loop_search_overlap_distance: float = 0.0
+    loop_match_minimum_overlap: float = 0.2
+    loop_match_minimum_response_overlap: float = 0.7
     matcher: MatcherSettings = MatcherSettings()
     # loop_search_space_dimension 8.0 and its smear 0.03; searched coarsely at 0.1 m
     loop_matcher: MatcherSettings = MatcherSettings(search_size_m=8.0, coarse_resolution_m=0.1, smear_m=0.03,
@@ -109,6 +114,9 @@ class MapperSettings:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise MapperError(f"{name} must be a positive number, not {value}")
+        if not (math.isfinite(self.loop_search_overlap_distance) and self.loop_search_overlap_distance >= 0):
+            raise MapperError("loop_search_overlap_distance must be 0 (no partial-overlap loops) or a positive "
+                              f"number, not {self.loop_search_overlap_distance}")
         for name in ("minimum_travel_distance", "minimum_travel_heading"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -117,7 +125,8 @@ class MapperSettings:
             if getattr(self, name) < 1:
                 raise MapperError(f"{name} must be at least 1, not {getattr(self, name)}")
         for name in ("link_match_minimum_response_fine", "loop_match_minimum_response_coarse",
-                     "loop_match_minimum_response_fine"):
+                     "loop_match_minimum_response_fine", "loop_match_minimum_overlap",
+                     "loop_match_minimum_response_overlap"):
             value = getattr(self, name)
             if not (math.isfinite(value) and 0 <= value <= 1):
                 raise MapperError(f"{name} must be in [0, 1], not {value}")
@@ -151,7 +160,9 @@ class Mapper:
     loop_closures: list[LoopClosure] = field(default_factory=list)
     last_response: float = 0.0
     session: int = 0  # the current odometry session
-    tried: dict[int, int] = field(default_factory=dict)  # loop chain (its first keyframe) → keyframe that last tried it
+    #: loop chain (its first keyframe; whether it came within loop_search_maximum_distance, else it
+    #: was tried on its overlap only) → keyframe that last tried it
+    tried: dict[tuple[int, bool], int] = field(default_factory=dict)
     rejected_closures: int = 0  # loop matches the graph could not agree with
     undone_closures: int = 0  # accepted loop closures that later closures showed to be wrong
     largest_correction: np.ndarray = field(default_factory=lambda: np.zeros(2))  # m, rad: the most a solve moved
@@ -346,12 +357,16 @@ class Mapper:
 
     # ----------------------------------------------------------- loop closure
     def loop_candidates(self, index: int) -> list[list[int]]:
-        """Chains of consecutive older keyframes near keyframe ``index`` (outside its running chain)."""
+        """Chains of consecutive older keyframes near keyframe ``index`` (outside its running
+        chain): within ``loop_search_maximum_distance``, or within ``loop_search_overlap_distance``
+        and before :meth:`walked_from` (the path that led here is no loop)."""
         s = self.settings
         pose = self.map_pose(index)
         old = index - s.scan_buffer_size
-        near = [i for i in range(max(0, old))
-                if np.hypot(*(self.map_pose(i)[:2] - pose[:2])) <= s.loop_search_maximum_distance]
+        walked = self.walked_from(index)
+        distances = [float(np.hypot(*(self.map_pose(i)[:2] - pose[:2]))) for i in range(max(0, old))]
+        near = [i for i, d in enumerate(distances)
+                if d <= s.loop_search_maximum_distance or (i < walked and 0 < d <= s.loop_search_overlap_distance)]
         chains: list[list[int]] = []
         for i in near:
             if chains and i == chains[-1][-1] + 1:
@@ -359,6 +374,19 @@ class Mapper:
             else:
                 chains.append([i])
         return [c for c in chains if len(c) >= s.loop_match_minimum_chain_size]
+
+    def walked_from(self, index: int) -> int:
+        """The first keyframe of the last ``loop_search_overlap_distance`` travelled to keyframe
+        ``index``: what the robot saw that recently overlaps its scan by the scan matching's
+        doing, not a loop's (``LoopChain.remote``), as slam_toolbox leaves the scans linked to a
+        scan out of its loop search."""
+        travelled, first = 0.0, index
+        while first > 0:
+            travelled += float(np.hypot(*(self.map_pose(first)[:2] - self.map_pose(first - 1)[:2])))
+            if travelled > self.settings.loop_search_overlap_distance:
+                break
+            first -= 1
+        return first
 
     def _linked(self, chain: list[int], index: int) -> bool:
         """Whether a loop edge already joins ``chain`` to keyframe ``index`` or its running chain:
@@ -377,17 +405,21 @@ class Mapper:
         if near.sum() < MIN_MATCH_POINTS:
             return None
         chains = []
+        walked = self.walked_from(index)
+        here = self.map_pose(index)
+        reach = self.settings.loop_search_maximum_distance
         for chain in self.loop_candidates(index):
             if sum(len(self.keyframes[i].points) for i in chain) < MIN_MATCH_POINTS or self._linked(chain, index):
                 continue
-            if index - self.tried.get(chain[0], -LOOP_RETRY_KEYFRAMES) < LOOP_RETRY_KEYFRAMES:
+            key = (chain[0], any(np.hypot(*(self.map_pose(i)[:2] - here[:2])) <= reach for i in chain))
+            if index - self.tried.get(key, -LOOP_RETRY_KEYFRAMES) < LOOP_RETRY_KEYFRAMES:
                 continue  # searched a moment ago without a match: the next keyframes will see more
-            self.tried[chain[0]] = index
+            self.tried[key] = index
             world, world_normals = self._world_points(chain)
             poses = np.array([self.map_pose(i) for i in chain])
             views = tuple(view_of(pose, self.sensor_offset, self.keyframes[i].rays)
                           for i, pose in zip(chain, poses, strict=True))
-            chains.append(LoopChain(np.array(chain), poses, world, world_normals, views))
+            chains.append(LoopChain(np.array(chain), poses, world, world_normals, views, chain[-1] < walked))
         if not chains:
             return None
         return LoopSearch(index, self.map_pose(index).copy(), keyframe.points[near], keyframe.normals[near],

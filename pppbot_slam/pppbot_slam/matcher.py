@@ -64,6 +64,9 @@ class MatcherSettings:
     refine_smear_m: float = 0.05
     #: Point-to-plane steps after the refinement (0: none; see :meth:`ScanMatcher.polish`).
     polish_iterations: int = 10
+    #: Refine and score against the map points themselves (their nearest neighbour, a k-d tree)
+    #: instead of interpolated grids (see :meth:`ScanMatcher.exact_values`).
+    refine_exact: bool = True
 
     def __post_init__(self) -> None:
         for name in ("search_size_m", "fine_resolution_m", "coarse_resolution_m", "smear_m", "refine_smear_m",
@@ -94,6 +97,9 @@ MAX_BLOCKS = 400
 #: Gauss-Newton refinement: at most this many steps, damped by this fraction of the diagonal.
 GAUSS_NEWTON_ITERATIONS = 10
 GAUSS_NEWTON_DAMPING = 0.1
+#: The exact refinement's iterations: nearest points change between steps, so it creeps where
+#: the grid's smooth field jumps (a wall drawn twice 4 cm apart: 20 steps to the right one).
+EXACT_GAUSS_NEWTON_ITERATIONS = 30
 #: Point-to-plane polish: a scan point pairs with the nearest map point within this distance
 #: (m) whose normal is within 60° of its own, and weighs by Cauchy's kernel of this scale (m).
 #: The search has put the pose within a fine step, so a true pair is a few cm apart at most
@@ -356,6 +362,40 @@ class ScanMatcher:
         classes = None if scan_normals_xy is None else normal_classes(rotate(scan_normals_xy, pose[2]))
         return self._likelihood(scan_xy, classes, pose)
 
+    def likelihoods(self, scan_xy: np.ndarray, pose: PoseLike, scan_normals_xy: np.ndarray | None = None) -> np.ndarray:
+        """Each scan point's likelihood at ``pose`` (K,) at the smear: interpolated in its field, or
+        exact (``refine_exact``)."""
+        pose = np.asarray(pose, dtype=float)
+        classes = None if scan_normals_xy is None else normal_classes(rotate(scan_normals_xy, pose[2]))
+        if self.settings.refine_exact:
+            return self.exact_values(se2_apply(pose, scan_xy), classes, self.settings.smear_m)[0]
+        return np.asarray(self.fine.interpolate(se2_apply(pose, scan_xy), classes))
+
+    @property
+    def tree(self) -> cKDTree:
+        """A k-d tree of the map points (made on first use)."""
+        if self._tree is None:
+            self._tree = cKDTree(self._map[0])
+        return self._tree
+
+    def exact_values(self, world_xy: np.ndarray, classes: np.ndarray | None,
+                     sigma_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """``exp(-d²/2σ²)`` of each point (K, 2, in the map) to its nearest map point, 0 where that
+        point faces away from the scan point's normal class (as the grids' classes do) or lies
+        beyond 4σ; and the offsets point − nearest (K, 2). What the likelihood grids sample at
+        their cells, without their cells (no half-cell shift, no interpolation between them)."""
+        distances, nearest = self.tree.query(world_xy, distance_upper_bound=4.0 * sigma_m)
+        found = np.isfinite(distances)
+        index = np.where(found, nearest, 0)
+        map_points, map_normals = self._map
+        offsets = np.where(found[:, None], world_xy - map_points[index], 0.0)
+        values = np.where(found, np.exp(-0.5 * (np.where(found, distances, 0.0) / sigma_m) ** 2), 0.0)
+        if classes is not None and map_normals is not None and NORMAL_CLASSES > 1:
+            angle = classes * (2 * np.pi / NORMAL_CLASSES)
+            normals = np.asarray(map_normals)[index]
+            values = np.where(normals[:, 0] * np.cos(angle) + normals[:, 1] * np.sin(angle) > 0, values, 0.0)
+        return np.asarray(values), np.asarray(offsets)
+
     def _likelihood(self, points: np.ndarray, classes: np.ndarray | None, pose: np.ndarray,
                     field: LikelihoodField | None = None) -> float:
         """Mean interpolated likelihood of points (in their normal classes) placed at ``pose``, in
@@ -386,17 +426,61 @@ class ScanMatcher:
             penalty = self._penalty_at(coarse, prior_pose)
             return MatchResult(coarse, top, top / max(penalty, 1e-12), self._covariance(candidates, responses))
         classes = None if normals is None else normal_classes(rotate(normals, coarse[2]))
-        field = self.refine_field(points, coarse)
+        s = self.settings
         best, best_score = coarse, -1.0
-        for pose in (coarse, self._gauss_newton(points, classes, coarse, field)):
-            score = self._likelihood(points, classes, pose, field) * self._penalty_at(pose, prior_pose)
-            if score > best_score:
-                best, best_score = pose, score
-        if normals is not None and self._map[1] is not None and self.settings.polish_iterations:
+        if s.refine_exact:
+            sigma = min(s.refine_smear_m, s.smear_m)
+            for pose in (coarse, self._gauss_newton_exact(points, classes, coarse, sigma)):
+                score = self._exact_mean(points, classes, pose, sigma) * self._penalty_at(pose, prior_pose)
+                if score > best_score:
+                    best, best_score = pose, score
+        else:
+            field = self.refine_field(points, coarse)
+            for pose in (coarse, self._gauss_newton(points, classes, coarse, field)):
+                score = self._likelihood(points, classes, pose, field) * self._penalty_at(pose, prior_pose)
+                if score > best_score:
+                    best, best_score = pose, score
+        if normals is not None and self._map[1] is not None and s.polish_iterations:
             best = self.polish(points, normals, best)
-        raw = self._likelihood(points, classes, best)
+        raw = self._exact_mean(points, classes, best, s.smear_m) if s.refine_exact \
+            else self._likelihood(points, classes, best)
         return MatchResult(best, raw * self._penalty_at(best, prior_pose), raw,
                            self._covariance(candidates, responses))
+
+    def _exact_mean(self, points: np.ndarray, classes: np.ndarray | None, pose: np.ndarray, sigma_m: float) -> float:
+        return float(self.exact_values(se2_apply(pose, points), classes, sigma_m)[0].mean())
+
+    def _gauss_newton_exact(self, points: np.ndarray, classes: np.ndarray | None, start: np.ndarray,
+                            sigma_m: float) -> np.ndarray:
+        """:meth:`_gauss_newton`'s steps on the exact likelihood (:meth:`exact_values`): each point's
+        gradient ``-f·(p − q)/σ²`` towards its nearest map point ``q``, no grid, no spline; the same
+        damping and the same limit of a coarse step from ``start``."""
+        s = self.settings
+        sigma2 = sigma_m ** 2
+        limit = np.array([s.coarse_resolution_m, s.coarse_resolution_m, s.coarse_angle_step_rad])
+        pose = np.asarray(start, dtype=float).copy()
+        best, best_score = pose.copy(), -1.0
+        for _ in range(EXACT_GAUSS_NEWTON_ITERATIONS):
+            arm = rotate(points, pose[2])
+            values, offsets = self.exact_values(pose[:2] + arm, classes, sigma_m)
+            score = float(values.mean())
+            if score > best_score:
+                best, best_score = pose.copy(), score
+            gx, gy = -values * offsets[:, 0] / sigma2, -values * offsets[:, 1] / sigma2
+            gradient = np.stack([gx, gy, gy * arm[:, 0] - gx * arm[:, 1]], axis=-1).sum(axis=0)
+            norm = np.maximum(np.hypot(offsets[:, 0], offsets[:, 1]), 1e-12)
+            ux, uy = -offsets[:, 0] / norm, -offsets[:, 1] / norm
+            direction = np.stack([ux, uy, uy * arm[:, 0] - ux * arm[:, 1]], axis=-1)
+            hessian = (direction * values[:, None]).T @ direction
+            hessian += np.diag(GAUSS_NEWTON_DAMPING * np.diag(hessian) + 1e-12)
+            step = np.linalg.solve(hessian, sigma2 * gradient)
+            pose = np.clip(pose + step, start - limit, start + limit)
+            if abs(step[0]) < 1e-4 and abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4:
+                break
+        if self._exact_mean(points, classes, pose, sigma_m) > best_score:
+            best = pose
+        best[2] = float(wrap_angles(best[2]))
+        return best
 
     def polish(self, points: np.ndarray, normals: np.ndarray, pose: np.ndarray) -> np.ndarray:
         """Point-to-plane least squares from ``pose``: each scan point pairs with the nearest map
@@ -413,14 +497,12 @@ class ScanMatcher:
         s = self.settings
         map_points, map_normals = self._map
         assert map_normals is not None
-        if self._tree is None:
-            self._tree = cKDTree(map_points)
         limit = np.array([s.fine_resolution_m, s.fine_resolution_m, s.fine_angle_step_rad])
         start = np.asarray(pose, dtype=float)
         pose = start.copy()
         for _ in range(s.polish_iterations):
             arm = rotate(points, pose[2])
-            distances, nearest = self._tree.query(pose[:2] + arm, distance_upper_bound=POLISH_PAIR_M)
+            distances, nearest = self.tree.query(pose[:2] + arm, distance_upper_bound=POLISH_PAIR_M)
             paired = np.isfinite(distances)
             paired[paired] &= (rotate(normals[paired], pose[2]) * map_normals[nearest[paired]]).sum(axis=1) \
                 > POLISH_NORMAL_COS

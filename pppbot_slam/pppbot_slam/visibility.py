@@ -70,18 +70,27 @@ class View:
 
     def passed(self, points: np.ndarray, normals: np.ndarray, limit_m: float) -> tuple[int, int]:
         """Of ``points`` (map frame, with unit surface ``normals``): how many this scan had in view
-        (its beams there returned no nearer than the point, less the tolerance) and how many of
-        those its beams passed through a surface they cross. The beams around a point are its
-        nearest in direction and the one either side: all must have returned (within ``limit_m``)
-        and all must reach past it, so a corner or a wall's end is not a beam through a wall."""
+        (:meth:`in_view`) and how many of those its beams passed through a surface they cross."""
+        through, visible = self.in_view(points, limit_m, normals)
+        return int(through.sum()), int(visible.sum())
+
+    def in_view(self, points: np.ndarray, limit_m: float,
+                normals: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Per point of ``points`` (map frame): whether this scan's beams passed through it (only
+        with ``normals``: across a surface, well beyond it), and whether this scan had it in view:
+        its beams there returned no nearer than the point, less the tolerance. The beams around a
+        point are its nearest in direction and the one either side: all must have returned (within
+        ``limit_m``) and all must reach past it, so a corner or a wall's end is not a beam through
+        a wall. Two boolean arrays (P,)."""
         points = np.asarray(points, dtype=float).reshape(-1, 2)
+        nothing = np.zeros(len(points), dtype=bool)
         if len(points) == 0:
-            return 0, 0
+            return nothing, nothing
         angles, order, classes = self._beams(limit_m)
         lengths = np.where(classes.hit, classes.length_m, np.nan)[order]
         beams = len(angles)
         if beams < 3:
-            return 0, 0
+            return nothing, nothing
         spacing = float(np.median(np.diff(angles)))
         full_circle = angles[-1] - angles[0] + 1.5 * spacing >= 2 * math.pi
         local = np.asarray(rotate(points - self.sensor_pose[:2], -float(self.sensor_pose[2])))
@@ -103,12 +112,14 @@ class View:
         returned = ~np.isnan(reach).any(axis=0)
         shortest = np.where(np.isnan(reach), 0.0, reach).min(axis=0)
         visible = in_view & returned & (ranges < limit_m) & (shortest > ranges - SEE_THROUGH_TOLERANCE_M)
+        if normals is None:
+            return nothing, visible
         direction = local / np.maximum(ranges, 1e-9)[:, None]
         local_normals = np.asarray(rotate(np.asarray(normals, dtype=float).reshape(-1, 2),
                                           -float(self.sensor_pose[2])))
         crossing = np.abs((direction * local_normals).sum(axis=1)) > CROSSING_COS
         through = visible & crossing & (shortest > ranges + SEE_THROUGH_TOLERANCE_M)
-        return int(through.sum()), int(visible.sum())
+        return through, visible
 
 
 def view_of(base_pose: PoseLike, sensor_offset: PoseLike, rays: ScanRays) -> View:

@@ -35,9 +35,11 @@ def beam_angles(beams: int = 640) -> np.ndarray:
 
 
 def cast_ranges(segments: np.ndarray, pose: np.ndarray, beams: int = 640, noise: float = 0.0,
-                seed: int = 0) -> np.ndarray:
-    """Ranges (inf: no return) of a lidar at ``pose`` with beams from −π: ray-segment intersections."""
-    angles = beam_angles(beams)
+                seed: int = 0, angles: np.ndarray | None = None) -> np.ndarray:
+    """Ranges (inf: no return) of a lidar at ``pose`` with beams from −π (or at ``angles``, rad in
+    the sensor frame): ray-segment intersections."""
+    angles = beam_angles(beams) if angles is None else np.asarray(angles, dtype=float)
+    beams = len(angles)
     d = np.stack([np.cos(angles + pose[2]), np.sin(angles + pose[2])], axis=1)
     a, b = segments[:, :2], segments[:, 2:]
     e = b - a

@@ -135,11 +135,14 @@ def test_the_refinement_climbs_a_sharper_field_and_finds_the_wall_a_wide_smear_b
     drawn_twice = np.vstack([walls, walls[::2] + np.array([0.0, 0.04])])
     scan = cast(SEGMENTS, truth, noise=0.005)
     prior = truth + np.array([0.03, 0.02, 0.01])
-    blurred = ScanMatcher(drawn_twice, MatcherSettings(refine_smear_m=0.1)).match(scan, prior)
-    matcher = ScanMatcher(drawn_twice)  # refine_smear_m 0.05 by default
+    blurred = ScanMatcher(drawn_twice, MatcherSettings(refine_smear_m=0.1, refine_exact=False)).match(scan, prior)
+    matcher = ScanMatcher(drawn_twice, MatcherSettings(refine_exact=False))  # refine_smear_m 0.05 by default
     sharp = matcher.match(scan, prior)
     assert np.hypot(*(blurred.pose[:2] - truth[:2])) > 0.01
     assert np.hypot(*(sharp.pose[:2] - truth[:2])) < 0.003 and abs(sharp.pose[2] - truth[2]) < 0.002
+    # The exact refinement (the default) has no field to blur: it climbs to the nearer wall.
+    exact = ScanMatcher(drawn_twice).match(scan, prior)
+    assert np.hypot(*(exact.pose[:2] - truth[:2])) < 0.002 and abs(exact.pose[2] - truth[2]) < 0.001
     # The response stays the search's (the thresholds on it keep their meaning); the sharper
     # field covers the scan, not the whole map.
     assert sharp.raw_response == pytest.approx(matcher.response(scan, sharp.pose))
@@ -169,12 +172,14 @@ def test_the_polish_fits_the_walls_closer_than_the_likelihood_field(seed):
     scan = cast(ROOM, truth, noise=0.005, seed=seed)
     prior = truth + np.array([0.03, 0.02, 0.01])
     errors = []
-    for iterations in (0, 10):
-        result = ScanMatcher(room, MatcherSettings(polish_iterations=iterations), room_normals).match(
-            scan, prior, scan_normals(scan))
+    for exact, iterations in ((False, 0), (False, 10), (True, 0)):
+        settings = MatcherSettings(polish_iterations=iterations, refine_exact=exact)
+        result = ScanMatcher(room, settings, room_normals).match(scan, prior, scan_normals(scan))
         errors.append((np.hypot(*(result.pose[:2] - truth[:2])), abs(result.pose[2] - truth[2])))
-    (field_m, _), (polished_m, polished_rad) = errors
+    (field_m, _), (polished_m, polished_rad), (exact_m, exact_rad) = errors
     assert field_m > 0.0015 and polished_m < field_m / 2 and polished_rad < 0.0005
+    # The exact refinement alone (nearest map points, no cells) comes near the polish.
+    assert exact_m < field_m / 2 and exact_rad < 0.001
 
 
 def test_the_polish_moves_no_further_than_a_fine_step_from_the_search():

@@ -93,6 +93,12 @@ class SlamParameters:
     loop_match_maximum_variance_coarse: float = param(3.0, "largest coarse-match variance accepted")
     loop_match_minimum_response_coarse: float = param(0.35, "coarse loop response needed")
     loop_match_minimum_response_fine: float = param(0.45, "fine loop response needed")
+    loop_search_overlap_distance: float = param(0.0, "pppbot's: loop candidates within this distance (m), off the "
+                                                     "path just driven, are also judged on the part of the scan "
+                                                     "they saw (0: not)")
+    loop_match_minimum_overlap: float = param(0.2, "pppbot's: share of the scan a loop candidate must have seen "
+                                                   "to be judged on it")
+    loop_match_minimum_response_overlap: float = param(0.7, "pppbot's: response needed over that shared part")
     correlation_search_space_dimension: float = param(0.5, "matching window width (m)")
     correlation_search_space_resolution: float = param(0.01, "fine matching step (m)")
     correlation_search_space_smear_deviation: float = param(0.1, "likelihood smear (m)")
@@ -158,6 +164,9 @@ class SlamParameters:
             loop_match_maximum_variance_coarse=self.loop_match_maximum_variance_coarse,
             loop_match_minimum_response_coarse=self.loop_match_minimum_response_coarse,
             loop_match_minimum_response_fine=self.loop_match_minimum_response_fine,
+            loop_search_overlap_distance=self.loop_search_overlap_distance,
+            loop_match_minimum_overlap=self.loop_match_minimum_overlap,
+            loop_match_minimum_response_overlap=self.loop_match_minimum_response_overlap,
             matcher=matcher, loop_matcher=loop)
 
 
