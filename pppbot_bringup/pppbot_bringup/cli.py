@@ -42,7 +42,7 @@ def find_verbs() -> dict[str, str]:
 
 
 def verb_help(module: str) -> str:
-    """The first line of ``module``'s docstring after its usage (``pppbot bag ...``: …), unimported."""
+    """The first paragraph of ``module``'s docstring after its usage (``pppbot bag ...``: …), unimported."""
     try:
         spec = importlib.util.find_spec(module)
     except ModuleNotFoundError:  # its package is missing
@@ -50,7 +50,7 @@ def verb_help(module: str) -> str:
     if spec is None or spec.origin is None:
         return f"({module} is not installed)"
     doc = ast.get_docstring(ast.parse(Path(spec.origin).read_text(encoding="utf-8"))) or ""
-    first = doc.strip().splitlines()[0] if doc.strip() else module
+    first = " ".join(doc.strip().split("\n\n")[0].split()) if doc.strip() else module
     usage, colon, rest = first.partition("``: ")
     return (rest if colon else first).replace("``", "`")
 

@@ -26,7 +26,9 @@ def test_every_verb_comes_from_its_package_and_is_a_verb_module():
 
 
 def test_help_lines_come_from_the_docstring_after_the_usage():
-    assert cli.verb_help("pppbot_bag.cli") == "record, play, inspect and reindex rosbag2 (MCAP) bags, like `ros2 bag`."
+    assert cli.verb_help("pppbot_bag.cli") == (
+        "record, play, inspect and reindex rosbag2 (MCAP) bags, like `ros2 bag`; "
+        "and turn a real robot's CARMEN laser log into one.")
     assert cli.verb_help("pppbot_no_such.module") == "(pppbot_no_such.module is not installed)"
 
 
