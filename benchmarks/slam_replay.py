@@ -12,9 +12,12 @@ the loop closures. The same drive and settings give the same figures on any mach
 run takes a minute or a few, where ``eval slam`` takes ten.
 
 ``--matcher NAME=VALUE`` overrides a :class:`pppbot_slam.matcher.MatcherSettings` field
-of the running matcher (say ``refine_smear_m=0.1`` to refine in the search's own field).
+of the running matcher (say ``refine_smear_m=0.1`` to refine in the search's own field),
+``--mapper NAME=VALUE`` a number of :class:`pppbot_slam.mapper.MapperSettings` (say
+``loop_search_global_distance=0`` for no global loop search).
 
-    ./pppbot env python benchmarks/slam_replay.py --world maze [--seed 0] [--wheel-slip 0.01] [--matcher NAME=VALUE ...]
+    ./pppbot env python benchmarks/slam_replay.py --world maze [--seed 0] [--wheel-slip 0.01] \
+        [--matcher NAME=VALUE ...] [--mapper NAME=VALUE ...]
     ./pppbot env python benchmarks/slam_replay.py --world out/looped_maze_001.sdf   # a generated world (worldgen.py)
 """
 from __future__ import annotations
@@ -36,35 +39,49 @@ from slam_dataset import SlamDataset, ensure_dataset, load_dataset  # noqa: E402
 TIMELINE_POINTS = 20
 
 
-def matcher_overrides(items: list[str]) -> dict[str, float]:
-    """``NAME=VALUE`` pairs as MatcherSettings fields.
+def field_overrides(items: list[str], settings_class: type, flag: str) -> dict[str, float]:
+    """``NAME=VALUE`` pairs as number fields of a settings dataclass (``--matcher``, ``--mapper``).
 
     Raises:
         ValueError: not NAME=VALUE, an unknown field, or a value that is not a number.
     """
-    from pppbot_slam.matcher import MatcherSettings
-
-    names = {f.name for f in dataclasses.fields(MatcherSettings)}
-    counts = {f.name for f in dataclasses.fields(MatcherSettings) if f.type in (int, "int")}
+    fields = [f for f in dataclasses.fields(settings_class) if f.type in (int, "int", float, "float")]
+    names = {f.name for f in fields}
+    counts = {f.name for f in fields if f.type in (int, "int")}
     out: dict[str, float] = {}
     for item in items:
         name, sep, value = item.partition("=")
         if not sep or name not in names:
-            raise ValueError(f"--matcher {item!r}: give NAME=VALUE with NAME one of {', '.join(sorted(names))}")
+            raise ValueError(f"{flag} {item!r}: give NAME=VALUE with NAME one of {', '.join(sorted(names))}")
         try:
             out[name] = int(value) if name in counts else float(value)
         except ValueError:
-            raise ValueError(f"--matcher {item!r}: {value!r} is not a number") from None
+            raise ValueError(f"{flag} {item!r}: {value!r} is not a number") from None
     return out
 
 
-def replay(ds: SlamDataset, matcher: dict[str, float]) -> dict[str, Any]:
+def matcher_overrides(items: list[str]) -> dict[str, float]:
+    """``NAME=VALUE`` pairs as MatcherSettings fields (see :func:`field_overrides`)."""
+    from pppbot_slam.matcher import MatcherSettings
+
+    return field_overrides(items, MatcherSettings, "--matcher")
+
+
+def mapper_overrides(items: list[str]) -> dict[str, float]:
+    """``NAME=VALUE`` pairs as MapperSettings number fields (see :func:`field_overrides`)."""
+    from pppbot_slam.mapper import MapperSettings
+
+    return field_overrides(items, MapperSettings, "--mapper")
+
+
+def replay(ds: SlamDataset, matcher: dict[str, float], mapper_fields: dict[str, float] | None = None) -> dict[str, Any]:
     from pppbot_slam.mapper import Mapper
     from pppbot_slam.ros.slam import SlamParameters
 
     settings = SlamParameters().mapper_settings()
     if matcher:
         settings = dataclasses.replace(settings, matcher=dataclasses.replace(settings.matcher, **matcher))
+    settings = dataclasses.replace(settings, **(mapper_fields or {}))
     mapper = Mapper(settings, defer_loops=True)
     mapper.sensor_offset = np.asarray(ds.sensor_offset, dtype=float).copy()
     started = time.perf_counter()
@@ -99,14 +116,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--wheel-slip", type=float, default=0.01)
     parser.add_argument("--matcher", nargs="*", default=[], metavar="NAME=VALUE")
+    parser.add_argument("--mapper", nargs="*", default=[], metavar="NAME=VALUE",
+                        help="a MapperSettings number, e.g. loop_search_global_distance=0")
     args = parser.parse_args(argv)
     try:
         overrides = matcher_overrides(args.matcher)
+        mapper_fields = mapper_overrides(args.mapper)
     except ValueError as exc:
         parser.error(str(exc))
     ds = load_dataset(ensure_dataset(args.world, args.route, args.seed, args.wheel_slip))
     result = {"benchmark": "slam_replay", "world": ds.world, "route": ds.route, "seed": ds.seed,
-              "wheel_slip": ds.wheel_slip, "matcher": overrides, **replay(ds, overrides)}
+              "wheel_slip": ds.wheel_slip, "matcher": overrides, "mapper": mapper_fields,
+              **replay(ds, overrides, mapper_fields)}
     print(f"{ds.world}: SLAM pose error RMS {result['online_rms_cm']} cm, max {result['online_max_cm']} cm; "
           f"final keyframes {result['final_keyframes_rms_cm']} cm; {result['loop_closures']} loop closures")
     print(json.dumps(result))

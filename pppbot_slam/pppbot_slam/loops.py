@@ -52,6 +52,15 @@ LOOP_AGREE_RAD = 0.15
 LOOP_SEE_THROUGH_MAX = 0.01
 #: A partial-overlap match is judged on at least this many points, whatever the share.
 MIN_OVERLAP_POINTS = 20
+#: A global match whose good coarse candidates (Karto's covariance) spread further than this
+#: (m, standard deviation along their widest direction) has a scan that does not pin where it
+#: is (a corridor's length): over a window of ±7 m it could slide anywhere along it.
+GLOBAL_MAX_SPREAD_M = 0.3
+
+
+def spread(covariance: np.ndarray) -> float:
+    """The standard deviation (m) of a pose covariance's position along its widest direction."""
+    return float(math.sqrt(max(np.linalg.eigvalsh(covariance[:2, :2]).max(), 0.0)))
 
 
 @dataclass(frozen=True)
@@ -62,6 +71,7 @@ class LoopChain:
     normals: np.ndarray  # and the hits' surface normals
     views: tuple[View, ...] = ()  # their scans where they were taken (empty: not checked for see-through)
     remote: bool = True  # not on the path that led to the search's keyframe (see Mapper.walked_from)
+    global_search: bool = False  # matched over the global window (see Mapper.global_loop_search)
 
 
 @dataclass(frozen=True)
@@ -73,6 +83,7 @@ class LoopMatch:
     response: float
     see_through: float = 0.0  # the share of hits in view that the other side's beams passed (see LOOP_SEE_THROUGH_MAX)
     partial: bool = False  # taken on the part of the scan the chain saw (see LoopSearch.overlap_response)
+    global_search: bool = False  # found over the global window (see Mapper.global_loop_search)
 
 
 @dataclass(frozen=True)
@@ -101,27 +112,41 @@ class LoopSearch:
         ``loop_search_overlap_distance`` when that is above 0, not on the path that led here)
         is also taken when the part of the scan its keyframes had in view is at least
         ``loop_match_minimum_overlap`` of it and scores at least
-        ``loop_match_minimum_response_overlap`` (:meth:`overlap_response`)."""
+        ``loop_match_minimum_response_overlap`` (:meth:`overlap_response`).
+
+        A global chain (:meth:`pppbot_slam.mapper.Mapper.global_loop_search`) is matched over
+        ``global_loop_matcher``'s window, centred on the keyframe's pose however far its keyframes
+        are, and taken at coarse response ≥ ``loop_match_minimum_response_coarse`` and fine ≥
+        ``loop_match_minimum_response_global``; a match it cannot pin along some direction (a
+        corridor: good poses spread along it, :data:`GLOBAL_MAX_SPREAD_M`) is not taken."""
         matches = []
-        wide, near = (replace(m, polish_iterations=0) for m in (settings.loop_matcher, settings.matcher))
+        wide, near, whole_window = (replace(m, polish_iterations=0) for m in (
+            settings.loop_matcher, settings.matcher, settings.global_loop_matcher))
         chains = list(self.chains)
-        if len(chains) > 1:  # every pass near here at once: more of what this scan sees (see overlap_response)
-            chains.append(LoopChain(np.concatenate([c.indices for c in chains]),
-                                    np.vstack([c.poses for c in chains]), np.vstack([c.points for c in chains]),
-                                    np.vstack([c.normals for c in chains]),
-                                    tuple(v for c in chains for v in c.views), all(c.remote for c in chains)))
+        local = [c for c in chains if not c.global_search]
+        if len(local) > 1:  # every pass near here at once: more of what this scan sees (see overlap_response)
+            chains.append(LoopChain(np.concatenate([c.indices for c in local]),
+                                    np.vstack([c.poses for c in local]), np.vstack([c.points for c in local]),
+                                    np.vstack([c.normals for c in local]),
+                                    tuple(v for c in local for v in c.views), all(c.remote for c in local)))
         for chain in chains:
-            coarse = ScanMatcher(chain.points, wide, chain.normals).match(self.points, self.pose, self.normals)
+            coarse = ScanMatcher(chain.points, whole_window if chain.global_search else wide,
+                                 chain.normals).match(self.points, self.pose, self.normals)
             variance = max(coarse.covariance[0, 0], coarse.covariance[1, 1])
             if variance > settings.loop_match_maximum_variance_coarse:
                 continue
-            close = float(np.hypot(*(chain.poses[:, :2] - self.pose[:2]).T).min()) \
+            if chain.global_search and spread(coarse.covariance) > GLOBAL_MAX_SPREAD_M:
+                continue
+            close = chain.global_search or float(np.hypot(*(chain.poses[:, :2] - self.pose[:2]).T).min()) \
                 <= settings.loop_search_maximum_distance
             fine_matcher = ScanMatcher(chain.points, near, chain.normals)
             fine = fine_matcher.match(self.points, coarse.pose, self.normals)
+            required = settings.loop_match_minimum_response_global if chain.global_search \
+                else settings.loop_match_minimum_response_fine
             whole = close and coarse.response >= settings.loop_match_minimum_response_coarse \
-                and fine.response >= settings.loop_match_minimum_response_fine
-            partial = not whole and chain.remote and settings.loop_search_overlap_distance > 0
+                and fine.response >= required
+            partial = not whole and chain.remote and not chain.global_search \
+                and settings.loop_search_overlap_distance > 0
             if not whole and not (partial and self.overlap_response(fine_matcher, chain, fine.pose, settings)
                                   >= settings.loop_match_minimum_response_overlap):
                 continue
@@ -129,7 +154,8 @@ class LoopSearch:
             matches.append(LoopMatch(int(chain.indices[k]), self.index,
                                      np.asarray(se2_compose(se2_inverse(chain.poses[k]), fine.pose)),
                                      in_frame_of(fine.covariance, float(chain.poses[k][2])), fine.response,
-                                     self.see_through(chain, fine.pose, settings.max_laser_range), not whole))
+                                     self.see_through(chain, fine.pose, settings.max_laser_range), not whole,
+                                     chain.global_search))
         return matches
 
     def overlap_response(self, matcher: ScanMatcher, chain: LoopChain, pose: np.ndarray,

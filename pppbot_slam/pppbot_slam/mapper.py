@@ -101,10 +101,22 @@ class MapperSettings:
     loop_search_overlap_distance: float = 0.0
     loop_match_minimum_overlap: float = 0.2
     loop_match_minimum_response_overlap: float = 0.7
+    # pppbot's, after Cartographer's constraint builder (see Mapper.global_loop_search): once the
+    # robot has gone loop_search_global_after_distance (m) without a closure and the local search
+    # has no chain near, the older keyframes within loop_search_global_distance (Cartographer's
+    # max_constraint_distance, 15 m) are searched over global_loop_matcher's window (its
+    # linear_search_window ±7 m and angular_search_window ±30°, unpenalised) and taken at a fine
+    # response of loop_match_minimum_response_global; 0: no global search.
+    loop_search_global_distance: float = 15.0
+    loop_search_global_after_distance: float = 10.0
+    loop_match_minimum_response_global: float = 0.55
     matcher: MatcherSettings = MatcherSettings()
     # loop_search_space_dimension 8.0 and its smear 0.03; searched coarsely at 0.1 m
     loop_matcher: MatcherSettings = MatcherSettings(search_size_m=8.0, coarse_resolution_m=0.1, smear_m=0.03,
                                                     coarse_points=100)
+    global_loop_matcher: MatcherSettings = MatcherSettings(search_size_m=14.0, coarse_resolution_m=0.1, smear_m=0.03,
+                                                           coarse_points=100, search_angle_rad=0.52,
+                                                           minimum_distance_penalty=1.0, minimum_angle_penalty=1.0)
     # after a poor running match: every heading, ±0.75 m (see RECOVERY_RESPONSE)
     recovery_matcher: MatcherSettings = MatcherSettings(search_size_m=1.5, search_angle_rad=math.pi)
 
@@ -117,7 +129,10 @@ class MapperSettings:
         if not (math.isfinite(self.loop_search_overlap_distance) and self.loop_search_overlap_distance >= 0):
             raise MapperError("loop_search_overlap_distance must be 0 (no partial-overlap loops) or a positive "
                               f"number, not {self.loop_search_overlap_distance}")
-        for name in ("minimum_travel_distance", "minimum_travel_heading"):
+        if not (math.isfinite(self.loop_search_global_distance) and self.loop_search_global_distance >= 0):
+            raise MapperError("loop_search_global_distance must be 0 (no global loop search) or a positive "
+                              f"number, not {self.loop_search_global_distance}")
+        for name in ("minimum_travel_distance", "minimum_travel_heading", "loop_search_global_after_distance"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise MapperError(f"{name} must be a number >= 0, not {value}")
@@ -126,7 +141,7 @@ class MapperSettings:
                 raise MapperError(f"{name} must be at least 1, not {getattr(self, name)}")
         for name in ("link_match_minimum_response_fine", "loop_match_minimum_response_coarse",
                      "loop_match_minimum_response_fine", "loop_match_minimum_overlap",
-                     "loop_match_minimum_response_overlap"):
+                     "loop_match_minimum_response_overlap", "loop_match_minimum_response_global"):
             value = getattr(self, name)
             if not (math.isfinite(value) and 0 <= value <= 1):
                 raise MapperError(f"{name} must be in [0, 1], not {value}")
@@ -163,6 +178,7 @@ class Mapper:
     #: loop chain (its first keyframe; whether it came within loop_search_maximum_distance, else it
     #: was tried on its overlap only) → keyframe that last tried it
     tried: dict[tuple[int, bool], int] = field(default_factory=dict)
+    global_tried: int = -LOOP_RETRY_KEYFRAMES  # the keyframe that last searched globally
     rejected_closures: int = 0  # loop matches the graph could not agree with
     undone_closures: int = 0  # accepted loop closures that later closures showed to be wrong
     largest_correction: np.ndarray = field(default_factory=lambda: np.zeros(2))  # m, rad: the most a solve moved
@@ -180,6 +196,7 @@ class Mapper:
         ``drawn`` flag ever changes)."""
         return Mapper(self.settings, self.sensor_offset.copy(), list(self.keyframes), self.graph.copy(),
                       list(self.loop_closures), self.last_response, session=self.session, tried=dict(self.tried),
+                      global_tried=self.global_tried,
                       rejected_closures=self.rejected_closures, recoveries=self.recoveries,
                       degenerate_matches=self.degenerate_matches, undone_closures=self.undone_closures,
                       largest_correction=self.largest_correction.copy(), unmatched=self.unmatched,
@@ -375,18 +392,60 @@ class Mapper:
                 chains.append([i])
         return [c for c in chains if len(c) >= s.loop_match_minimum_chain_size]
 
-    def walked_from(self, index: int) -> int:
-        """The first keyframe of the last ``loop_search_overlap_distance`` travelled to keyframe
-        ``index``: what the robot saw that recently overlaps its scan by the scan matching's
-        doing, not a loop's (``LoopChain.remote``), as slam_toolbox leaves the scans linked to a
-        scan out of its loop search."""
+    def walked_from(self, index: int, distance_m: float | None = None) -> int:
+        """The first keyframe of the last ``distance_m`` (``loop_search_overlap_distance``)
+        travelled to keyframe ``index``: what the robot saw that recently overlaps its scan by the
+        scan matching's doing, not a loop's (``LoopChain.remote``), as slam_toolbox leaves the
+        scans linked to a scan out of its loop search."""
+        limit = self.settings.loop_search_overlap_distance if distance_m is None else distance_m
         travelled, first = 0.0, index
         while first > 0:
             travelled += float(np.hypot(*(self.map_pose(first)[:2] - self.map_pose(first - 1)[:2])))
-            if travelled > self.settings.loop_search_overlap_distance:
+            if travelled > limit:
                 break
             first -= 1
         return first
+
+    def global_search_due(self, index: int) -> bool:
+        """Whether keyframe ``index`` searches globally (:meth:`global_loop_search`): the robot
+        went ``loop_search_global_after_distance`` since the last closure (or its start), and
+        the last global search is :data:`LOOP_RETRY_KEYFRAMES` keyframes old."""
+        s = self.settings
+        if s.loop_search_global_distance <= 0 or index - self.global_tried < LOOP_RETRY_KEYFRAMES:
+            return False
+        last_closure = max((c.target for c in self.loop_closures), default=0)
+        return self.walked_from(index, s.loop_search_global_after_distance) > last_closure
+
+    def global_loop_search(self, index: int) -> LoopChain | None:
+        """The older keyframes within ``loop_search_global_distance`` of keyframe ``index`` that a
+        local search would not see: odometry may have drifted further than the local window
+        reaches (Cartographer's constraint builder searches a whole submap so). A keyframe the
+        robot came from on a path shorter than twice its distance, or than that distance, is left
+        out (a corridor seen ahead is no loop; a loop goes round), and at least
+        ``loop_match_minimum_chain_size`` must remain. One chain of them all, matched over
+        ``global_loop_matcher``'s window (:meth:`LoopSearch.run`); None when there is none."""
+        s = self.settings
+        before = index - s.scan_buffer_size
+        if before <= 0:
+            return None
+        poses = np.array(self.graph.poses[:index + 1])[:, :2]
+        travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poses, axis=0).T))])
+        travelled = travelled[index] - travelled[:before]
+        distance = np.hypot(*(poses[:before] - poses[index]).T)
+        near = np.flatnonzero((distance <= s.loop_search_global_distance)
+                              & (travelled > np.maximum(2 * distance, s.loop_search_global_distance)))
+        if len(near) < s.loop_match_minimum_chain_size or \
+                sum(len(self.keyframes[i].points) for i in near) < MIN_MATCH_POINTS:
+            return None
+        return self._loop_chain([int(i) for i in near], remote=True, global_search=True)
+
+    def _loop_chain(self, indices: list[int], remote: bool, global_search: bool = False) -> LoopChain:
+        """Keyframes as a :class:`LoopChain`: their hits in the map at their current poses, and their views."""
+        world, world_normals = self._world_points(indices)
+        poses = np.array([self.map_pose(i) for i in indices])
+        views = tuple(view_of(pose, self.sensor_offset, self.keyframes[i].rays)
+                      for i, pose in zip(indices, poses, strict=True))
+        return LoopChain(np.array(indices), poses, world, world_normals, views, remote, global_search)
 
     def _linked(self, chain: list[int], index: int) -> bool:
         """Whether a loop edge already joins ``chain`` to keyframe ``index`` or its running chain:
@@ -408,18 +467,20 @@ class Mapper:
         walked = self.walked_from(index)
         here = self.map_pose(index)
         reach = self.settings.loop_search_maximum_distance
-        for chain in self.loop_candidates(index):
+        candidates = self.loop_candidates(index)
+        for chain in candidates:
             if sum(len(self.keyframes[i].points) for i in chain) < MIN_MATCH_POINTS or self._linked(chain, index):
                 continue
             key = (chain[0], any(np.hypot(*(self.map_pose(i)[:2] - here[:2])) <= reach for i in chain))
             if index - self.tried.get(key, -LOOP_RETRY_KEYFRAMES) < LOOP_RETRY_KEYFRAMES:
                 continue  # searched a moment ago without a match: the next keyframes will see more
             self.tried[key] = index
-            world, world_normals = self._world_points(chain)
-            poses = np.array([self.map_pose(i) for i in chain])
-            views = tuple(view_of(pose, self.sensor_offset, self.keyframes[i].rays)
-                          for i, pose in zip(chain, poses, strict=True))
-            chains.append(LoopChain(np.array(chain), poses, world, world_normals, views, chain[-1] < walked))
+            chains.append(self._loop_chain(chain, chain[-1] < walked))
+        if not candidates and self.global_search_due(index):
+            self.global_tried = index
+            found = self.global_loop_search(index)
+            if found is not None:
+                chains.append(found)
         if not chains:
             return None
         return LoopSearch(index, self.map_pose(index).copy(), keyframe.points[near], keyframe.normals[near],

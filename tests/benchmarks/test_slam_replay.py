@@ -48,3 +48,10 @@ def test_matcher_overrides_name_what_is_wrong(replay):
         replay.matcher_overrides(["smear=0.1"])
     with pytest.raises(ValueError, match="'x' is not a number"):
         replay.matcher_overrides(["smear_m=x"])
+
+
+def test_mapper_overrides_take_its_numbers_and_refuse_the_rest(replay):
+    assert replay.mapper_overrides(["loop_search_global_distance=0", "scan_buffer_size=5"]) == {
+        "loop_search_global_distance": 0.0, "scan_buffer_size": 5}
+    with pytest.raises(ValueError, match="--mapper 'matcher=1'.*NAME one of"):
+        replay.mapper_overrides(["matcher=1"])  # a MatcherSettings, not a number

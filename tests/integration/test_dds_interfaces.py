@@ -10,7 +10,7 @@ from nav2_msgs.msg import ParticleCloud
 from rclpy.action import ActionClient
 from tf2_msgs.msg import TFMessage
 
-from pppbot_common.ros.wait import wait_for_messages, wait_for_topic, wait_until
+from pppbot_common.ros.wait import send_goal, wait_for_messages, wait_for_topic, wait_until
 
 pytestmark = pytest.mark.ros
 
@@ -63,8 +63,7 @@ def test_navigate_to_pose_goal_feedback_result(ros_node, spawn, python_script):
     goal.pose.header.frame_id = "map"
     goal.pose.pose.position.x, goal.pose.pose.position.y = 3.0, 4.0
     feedback: list[NavigateToPose.Feedback] = []
-    send = client.send_goal_async(goal, feedback_callback=lambda fb: feedback.append(fb.feedback))
-    handle = wait_until(lambda: send.result() if send.done() else None, 10, "goal acceptance", node=ros_node)
+    handle = send_goal(client, goal, ros_node, feedback_callback=lambda fb: feedback.append(fb.feedback))
     assert handle.accepted
     get_result = handle.get_result_async()
     wrapped = wait_until(lambda: get_result.result() if get_result.done() else None, 10, "the result",

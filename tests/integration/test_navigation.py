@@ -21,7 +21,7 @@ from nav_msgs.msg import Path as PathMsg
 from rclpy.action import ActionClient
 
 from pppbot_common.ros.qos import LATCHED
-from pppbot_common.ros.wait import wait_until
+from pppbot_common.ros.wait import send_goal, wait_until
 from pppbot_common.se2 import quaternion_from_yaw, wrap_angle, yaw_from_quaternion
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -63,8 +63,8 @@ def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spaw
     # 1. A goal reached: the robot ends within the goal checker's tolerances, with feedback on the way.
     feedback: list[Any] = []
     goal = NavigateToPose.Goal(pose=goal_pose(1.5, 0.5, 1.57))
-    sent = client.send_goal_async(goal, feedback_callback=lambda msg: feedback.append(msg.feedback))
-    handle = wait_until(lambda: sent.result() if sent.done() else None, 10, "the goal accepted", node=ros_node)
+    handle = send_goal(client, goal, ros_node, 20, feedback_callback=lambda msg: feedback.append(msg.feedback))
+    assert handle.accepted
     assert handle.accepted
     done = handle.get_result_async()
     wait_until(done.done, 120, "the first goal's result", node=ros_node)
@@ -83,8 +83,8 @@ def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spaw
 
     # 2. A goal canceled on the way: the goal ends canceled and the robot stops.
     far = NavigateToPose.Goal(pose=goal_pose(-1.5, -1.0, 0.0))
-    sent = client.send_goal_async(far)
-    handle = wait_until(lambda: sent.result() if sent.done() else None, 10, "the far goal accepted", node=ros_node)
+    handle = send_goal(client, far, ros_node)
+    assert handle.accepted
     start = truth_pose(truths[-1])
     wait_until(lambda: math.hypot(truth_pose(truths[-1])[0] - start[0], truth_pose(truths[-1])[1] - start[1]) > 0.3,
                60, "the robot under way", node=ros_node)
@@ -118,8 +118,8 @@ def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spaw
 
 
 def run_goal(node: Any, client: Any, x: float, y: float) -> tuple[int, Any]:
-    sent = client.send_goal_async(NavigateToPose.Goal(pose=goal_pose(x, y, 0.0)))
-    handle = wait_until(lambda: sent.result() if sent.done() else None, 10, "the goal accepted", node=node)
+    handle = send_goal(client, NavigateToPose.Goal(pose=goal_pose(x, y, 0.0)), node)
+    assert handle.accepted
     done = handle.get_result_async()
     wait_until(done.done, 120, f"the result of ({x}, {y})", node=node)
     return done.result().status, done.result().result

@@ -13,7 +13,7 @@ from nav2_msgs.action import NavigateToPose
 from rclpy.action import ActionClient
 from sensor_msgs.msg import JointState
 
-from pppbot_common.ros.wait import wait_until
+from pppbot_common.ros.wait import send_goal, wait_until
 
 pytestmark = pytest.mark.ros
 ROOT = Path(__file__).resolve().parents[2]
@@ -76,8 +76,7 @@ def test_navigator_ends_a_goal_when_the_robot_is_not_upright(ros_node, spawn) ->
     goal = PoseStamped()
     goal.header.frame_id = "map"
     goal.pose.orientation.w = 1.0
-    sent = client.send_goal_async(NavigateToPose.Goal(pose=goal))
-    handle = wait_until(lambda: sent.result() if sent.done() else None, 10, "the goal accepted", node=ros_node)
+    handle = send_goal(client, NavigateToPose.Goal(pose=goal), ros_node)
     done = handle.get_result_async()
     wait_until(done.done, 20, "the goal's end", node=ros_node)
     assert done.result().status == GoalStatus.STATUS_ABORTED

@@ -5,6 +5,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
+from functools import partial
 from typing import Any, TypeVar
 
 import rclpy
@@ -40,6 +41,35 @@ def wait_until(condition: Callable[[], T | None], timeout_s: float, what: str,
             rclpy.spin_once(node, timeout_sec=min(_POLL_S, remaining))
         else:
             time.sleep(min(_POLL_S, remaining))
+
+
+def send_goal(client: Any, goal: Any, node: Node | None, timeout_s: float = 10.0, attempts: int = 3,
+              feedback_callback: Callable[[Any], None] | None = None) -> Any:
+    """Send an action goal and return its goal handle once the server answered (accepted or not).
+
+    Fast DDS drops a service's answer to a client whose reply reader the server has not
+    discovered yet ("failed to send response (timeout): client will not receive response"):
+    on a busy machine that can be the first goal after ``wait_for_server``. An answer not
+    there within ``timeout_s`` / ``attempts`` is taken for lost and the goal sent again (a
+    server that did take the first one takes the next as a new goal, as a preempting one).
+
+    Raises:
+        TimeoutExpired: no answer to any attempt.
+    """
+    per_attempt = timeout_s / attempts
+    for attempt in range(1, attempts + 1):
+        sent: Future = client.send_goal_async(goal, feedback_callback=feedback_callback)
+        try:
+            return wait_until(partial(_answer, sent), per_attempt,
+                              f"an answer to the goal on '{client._action_name}'", node=node)
+        except TimeoutExpired:
+            if attempt == attempts:
+                raise
+    raise AssertionError("unreachable")
+
+
+def _answer(future: Future) -> Any:
+    return future.result() if future.done() else None
 
 
 def topic_types(node: Node, topic: str) -> list[str]:

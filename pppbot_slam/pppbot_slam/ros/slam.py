@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import sys
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -99,6 +99,17 @@ class SlamParameters:
     loop_match_minimum_overlap: float = param(0.2, "pppbot's: share of the scan a loop candidate must have seen "
                                                    "to be judged on it")
     loop_match_minimum_response_overlap: float = param(0.7, "pppbot's: response needed over that shared part")
+    loop_search_global_distance: float = param(15.0, "pppbot's (Cartographer's max_constraint_distance): older "
+                                                     "keyframes within this distance (m) are searched over the "
+                                                     "global window once no closure came for a while (0: never)")
+    loop_search_global_after_distance: float = param(10.0, "pppbot's: travel without a closure (m) before the "
+                                                           "global search starts")
+    loop_search_global_space_dimension: float = param(14.0, "pppbot's: global window width (m; Cartographer's "
+                                                            "linear_search_window ±7 m)")
+    loop_search_global_angle_offset: float = param(0.52, "pppbot's: global window angle ± (rad; Cartographer's "
+                                                         "angular_search_window)")
+    loop_match_minimum_response_global: float = param(0.55, "pppbot's: fine response a global match needs "
+                                                            "(Cartographer's min_score)")
     correlation_search_space_dimension: float = param(0.5, "matching window width (m)")
     correlation_search_space_resolution: float = param(0.01, "fine matching step (m)")
     correlation_search_space_smear_deviation: float = param(0.1, "likelihood smear (m)")
@@ -153,6 +164,9 @@ class SlamParameters:
                                fine_resolution_m=self.loop_search_space_resolution,
                                coarse_resolution_m=max(self.loop_search_space_resolution, 0.1),
                                smear_m=self.loop_search_space_smear_deviation, coarse_points=100, **common)
+        whole_window = replace(loop, search_size_m=self.loop_search_global_space_dimension,
+                               search_angle_rad=self.loop_search_global_angle_offset,
+                               minimum_distance_penalty=1.0, minimum_angle_penalty=1.0)
         return MapperSettings(
             resolution=self.resolution, max_laser_range=self.max_laser_range,
             minimum_travel_distance=self.minimum_travel_distance, minimum_travel_heading=self.minimum_travel_heading,
@@ -167,7 +181,10 @@ class SlamParameters:
             loop_search_overlap_distance=self.loop_search_overlap_distance,
             loop_match_minimum_overlap=self.loop_match_minimum_overlap,
             loop_match_minimum_response_overlap=self.loop_match_minimum_response_overlap,
-            matcher=matcher, loop_matcher=loop)
+            loop_search_global_distance=self.loop_search_global_distance,
+            loop_search_global_after_distance=self.loop_search_global_after_distance,
+            loop_match_minimum_response_global=self.loop_match_minimum_response_global,
+            matcher=matcher, loop_matcher=loop, global_loop_matcher=whole_window)
 
 
 class Slam(Node):
