@@ -27,6 +27,7 @@ setup(
             'navigator = pppbot_nav.ros.navigator:main',
             'navigation = pppbot_nav.ros.navigation:main',
             'localization = pppbot_nav.ros.localization:main',
+            'lifecycle_manager = pppbot_nav.ros.lifecycle_manager:main',
         ],
         # `pppbot <verb>`: found by pppbot_bringup.cli (a module with add_arguments and main).
         'pppbot.verbs': [

@@ -43,3 +43,8 @@ class MapLoadError(MapFileError):
     def __init__(self, message: str, result: int) -> None:
         super().__init__(message)
         self.result = result
+
+
+class LifecycleError(PppbotError, ValueError):
+    """A lifecycle manager cannot do what was asked (bad node_names, an unknown command); the
+    message names the value and what is allowed."""

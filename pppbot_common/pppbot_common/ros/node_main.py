@@ -140,8 +140,11 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str, args: list[str
 
 def _with_composed(nodes: Sequence[Node]) -> list[Node]:
     """The nodes and the nodes each runs in its process (``composed_nodes``: a server's costmap, the
-    simulator's controllers); a node destroys its own composed nodes."""
-    return [n for node in nodes for n in (node, *getattr(node, "composed_nodes", ()))]
+    simulator's controllers), that the process's executor spins; a node destroys its own composed
+    nodes. A node that ``spins_itself`` (a lifecycle manager, which waits on the others' services
+    from its own thread) is left out."""
+    return [n for node in nodes for n in (node, *getattr(node, "composed_nodes", ()))
+            if not getattr(n, "spins_itself", False)]
 
 
 def share_clock(nodes: Sequence[Node]) -> None:

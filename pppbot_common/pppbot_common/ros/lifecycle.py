@@ -1,0 +1,153 @@
+"""Managed (lifecycle) nodes as Nav2 has them: ``nav2_util::LifecycleNode`` in rclpy.
+
+A :class:`ManagedNode` starts *unconfigured*, as every Nav2 server does, and moves through
+the states of ``lifecycle_msgs`` when asked on ``~/change_state`` (by a lifecycle manager,
+:mod:`pppbot_nav.ros.lifecycle_manager`, or by ``ros2 lifecycle set``):
+
+* **configure** reads what can fail (a map file, a plugin, a frame) and allocates; a failure
+  logs one line naming the node and the problem, answers ``success: false`` and leaves the
+  node unconfigured (Nav2's ``on_configure`` returning FAILURE);
+* **activate** starts publishing and serving: every publisher of a managed node is a
+  lifecycle publisher (its messages are dropped while the node is inactive, as rclcpp's
+  ``LifecyclePublisher`` drops them), and action servers made with :meth:`ManagedNode.gated`
+  goal callbacks accept goals only while active (Nav2's ``SimpleActionServer`` rejects them
+  with "Action server is inactive");
+* **deactivate**, **cleanup** and **shutdown** undo them in that order.
+
+Subclasses implement :meth:`ManagedNode.configure`, :meth:`ManagedNode.activate`,
+:meth:`ManagedNode.deactivate` and :meth:`ManagedNode.cleanup` (each may do nothing). Their
+subscriptions, services and timers are made in ``__init__`` as before (so lockstep sees them
+from the start); their callbacks check :attr:`ManagedNode.active` where work must wait.
+
+rclpy 7.1 raises out of the executor on a transition that is not valid from the current state
+(``activate`` while unconfigured): here the request is refused with ``success: false`` and a
+warning, as rclcpp does, and the node lives on.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from lifecycle_msgs.msg import State
+from lifecycle_msgs.srv import ChangeState
+from rclpy.action import GoalResponse
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+
+from pppbot_common.errors import PppbotError
+from pppbot_common.params import ParameterError
+
+#: What a configure may fail with: logged by name, the transition fails (other exceptions are
+#: errors: the node goes to errorprocessing and back to unconfigured).
+CONFIGURE_FAILURES: tuple[type[BaseException], ...] = (PppbotError, ParameterError, OSError, ValueError)
+
+#: rclpy's own transition (private to its LifecycleNodeMixin, name-mangled): the guard calls it
+#: once the transition is known to be available.
+RCLPY_CHANGE_STATE = "_LifecycleNodeMixin__change_state"
+
+
+class ManagedNode(LifecycleNode):
+    """A lifecycle node with Nav2's transitions (see the module's docstring)."""
+
+    def __init__(self, node_name: str, **kwargs: Any) -> None:
+        self._managed_publishers = False  # the node's own (parameter events) are not managed
+        super().__init__(node_name, **kwargs)
+        self._managed_publishers = True
+        self._service_change_state.callback = self._on_change_state
+        #: Why the last configure failed (empty after a success).
+        self.configure_failure = ""
+
+    # ----------------------------------------------------------- for subclasses
+    def configure(self) -> None:
+        """Read what can fail and allocate. Raise one of :data:`CONFIGURE_FAILURES` to fail."""
+
+    def activate(self) -> None:
+        """Start the work (publishers are enabled after it)."""
+
+    def deactivate(self) -> None:
+        """Stop the work (publishers are disabled before it)."""
+
+    def cleanup(self) -> None:
+        """Release what configure allocated."""
+
+    # ------------------------------------------------------------------- state
+    @property
+    def state(self) -> str:
+        """The current state's label: ``unconfigured``, ``inactive``, ``active``, ``finalized`` and so on."""
+        return str(self._state_machine.current_state[1])
+
+    @property
+    def active(self) -> bool:
+        return int(self._state_machine.current_state[0]) == State.PRIMARY_STATE_ACTIVE
+
+    def create_publisher(self, *args: Any, **kwargs: Any) -> Any:
+        """Every publisher of a managed node is a lifecycle publisher: silent while inactive."""
+        if not self._managed_publishers:
+            return super().create_publisher(*args, **kwargs)
+        return self.create_lifecycle_publisher(*args, **kwargs)
+
+    def gated(self, goal_callback: Callable[[Any], GoalResponse] | None = None) -> Callable[[Any], GoalResponse]:
+        """An action server's goal callback that rejects goals while the node is not active (and
+        otherwise asks ``goal_callback``, or accepts)."""
+        def on_goal(goal: Any) -> GoalResponse:
+            if not self.active:
+                self.get_logger().warning(f"a goal while {self.state}: action server is inactive, rejecting the goal")
+                return GoalResponse.REJECT
+            return goal_callback(goal) if goal_callback is not None else GoalResponse.ACCEPT
+        return on_goal
+
+    # ------------------------------------------------------------ transitions
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        try:
+            self.configure()
+        except CONFIGURE_FAILURES as exc:
+            self.configure_failure = str(exc)
+            self.get_logger().error(f"failed to configure: {exc}")
+            return TransitionCallbackReturn.FAILURE
+        self.configure_failure = ""
+        self.get_logger().debug("configured")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.activate()
+        return super().on_activate(state)
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        result = super().on_deactivate(state)
+        self.deactivate()
+        return result
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.cleanup()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        if state.state_id == State.PRIMARY_STATE_ACTIVE:
+            super().on_deactivate(state)
+            self.deactivate()
+        if state.state_id in (State.PRIMARY_STATE_ACTIVE, State.PRIMARY_STATE_INACTIVE):
+            self.cleanup()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.get_logger().error(f"a transition from '{state.label}' raised: back to unconfigured")
+        return TransitionCallbackReturn.SUCCESS
+
+    def _on_change_state(self, request: ChangeState.Request, response: ChangeState.Response) -> ChangeState.Response:
+        """``~/change_state``: rclpy's, but a transition not valid from the current state is refused."""
+        transition_id = request.transition.id
+        if request.transition.label:
+            try:
+                transition_id = self._state_machine.get_transition_by_label(request.transition.label)
+            except Exception:  # an unknown label (rclpy's RCLError)
+                transition_id = -1
+        available = {int(t[0]): str(t[1]) for t in self._state_machine.available_transitions}
+        if transition_id not in available:
+            name = request.transition.label or str(request.transition.id)
+            self.get_logger().warning(f"transition '{name}' is not available from '{self.state}'; "
+                                      f"available: {', '.join(available.values())}")
+            response.success = False
+            return response
+        change_state: Callable[[int], TransitionCallbackReturn] = getattr(self, RCLPY_CHANGE_STATE)
+        result = change_state(transition_id)
+        response.success = result == TransitionCallbackReturn.SUCCESS
+        return response

@@ -1,0 +1,194 @@
+"""``lifecycle_manager``: brings Nav2's lifecycle nodes up and down, as nav2_lifecycle_manager does.
+
+Parameters, as Nav2's: ``node_names`` (the managed nodes, in start order) and ``autostart``
+(STARTUP as soon as the manager runs). Services, as Nav2's:
+
+* ``~/manage_nodes`` (nav2_msgs/srv/ManageLifecycleNodes): STARTUP, PAUSE, RESUME, RESET,
+  SHUTDOWN, CONFIGURE, CLEANUP (:mod:`pppbot_nav.lifecycle` says what each does); each
+  transition is asked on ``<node>/change_state`` and checked on ``<node>/get_state``;
+  a node that fails stops the command, naming it (SHUTDOWN goes on);
+* ``~/is_active`` (std_srvs/srv/Trigger): whether the managed nodes are active.
+
+``BasicNavigator.lifecycleStartup()`` finds the managers by that service type, and
+``waitUntilNav2Active()`` asks the nodes' ``get_state``, so Nav2's scripts see the same.
+Nav2's manager also holds a *bond* with each node (a heartbeat topic) and resets them all
+when one stops answering; pppbot's does not: its nodes run in processes a launch supervises,
+which stops the whole stack when a required one dies.
+
+The manager answers its services from a thread of its own and calls the nodes from another
+private node, so it can manage nodes composed into its own process (whose services the
+process's executor answers meanwhile), as Nav2's does with its service thread.
+"""
+from __future__ import annotations
+
+import sys
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import rclpy
+from lifecycle_msgs.msg import Transition as TransitionMsg
+from lifecycle_msgs.srv import ChangeState, GetState
+from nav2_msgs.srv import ManageLifecycleNodes
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from std_srvs.srv import Trigger
+
+from pppbot_common.params import ParameterError, param
+from pppbot_common.ros.params import declare_parameters
+from pppbot_nav.errors import LifecycleError
+from pppbot_nav.lifecycle import (
+    ABORTED,
+    RESULTING_STATE,
+    Command,
+    Step,
+    already_there,
+    command_of,
+    goes_on_after_failure,
+    plan,
+    validate_node_names,
+)
+
+#: How long a node's lifecycle services may take to appear, and to answer (s, wall).
+SERVICE_WAIT_S = 10.0
+CALL_TIMEOUT_S = 30.0
+
+
+@dataclass(frozen=True)
+class LifecycleManagerParameters:
+    node_names: list = param([""], "the lifecycle nodes to manage, in start order (unset: the process's own)")
+    autostart: bool = param(False, "bring the nodes up (STARTUP) as soon as the manager runs")
+
+    def validate(self) -> None:
+        if list(self.node_names) == [""]:
+            return  # unset
+        try:
+            validate_node_names([str(n) for n in self.node_names])
+        except LifecycleError as exc:
+            raise ParameterError("node_names", self.node_names, str(exc)) from exc
+
+
+class LifecycleManager(Node):
+    """A lifecycle manager named ``name``; ``node_names`` is the parameter's default."""
+
+    #: run_nodes leaves this node out of the process's executor: it spins itself.
+    spins_itself = True
+
+    def __init__(self, name: str = "lifecycle_manager", node_names: Sequence[str] = (), **kwargs: Any) -> None:
+        super().__init__(name, **kwargs)
+        self.params = p = declare_parameters(self, LifecycleManagerParameters)
+        self.node_names = [str(n) for n in p.node_names] if list(p.node_names) != [""] else list(node_names)
+        if not self.node_names:
+            raise ParameterError("node_names", p.node_names, "must name the lifecycle nodes to manage, in start order")
+        self.set_parameters([Parameter("node_names", value=self.node_names)])
+        self.state = "unconfigured"
+        self._calls = rclpy.create_node(f"{name}_service_client", context=self.context,
+                                        start_parameter_services=False, enable_rosout=False)
+        self._calls_executor = SingleThreadedExecutor(context=self.context)
+        self._calls_executor.add_node(self._calls)
+        self._lifecycle_clients = {n: (self._calls.create_client(ChangeState, f"{n}/change_state"),
+                                       self._calls.create_client(GetState, f"{n}/get_state"))
+                                   for n in self.node_names}
+        self._lock = threading.Lock()  # one command at a time
+        self.create_service(ManageLifecycleNodes, "~/manage_nodes", self._on_manage)
+        self.create_service(Trigger, "~/is_active", self._on_is_active)
+        self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor.add_node(self)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, name=name, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        if self.params.autostart:
+            self.get_logger().info(f"starting the managed nodes: {', '.join(self.node_names)}")
+            self.run(Command.STARTUP)
+        while not self._stop.is_set() and self.context.ok():
+            try:
+                self._executor.spin_once(timeout_sec=0.1)
+            except Exception:  # the context went down under it: the process is ending
+                if self.context.ok() and not self._stop.is_set():
+                    raise
+                return
+
+    # ---------------------------------------------------------------- commands
+    def run(self, command: Command) -> bool:
+        """Carry out ``command`` over the managed nodes; whether every node did as asked."""
+        with self._lock:
+            ok = True
+            for step in plan(command, self.node_names):
+                if not self._change(step):
+                    ok = False
+                    if not goes_on_after_failure(command):
+                        self.get_logger().error(ABORTED[command])
+                        self.state = "unknown"
+                        return False
+            self.state = RESULTING_STATE[command]
+            if ok and command == Command.STARTUP:
+                self.get_logger().info("Managed nodes are active")
+            return ok
+
+    def _change(self, step: Step) -> bool:
+        change, get = self._lifecycle_clients[step.node]
+        before = self._state_of(step.node, get)
+        if before is None:
+            self.get_logger().error(f"Failed to change state for node: {step.node} (its lifecycle services did not "
+                                    f"answer within {SERVICE_WAIT_S:g} s)")
+            return False
+        if already_there(before, step):
+            return True
+        self.get_logger().info(f"{step.transition.name.capitalize().replace('_', ' ')} {step.node}")
+        answer = self._call(change, ChangeState.Request(transition=TransitionMsg(id=int(step.transition))))
+        after = self._state_of(step.node, get)
+        if answer is None or not answer.success or after != step.goal_label:
+            self.get_logger().error(f"Failed to change state for node: {step.node} ({step.transition.name.lower()} "
+                                    f"left it {after or 'silent'})")
+            return False
+        return True
+
+    def _state_of(self, node: str, client: Any) -> str | None:
+        answer = self._call(client, GetState.Request())
+        return None if answer is None else str(answer.current_state.label)
+
+    def _call(self, client: Any, request: Any) -> Any:
+        if not client.wait_for_service(timeout_sec=SERVICE_WAIT_S):
+            return None
+        future = client.call_async(request)
+        self._calls_executor.spin_until_future_complete(future, timeout_sec=CALL_TIMEOUT_S)
+        return future.result() if future.done() else None
+
+    # ---------------------------------------------------------------- services
+    def _on_manage(self, request: ManageLifecycleNodes.Request,
+                   response: ManageLifecycleNodes.Response) -> ManageLifecycleNodes.Response:
+        try:
+            command = command_of(request.command)
+        except LifecycleError as exc:
+            self.get_logger().error(f"~/manage_nodes: {exc}")
+            response.success = False
+            return response
+        response.success = self.run(command)
+        return response
+
+    def _on_is_active(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        response.success = self.state == "active"
+        return response
+
+    def destroy_node(self) -> None:
+        self._stop.set()
+        if threading.current_thread() is not self._thread:
+            self._thread.join(timeout=2.0)
+        self._executor.shutdown(timeout_sec=1.0)
+        self._calls_executor.shutdown(timeout_sec=1.0)
+        self._calls.destroy_node()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    from pppbot_common.ros.node_main import run_nodes
+
+    return run_nodes([LifecycleManager], "lifecycle_manager", args, fatal=(ParameterError,), lockstep=False)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

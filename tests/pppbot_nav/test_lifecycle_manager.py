@@ -1,0 +1,160 @@
+"""The lifecycle managers: Nav2's commands over real lifecycle nodes, composed in one process as
+launch_sim composes them, and the plans they follow."""
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+from nav2_msgs.srv import ManageLifecycleNodes
+from rclpy.experimental import EventsExecutor
+from rclpy.parameter import Parameter
+from std_srvs.srv import Trigger
+
+from pppbot_common.errors import PppbotError
+from pppbot_common.params import ParameterError
+from pppbot_common.ros.lifecycle import ManagedNode
+from pppbot_common.ros.wait import wait_until
+from pppbot_nav.errors import LifecycleError
+from pppbot_nav.lifecycle import Command, Step, Transition, command_of, plan, validate_node_names
+from pppbot_nav.ros.lifecycle_manager import LifecycleManager
+
+NODES = ["map_server", "amcl", "planner_server"]
+
+
+# ---------------------------------------------------------------- the plans
+def test_startup_configures_all_then_activates_all_in_order():
+    assert plan(Command.STARTUP, NODES) == [Step(n, Transition.CONFIGURE) for n in NODES] + \
+        [Step(n, Transition.ACTIVATE) for n in NODES]
+
+
+def test_everything_but_configure_and_activate_goes_in_reverse():
+    back = NODES[::-1]
+    assert plan(Command.PAUSE, NODES) == [Step(n, Transition.DEACTIVATE) for n in back]
+    assert plan(Command.RESUME, NODES) == [Step(n, Transition.ACTIVATE) for n in NODES]
+    assert plan(Command.RESET, NODES) == [Step(n, Transition.DEACTIVATE) for n in back] + \
+        [Step(n, Transition.CLEANUP) for n in back]
+    assert plan(Command.SHUTDOWN, NODES)[-3:] == [Step(n, Transition.UNCONFIGURED_SHUTDOWN) for n in back]
+    assert plan(Command.CLEANUP, NODES) == [Step(n, Transition.CLEANUP) for n in back]
+
+
+def test_bad_commands_and_node_names_name_what_is_allowed():
+    with pytest.raises(LifecycleError, match="unknown lifecycle command 9: one of STARTUP=0, .*CLEANUP=6"):
+        command_of(9)
+    with pytest.raises(LifecycleError, match="names amcl twice"):
+        validate_node_names(["amcl", "map_server", "amcl"])
+    with pytest.raises(LifecycleError, match="node_names is empty"):
+        validate_node_names([])
+
+
+# ------------------------------------------------------------ over DDS
+class Server(ManagedNode):
+    """A managed node that records its transitions; configure fails while ``broken``."""
+
+    def __init__(self, name: str, log: list[str]) -> None:
+        super().__init__(name)
+        self.log = log
+        self.broken = False
+
+    def configure(self) -> None:
+        if self.broken:
+            raise PppbotError("plugin 'GridBased' not found")
+        self.log.append(f"configure {self.get_name()}")
+
+    def activate(self) -> None:
+        self.log.append(f"activate {self.get_name()}")
+
+    def deactivate(self) -> None:
+        self.log.append(f"deactivate {self.get_name()}")
+
+    def cleanup(self) -> None:
+        self.log.append(f"cleanup {self.get_name()}")
+
+
+@pytest.fixture
+def process(ros_node: Any) -> Iterator[tuple[dict[str, Server], list[str], Any]]:
+    """Three managed nodes spun by one executor, as run_nodes composes them; managers are made by the test."""
+    log: list[str] = []
+    servers = {name: Server(name, log) for name in NODES}
+    executor = EventsExecutor()
+    for server in servers.values():
+        executor.add_node(server)
+    stop = threading.Event()
+
+    def spin() -> None:
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.05)
+
+    thread = threading.Thread(target=spin, daemon=True)
+    thread.start()
+    managers: list[LifecycleManager] = []
+
+    def manager(**parameters: Any) -> LifecycleManager:
+        overrides = [Parameter(k, value=v) for k, v in parameters.items()]
+        managers.append(LifecycleManager("lifecycle_manager_test", NODES, parameter_overrides=overrides))
+        return managers[-1]
+    try:
+        yield servers, log, manager
+    finally:
+        for m in managers:
+            m.destroy_node()
+        stop.set()
+        thread.join(5)
+        executor.shutdown()
+        for server in servers.values():
+            server.destroy_node()
+
+
+def call(node: Any, srv_type: Any, name: str, request: Any) -> Any:
+    client = node.create_client(srv_type, name)
+    assert client.wait_for_service(timeout_sec=10)
+    future = client.call_async(request)
+    return wait_until(lambda: future.result() if future.done() else None, 60, name, node=node)
+
+
+def manage(node: Any, command: Command) -> bool:
+    return bool(call(node, ManageLifecycleNodes, "/lifecycle_manager_test/manage_nodes",
+                     ManageLifecycleNodes.Request(command=int(command))).success)
+
+
+def is_active(node: Any) -> bool:
+    return bool(call(node, Trigger, "/lifecycle_manager_test/is_active", Trigger.Request()).success)
+
+
+@pytest.mark.ros
+def test_autostart_brings_the_nodes_up_in_order_and_commands_take_them_down_in_reverse(ros_node, process):
+    servers, log, manager = process
+    manager(autostart=True)
+    wait_until(lambda: all(s.active for s in servers.values()), 30, "the nodes active", node=ros_node)
+    assert log == [f"configure {n}" for n in NODES] + [f"activate {n}" for n in NODES]
+    assert is_active(ros_node)
+    log.clear()
+    assert manage(ros_node, Command.PAUSE) and not is_active(ros_node)
+    assert {s.state for s in servers.values()} == {"inactive"}
+    assert manage(ros_node, Command.RESUME) and is_active(ros_node)
+    assert manage(ros_node, Command.RESET)
+    assert log == [f"deactivate {n}" for n in NODES[::-1]] + [f"activate {n}" for n in NODES] + \
+        [f"deactivate {n}" for n in NODES[::-1]] + [f"cleanup {n}" for n in NODES[::-1]]
+    assert manage(ros_node, Command.STARTUP) and is_active(ros_node)
+    assert manage(ros_node, Command.SHUTDOWN) and {s.state for s in servers.values()} == {"finalized"}
+
+
+@pytest.mark.ros
+def test_a_node_that_fails_to_configure_stops_the_startup_with_its_name(ros_node, process):
+    servers, log, manager = process
+    servers["amcl"].broken = True
+    m = manager()
+    assert not manage(ros_node, Command.STARTUP)
+    assert log == ["configure map_server"]  # planner_server never asked, nobody activated
+    assert servers["map_server"].state == "inactive" and servers["amcl"].state == "unconfigured"
+    assert servers["amcl"].configure_failure == "plugin 'GridBased' not found"
+    assert not is_active(ros_node) and m.state == "unknown"
+    servers["amcl"].broken = False
+    assert manage(ros_node, Command.STARTUP) and is_active(ros_node)  # map_server is not configured twice
+    assert log.count("configure map_server") == 1
+
+
+def test_node_names_must_be_names(ros_node):
+    with pytest.raises(ParameterError, match="node_names"):
+        LifecycleManager("lifecycle_manager_bad", parameter_overrides=[Parameter("node_names", value=["a", "a"])])
