@@ -24,7 +24,7 @@ setup(
             'amcl = pppbot_nav.ros.amcl:main',
             'planner_server = pppbot_nav.ros.planner_server:main',
             'controller_server = pppbot_nav.ros.controller_server:main',
-            'navigator = pppbot_nav.ros.navigator:main',
+            'bt_navigator = pppbot_nav.ros.navigator:main',
             'navigation = pppbot_nav.ros.navigation:main',
             'localization = pppbot_nav.ros.localization:main',
             'lifecycle_manager = pppbot_nav.ros.lifecycle_manager:main',

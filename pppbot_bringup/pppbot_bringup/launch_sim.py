@@ -28,6 +28,7 @@ from pppbot_bringup.paths import config_directory, maps_directory
 from pppbot_bringup.robot import PPP_BOT, RobotFacts, adapt_parameters
 from pppbot_bringup.supervisor import NodeSpec, ReadyCheck
 from pppbot_common.launch_args import Argument, ArgumentError, parse_assignments
+from pppbot_nav.lifecycle import LOCALIZATION_NODES, NAVIGATION_NODES
 
 LOG_LEVELS = ("debug", "info", "warn", "error", "fatal")
 #: the simulator's largest ``wheel_slip`` (pppbot_sim.wheel_slip.MAX_SLIP_STDDEV)
@@ -178,6 +179,9 @@ class Probes(Protocol):
 
     def joined(self, participant: str) -> Callable[[], bool]:
         """True once the simulator lists ``participant`` on /lockstep/status."""
+
+    def lifecycle_active(self, node: str) -> Callable[[], bool]:
+        """True once lifecycle node ``node`` says it is active."""
 
 
 @dataclass(frozen=True)
@@ -354,6 +358,13 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                                  after=("simulator",), ready=ReadyCheck("recording /clock", probes.endpoints(
                                      RECORDER_NODE, subscribes=("/clock",)))))
         start_info.append(f"recording every topic to {bag} (ends when the launch ends)")
+    def manager_spec(name: str, managed: Sequence[str], params_file: Path, ready: ReadyCheck) -> NodeSpec:
+        """A lifecycle manager's own process (``use_composition:=false``), after the nodes it manages."""
+        return NodeSpec(name, [resolve("pppbot_nav", "lifecycle_manager"), *ros_args(
+            level, {"node_names": list(managed), "autostart": True}, params_file=params_file,
+            remaps={"__node": name})],
+            after=tuple(managed), required=True, pppbot_node=True, ready=ready)
+
     if args.localization:
         map_file = Path(args.map) if args.map else maps_directory() / f"{world_file.stem}.yaml"
         if not map_file.is_file():
@@ -379,14 +390,18 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                 level, scoped, params_file=nav2_params)],
                 after=("robot_state_publisher",), required=True, pppbot_node=True, ready=localized))
         else:
+            # Each its own process, unconfigured until lifecycle_manager_localization (its own
+            # process too, as Nav2's bringup starts it) brings them up; localized is its readiness.
             nodes.append(NodeSpec("map_server", [resolve("pppbot_nav", "map_server"), *ros_args(
                 level, server_params, params_file=nav2_params)],
                 after=("simulator",), required=True, pppbot_node=True,
-                ready=ReadyCheck("/map", probes.first_message("/map", "nav_msgs/msg/OccupancyGrid", True))))
+                ready=ReadyCheck("its /map publisher", probes.endpoints("map_server", publishes=("/map",)))))
             extra, localized = participant("amcl", "an initial pose", amcl_ready)
             nodes.append(NodeSpec("amcl", [resolve("pppbot_nav", "amcl"), *ros_args(
                 level, {**amcl_params, **extra}, params_file=nav2_params)],
-                after=("map_server", "robot_state_publisher"), required=True, pppbot_node=True, ready=localized))
+                after=("robot_state_publisher",), required=True, pppbot_node=True,
+                ready=ReadyCheck("its /amcl_pose publisher", probes.endpoints("amcl", publishes=("/amcl_pose",)))))
+            nodes.append(manager_spec("lifecycle_manager_localization", LOCALIZATION_NODES, nav2_params, localized))
         start_info.append(f"localizing on {map_file}")
     elif args.use_slam:
         slam_params = Path(args.slam_params_file or config / "mapper_params_online_async.yaml")
@@ -402,23 +417,38 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
         nodes.append(NodeSpec("slam_toolbox", [resolve("pppbot_slam", "slam"), *ros_args(
             level, slam_params_lockstep, params_file=slam_params)],
             after=("robot_state_publisher",), required=True, pppbot_node=True, ready=slam_ready))
-    localizer = (("localization" if args.use_composition else "amcl") if args.localization
+    localizer = (("localization" if args.use_composition else "lifecycle_manager_localization") if args.localization
                  else "slam_toolbox" if args.use_slam else None)
     if args.navigation.enabled(args.localization):
         if localizer is None:
             raise ArgumentError("navigation:=true needs a map frame: localization:=true or use_slam:=true")
         nav2_params = adapted_file(config / "nav2_params.yaml", robot, urdf_file.parent, files, start_info)
         servers = {"planner_server": "/compute_path_to_pose", "controller_server": "/follow_path",
-                   "navigator": "/navigate_to_pose"}
-        probe = {name: probes.endpoints(name, action_servers=(action,)) for name, action in servers.items()}
-        checks = {name: ReadyCheck(f"its {servers[name][1:]} action server", probe[name]) for name in servers}
+                   "bt_navigator": "/navigate_to_pose"}
+        # Up once lifecycle_manager_navigation has them all active (bt_navigator last), as
+        # BasicNavigator.waitUntilNav2Active() sees it; in lockstep, once joined as well.
+        active = ReadyCheck("bt_navigator active", probes.lifecycle_active("bt_navigator"))
         if args.use_composition:
-            checks = {"navigation": ReadyCheck("the " + ", ".join(a[1:] for a in servers.values()) + " action servers",
-                                               lambda: all(p() for p in probe.values()))}
-        for name, ready in checks.items():
-            extra, check = participant(name, name, ready)
-            nodes.append(NodeSpec(name, [resolve("pppbot_nav", name), *ros_args(level, extra, params_file=nav2_params)],
-                                  after=(localizer,), required=True, pppbot_node=True, ready=check))
+            extra, check = participant("navigation", "navigation", active)
+            lockstep_joined = check.probe
+            check = ReadyCheck(check.description if lockstep else active.description,
+                               lambda: active.probe() and lockstep_joined())
+            nodes.append(NodeSpec("navigation", [resolve("pppbot_nav", "navigation"), *ros_args(
+                level, extra, params_file=nav2_params)], after=(localizer,), required=True, pppbot_node=True,
+                ready=check))
+        else:
+            joins = []
+            for name, action in servers.items():
+                serving = ReadyCheck(f"its {action[1:]} action server",
+                                     probes.endpoints(name, action_servers=(action,)))
+                extra, joined = participant(name, name, serving)
+                joins.append(joined.probe)
+                nodes.append(NodeSpec(name, [resolve("pppbot_nav", name), *ros_args(
+                    level, extra, params_file=nav2_params)], after=(localizer,), required=True, pppbot_node=True,
+                    ready=serving))
+            nodes.append(manager_spec("lifecycle_manager_navigation", NAVIGATION_NODES, nav2_params, ReadyCheck(
+                active.description + (" (joined lockstep)" if lockstep else ""),
+                lambda: active.probe() and all(j() for j in joins))))
         start_info.append("navigating: send goals with RViz's 2D Goal Pose, ./pppbot nav goto X Y YAW, "
                      "or the navigate_to_pose action")
     simulator_params: dict[str, Any] = {

@@ -208,7 +208,7 @@ def adapt_parameters(document: object, robot: RobotFacts) -> list[str]:
 
     walk(document)
     if robot.navigation_base_frame != "base_link" and isinstance(document, dict) and "planner_server" in document:
-        document.setdefault("navigator", {}).setdefault("ros__parameters", {})["robot_base_frame"] = \
+        document.setdefault("bt_navigator", {}).setdefault("ros__parameters", {})["robot_base_frame"] = \
             robot.navigation_base_frame
         changes.append(f"navigator robot_base_frame → {robot.navigation_base_frame}")
     return sorted(set(changes))

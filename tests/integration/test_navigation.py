@@ -15,10 +15,12 @@ from typing import Any
 import pytest
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, Twist
+from lifecycle_msgs.srv import GetState
 from nav2_msgs.action import NavigateToPose
 from nav_msgs.msg import OccupancyGrid, Odometry
 from nav_msgs.msg import Path as PathMsg
 from rclpy.action import ActionClient
+from std_srvs.srv import Trigger
 
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.wait import send_goal, wait_until
@@ -59,6 +61,12 @@ def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spaw
                                      lambda msg, name=name: costmaps.__setitem__(name, msg), LATCHED)
     client = ActionClient(ros_node, NavigateToPose, "navigate_to_pose")
     assert client.wait_for_server(timeout_sec=20)
+    # Up as BasicNavigator.waitUntilNav2Active() sees it: amcl and bt_navigator active, and the
+    # lifecycle managers say so.
+    for node in ("map_server", "amcl", "planner_server", "controller_server", "bt_navigator"):
+        assert lifecycle_state(ros_node, node) == "active", node
+    for manager in ("lifecycle_manager_localization", "lifecycle_manager_navigation"):
+        assert call(ros_node, Trigger, f"/{manager}/is_active", Trigger.Request()).success, manager
 
     # 1. A goal reached: the robot ends within the goal checker's tolerances, with feedback on the way.
     feedback: list[Any] = []
@@ -115,6 +123,18 @@ def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spaw
     assert "the goal (-2.50, 0.00) is in an obstacle: navigating to the nearest free pose" in result.error_msg
     x, y, _ = truth_pose(truths[-1])
     assert 0.2 < math.hypot(x + 2.5, y) < 0.6
+
+
+def call(node: Any, srv_type: Any, name: str, request: Any) -> Any:
+    client = node.create_client(srv_type, name)
+    assert client.wait_for_service(timeout_sec=20), name
+    future = client.call_async(request)
+    return wait_until(lambda: future.result() if future.done() else None, 20, name, node=node)
+
+
+def lifecycle_state(node: Any, name: str) -> str:
+    """What ``ros2 lifecycle get /<name>`` says."""
+    return str(call(node, GetState, f"/{name}/get_state", GetState.Request()).current_state.label)
 
 
 def run_goal(node: Any, client: Any, x: float, y: float) -> tuple[int, Any]:

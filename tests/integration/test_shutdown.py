@@ -29,7 +29,8 @@ ESCALATION = ("sigterm_timeout:=20", "sigkill_timeout:=10")
 #: composed, and the navigation nodes (the default), or each its own (``use_composition:=false``,
 #: every fourth run).
 NODES = ("simulator", "robot_state_publisher", "twist_mux", "localization", "navigation")
-SEPARATE_NODES = (*NODES[:3], "map_server", "amcl", "planner_server", "controller_server", "navigator")
+SEPARATE_NODES = (*NODES[:3], "map_server", "amcl", "lifecycle_manager_localization", "planner_server",
+                  "controller_server", "bt_navigator", "lifecycle_manager_navigation")
 
 
 def _stop_moment(run: int) -> str:

@@ -65,7 +65,9 @@ def test_simulator_reports_the_tip_on_diagnostics_and_in_its_log(ros_node, spawn
 
 
 def test_navigator_ends_a_goal_when_the_robot_is_not_upright(ros_node, spawn) -> None:
-    spawn([PPPBOT, "run", "pppbot_nav", "navigator"], name="navigator").wait_for_output("navigator ready", 30)
+    spawn([PPPBOT, "run", "pppbot_nav", "bt_navigator"], name="bt_navigator")
+    spawn([PPPBOT, "run", "pppbot_nav", "lifecycle_manager", "--ros-args", "-p", "node_names:=[bt_navigator]",
+           "-p", "autostart:=true"], name="lifecycle_manager").wait_for_output("Managed nodes are active", 60)
     diagnostics = ros_node.create_publisher(DiagnosticArray, "/diagnostics", 10)
     report = DiagnosticArray(status=[DiagnosticStatus(level=DiagnosticStatus.ERROR, name="ppp_bot: upright",
                                                       message="tipped over (beyond 0.5 rad)")])

@@ -99,6 +99,7 @@ class FakeProbes:
         self.asked: list[tuple[str, str, bool]] = []
         self.joins: list[str] = []
         self.endpoints_asked: dict[str, dict[str, tuple[str, ...]]] = {}
+        self.lifecycle_asked: list[str] = []
 
     def endpoints(self, node, publishes=(), subscribes=(), action_servers=()):
         self.endpoints_asked[node] = {"publishes": tuple(publishes), "subscribes": tuple(subscribes),
@@ -111,6 +112,10 @@ class FakeProbes:
 
     def joined(self, participant):
         self.joins.append(participant)
+        return lambda: True
+
+    def lifecycle_active(self, node):
+        self.lifecycle_asked.append(node)
         return lambda: True
 
     def __contains__(self, item) -> bool:
@@ -199,18 +204,28 @@ def test_localization_serves_the_worlds_map_and_starts_amcl_at_the_spawn_pose_in
     amcl = " ".join(by_name["amcl"].cmd)
     assert amcl.startswith("/bin/pppbot_nav/amcl ") and "nav2_params.yaml" in amcl
     assert "set_initial_pose:=true" in amcl and "initial_pose.x:=1.5" in amcl and "initial_pose.yaw:=0.5" in amcl
-    assert by_name["amcl"].after == ("map_server", "robot_state_publisher")
+    assert by_name["amcl"].after == ("robot_state_publisher",)
     assert "seed:=0" in amcl
     assert by_name["amcl"].required and by_name["map_server"].required
-    assert by_name["planner_server"].after == ("amcl",)
-    assert ("/map", "nav_msgs/msg/OccupancyGrid", True) in probes
-    # Localized once AMCL publishes a first pose; each navigation server once it serves its action.
+    # Each its own process: a lifecycle manager brings them up once both run, and is ready once
+    # AMCL publishes a first pose (the map comes only once map_server is active).
+    manager = by_name["lifecycle_manager_localization"]
+    assert manager.cmd[0] == "/bin/pppbot_nav/lifecycle_manager" and manager.after == ("map_server", "amcl")
+    assert "node_names:=['map_server', 'amcl']" in manager.cmd and "autostart:=true" in manager.cmd
+    assert "__node:=lifecycle_manager_localization" in manager.cmd and manager.required
+    assert manager.ready.description == "a first /amcl_pose"
+    assert by_name["planner_server"].after == ("lifecycle_manager_localization",)
     assert ("/amcl_pose", "geometry_msgs/msg/PoseWithCovarianceStamped", True) in probes
+    # Each navigation server up once it serves its action; navigation once bt_navigator is active.
     assert {name: asked["action_servers"] for name, asked in probes.endpoints_asked.items()
             if asked["action_servers"]} == {"planner_server": ("/compute_path_to_pose",),
                                             "controller_server": ("/follow_path",),
-                                            "navigator": ("/navigate_to_pose",)}
-    assert by_name["navigator"].ready.description == "its navigate_to_pose action server"
+                                            "bt_navigator": ("/navigate_to_pose",)}
+    assert by_name["bt_navigator"].ready.description == "its navigate_to_pose action server"
+    nav_manager = by_name["lifecycle_manager_navigation"]
+    assert "node_names:=['planner_server', 'controller_server', 'bt_navigator']" in nav_manager.cmd
+    assert nav_manager.after == ("planner_server", "controller_server", "bt_navigator")
+    assert nav_manager.ready.description == "bt_navigator active" and probes.lifecycle_asked == ["bt_navigator"]
     other = {n.name: n for n in fake_plan("localization:=true", f"map:={ROOT / 'maps' / 'room.yaml'}")[0].nodes}
     assert f"yaml_filename:={ROOT / 'maps' / 'room.yaml'}" in " ".join(other["localization"].cmd)
 
@@ -242,16 +257,19 @@ def test_navigation_is_one_composed_process_unless_use_composition_is_false():
     nav = composed["navigation"]
     assert nav.cmd[0] == "/bin/pppbot_nav/navigation" and nav.after == ("localization",) and nav.required
     assert "lockstep_name:=navigation" in nav.cmd and "nav2_params.yaml" in " ".join(nav.cmd)
-    assert not {"planner_server", "controller_server", "navigator"} & composed.keys()
+    assert not {"planner_server", "controller_server", "bt_navigator"} & composed.keys()
+    assert nav.ready.description == "navigation (joined lockstep)"  # and bt_navigator active
     separate = {n.name: n for n in fake_plan("localization:=true", "lockstep:=true", "use_composition:=false")[0].nodes}
     assert "navigation" not in separate
-    for name in ("planner_server", "controller_server", "navigator"):
+    for name in ("planner_server", "controller_server", "bt_navigator"):
         assert separate[name].cmd[0] == f"/bin/pppbot_nav/{name}" and f"lockstep_name:={name}" in separate[name].cmd
     free_running = {n.name: n for n in fake_plan("localization:=true")[0].nodes}  # composed too, as Nav2's bringup
-    assert not {"planner_server", "controller_server", "navigator"} & free_running.keys()
+    assert not {"planner_server", "controller_server", "bt_navigator"} & free_running.keys()
+    assert free_running["navigation"].ready.description == "bt_navigator active"
     assert not any("lockstep" in arg for arg in free_running["navigation"].cmd)
     apart = {n.name for n in fake_plan("localization:=true", "use_composition:=false")[0].nodes}
-    assert "navigation" not in apart and {"planner_server", "controller_server", "navigator"} <= apart
+    assert "navigation" not in apart and {"planner_server", "controller_server", "bt_navigator",
+                                          "lifecycle_manager_navigation"} <= apart
 
 
 def test_record_adds_a_recorder_right_after_the_simulator(tmp_path):

@@ -74,7 +74,7 @@ def test_parameter_files_follow_the_robot_where_they_say_ppp_bots() -> None:
         ("my_bot/odom", "base", "/laser_scan")
     assert nav["global_costmap"]["global_costmap"]["ros__parameters"]["global_frame"] == "map"  # not ppp_bot's odom
     assert nav["controller_server"]["ros__parameters"]["odom_topic"] == "/my_bot/odom"
-    assert nav["navigator"]["ros__parameters"]["robot_base_frame"] == "base"
+    assert nav["bt_navigator"]["ros__parameters"]["robot_base_frame"] == "base"
     assert "base_frame_id: base_footprint → base" in changes
     # ppp_bot's own files need no change for ppp_bot
     assert adapt_parameters(yaml.safe_load((config_directory() / "nav2_params.yaml").read_text()), PPP_BOT) == []
@@ -102,6 +102,9 @@ class _Probes:
         return lambda: True
 
     def joined(self, participant):
+        return lambda: True
+
+    def lifecycle_active(self, node):
         return lambda: True
 
 

@@ -80,9 +80,17 @@ class Robot:
         self.pose_pub.publish(msg)
 
 
-def start_amcl(spawn: Any, *params: str) -> Any:
+def start_amcl(spawn: Any, *params: str, managed: bool = True) -> Any:
+    """AMCL, and a lifecycle manager that brings it up (as lifecycle_manager_localization does)."""
     ros_args = [a for p in ("seed:=3", *params) for a in ("-p", p)]
-    return spawn([str(find_executable("pppbot_nav", "amcl")), "--ros-args", *ros_args], name="amcl", env={**os.environ})
+    amcl = spawn([str(find_executable("pppbot_nav", "amcl")), "--ros-args", *ros_args], name="amcl",
+                 env={**os.environ})
+    if not managed:
+        return amcl
+    manager = spawn([str(find_executable("pppbot_nav", "lifecycle_manager")), "--ros-args", "-p", "node_names:=[amcl]",
+                     "-p", "autostart:=true"], name="lifecycle_manager", env={**os.environ})
+    manager.wait_for_output("Managed nodes are active", 60)  # it uses scans only once active
+    return amcl
 
 
 def pose_of(msg: PoseWithCovarianceStamped) -> np.ndarray:
@@ -197,6 +205,6 @@ def test_request_nomotion_update_updates_on_the_next_scan_without_motion(ros_nod
     ("sigma_hit:=0.0", "parameter 'sigma_hit' = 0.0"),
 ])
 def test_a_bad_parameter_stops_the_node_naming_it(spawn, param, message):
-    amcl = start_amcl(spawn, param)
+    amcl = start_amcl(spawn, param, managed=False)  # a bad parameter stops it before anything is managed
     assert amcl.wait(30) == 1
     assert message in amcl.output

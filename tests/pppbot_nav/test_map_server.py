@@ -70,10 +70,15 @@ def test_bad_files_get_nav2s_result_codes(tmp_path: Path):
     assert data.value.result == LoadMap.Response.RESULT_INVALID_MAP_DATA
 
 
-def start_server(spawn: Any, *params: str) -> Any:
+def start_server(spawn: Any, *params: str) -> tuple[Any, Any]:
+    """map_server, and a lifecycle manager that brings it up (as lifecycle_manager_localization does)."""
     ros_args = [a for p in params for a in ("-p", p)]
-    return spawn([str(find_executable("pppbot_nav", "map_server")), "--ros-args", *ros_args], name="map_server",
-                 env={**os.environ})
+    server = spawn([str(find_executable("pppbot_nav", "map_server")), "--ros-args", *ros_args], name="map_server",
+                   env={**os.environ})
+    manager = spawn([str(find_executable("pppbot_nav", "lifecycle_manager")), "--ros-args",
+                     "-p", "node_names:=[map_server]", "-p", "autostart:=true"], name="lifecycle_manager",
+                    env={**os.environ})
+    return server, manager
 
 
 def call(node: Any, kind: Any, name: str, request: Any) -> Any:
@@ -88,7 +93,7 @@ def call(node: Any, kind: Any, name: str, request: Any) -> Any:
 
 def test_serves_a_nav2_map_latched_and_switches_maps(ros_node, spawn, tmp_path: Path):
     nav2 = write_nav2_map(tmp_path)
-    server = start_server(spawn, f"yaml_filename:={nav2}", "frame_id:=world")
+    server, _ = start_server(spawn, f"yaml_filename:={nav2}", "frame_id:=world")
     server.wait_for_output(r"serving .*nav2.yaml on /map: 4 x 3 cells of 0.05 m, origin \(-0.1, 0.2, 0\)", 30)
     (msg,) = wait_for_messages(ros_node, OccupancyGridMsg, "/map", qos=LATCHED, timeout_s=10)
     assert msg.header.frame_id == "world"
@@ -111,7 +116,9 @@ def test_serves_a_nav2_map_latched_and_switches_maps(ros_node, spawn, tmp_path: 
     assert call(ros_node, GetMap, "/map_server/map", GetMap.Request()).map.info.width == 7
 
 
-def test_a_missing_map_at_start_stops_the_node_naming_it(spawn, tmp_path: Path):
-    server = start_server(spawn, f"yaml_filename:={tmp_path / 'absent.yaml'}")
-    assert server.wait(30) == 1
-    assert f"[map_server] error: map file '{tmp_path / 'absent.yaml'}' not found" in server.output
+def test_a_missing_map_fails_its_configure_naming_it_and_the_bringup_stops(spawn, tmp_path: Path):
+    server, manager = start_server(spawn, f"yaml_filename:={tmp_path / 'absent.yaml'}")
+    manager.wait_for_output(r"Failed to bring up all requested nodes\. Aborting bringup\.", 60)
+    assert "Failed to change state for node: map_server (configure left it unconfigured)" in manager.output
+    server.wait_for_output(f"failed to configure: map file '{tmp_path / 'absent.yaml'}' not found", 10)
+    assert server.running()  # unconfigured, as Nav2's: a manager or `ros2 lifecycle set` may try again

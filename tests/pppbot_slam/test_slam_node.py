@@ -159,8 +159,9 @@ def test_the_pose_graph_is_shown_as_a_sphere_per_keyframe_and_a_line_per_edge(ro
     spheres, links, loops = room.graphs[-1].markers
     assert spheres.type == Marker.SPHERE_LIST and spheres.header.frame_id == "map"
     xs = np.array([p.x for p in spheres.points])
-    # keyframes at least 0.5 m apart over the 2 m drive
-    assert 3 <= keyframes <= 5 and xs[0] < -0.85 and np.all(np.diff(xs) > 0.49)
+    # keyframes at least 0.5 m apart over the 2 m drive (from -1 m; on a busy machine the first
+    # scans can come before the node has the static transforms, and are dropped)
+    assert 3 <= keyframes <= 5 and xs[0] < -0.5 and np.all(np.diff(xs) > 0.49)
     assert len(links.points) == 2 * (keyframes - 1) and loops.points == []
 
 

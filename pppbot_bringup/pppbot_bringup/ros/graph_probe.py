@@ -14,10 +14,13 @@ import time
 from collections.abc import Callable, Sequence
 
 import rclpy
+from lifecycle_msgs.msg import State
+from lifecycle_msgs.srv import GetState
 from rclpy.action import get_action_server_names_and_types_by_node
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
+from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
 from pppbot_common.ros.lockstep import STATUS_QOS, STATUS_TOPIC
@@ -30,6 +33,8 @@ from pppbot_interfaces.msg import LockstepStatus
 DOMAIN_CHECK_S = 4.0
 #: with no other node in the graph after this long, the domain is taken to be empty
 EMPTY_DOMAIN_S = 1.0
+#: a lifecycle probe's get_state request unanswered this long (wall s) is sent again
+STATE_RETRY_S = 2.0
 
 
 def domain_taken_message(what: str, environ: dict[str, str] | None = None) -> str:
@@ -113,6 +118,30 @@ class GraphProbe:
             if all(set(wanted) <= got for wanted, got in zip((publishes, subscribes, action_servers), have,
                                                              strict=True)):
                 seen.set()
+            return seen.is_set()
+        return probe
+
+    def lifecycle_active(self, node: str) -> Callable[[], bool]:
+        """A probe that turns true once lifecycle node ``node`` (in the root namespace) says it is
+        active on ``<node>/get_state``, as ``ros2 lifecycle get`` and BasicNavigator ask; once true
+        it stays true. A request unanswered for :data:`STATE_RETRY_S` is sent again (Fast DDS drops
+        an answer to a client its server has not discovered yet)."""
+        seen = threading.Event()
+        client = self.node.create_client(GetState, f"/{node}/get_state")
+        pending: list[tuple[float, Future]] = []
+
+        def probe() -> bool:
+            if seen.is_set() or self._closed:
+                return seen.is_set()
+            if pending and pending[0][1].done():
+                answer = pending.pop()[1].result()
+                if answer is not None and answer.current_state.id == State.PRIMARY_STATE_ACTIVE:
+                    seen.set()
+            elif pending and time.monotonic() - pending[0][0] > STATE_RETRY_S:
+                pending.pop()
+            if not seen.is_set() and not pending and client.service_is_ready():
+                pending.append((time.monotonic(), client.call_async(GetState.Request())))
+                self.executor.wake()
             return seen.is_set()
         return probe
 

@@ -61,10 +61,10 @@ class ManagedNode(LifecycleNode):
         """Read what can fail and allocate. Raise one of :data:`CONFIGURE_FAILURES` to fail."""
 
     def activate(self) -> None:
-        """Start the work (publishers are enabled after it)."""
+        """Start the work (the publishers are enabled already: it may publish)."""
 
     def deactivate(self) -> None:
-        """Stop the work (publishers are disabled before it)."""
+        """Stop the work (the publishers are still enabled: it may publish a last time)."""
 
     def cleanup(self) -> None:
         """Release what configure allocated."""
@@ -85,12 +85,18 @@ class ManagedNode(LifecycleNode):
             return super().create_publisher(*args, **kwargs)
         return self.create_lifecycle_publisher(*args, **kwargs)
 
+    def taking_goals(self, request: Any = None) -> bool:
+        """Whether a goal may be accepted now: only while active (else a warning, as Nav2's
+        "Action server is inactive. Rejecting the goal.")."""
+        if not self.active:
+            self.get_logger().warning(f"a goal while {self.state}: action server is inactive, rejecting the goal")
+        return self.active
+
     def gated(self, goal_callback: Callable[[Any], GoalResponse] | None = None) -> Callable[[Any], GoalResponse]:
         """An action server's goal callback that rejects goals while the node is not active (and
         otherwise asks ``goal_callback``, or accepts)."""
         def on_goal(goal: Any) -> GoalResponse:
-            if not self.active:
-                self.get_logger().warning(f"a goal while {self.state}: action server is inactive, rejecting the goal")
+            if not self.taking_goals(goal):
                 return GoalResponse.REJECT
             return goal_callback(goal) if goal_callback is not None else GoalResponse.ACCEPT
         return on_goal
@@ -108,13 +114,13 @@ class ManagedNode(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        result = super().on_activate(state)  # enables the lifecycle publishers
         self.activate()
-        return super().on_activate(state)
+        return result
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
-        result = super().on_deactivate(state)
         self.deactivate()
-        return result
+        return super().on_deactivate(state)
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
         self.cleanup()
@@ -122,8 +128,8 @@ class ManagedNode(LifecycleNode):
 
     def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
         if state.state_id == State.PRIMARY_STATE_ACTIVE:
-            super().on_deactivate(state)
             self.deactivate()
+            super().on_deactivate(state)
         if state.state_id in (State.PRIMARY_STATE_ACTIVE, State.PRIMARY_STATE_INACTIVE):
             self.cleanup()
         return TransitionCallbackReturn.SUCCESS

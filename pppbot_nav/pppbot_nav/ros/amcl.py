@@ -33,13 +33,13 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav2_msgs.msg import Particle, ParticleCloud
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rclpy.duration import Duration
-from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Empty
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.lockstep import at_step, require, require_match
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
@@ -167,7 +167,10 @@ class AmclParameters:
         return np.array([self.initial_pose_x, self.initial_pose_y, self.initial_pose_yaw])
 
 
-class Amcl(Node):
+class Amcl(ManagedNode):
+    """A lifecycle node, as Nav2's: it takes the map and initial poses at any time, and uses scans
+    (and publishes) only while active."""
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("amcl", **kwargs)
         self.params = p = declare_parameters(self, AmclParameters)
@@ -274,6 +277,8 @@ class Amcl(Node):
     # ------------------------------------------------------------------ scans
     def _on_scan_with_odometry(self, msg: LaserScan, stamp: float, frame: str, odom_pose: np.ndarray,
                                sensor: np.ndarray) -> None:
+        if not self.active:
+            return
         loc = self.localizer
         if loc is None:
             self._warn("no map", f"no map on '{self.params.map_topic}' yet: scans are not used")

@@ -27,10 +27,10 @@ from geometry_msgs.msg import Twist
 from nav2_msgs.action import FollowPath
 from nav_msgs.msg import Odometry, Path
 from rclpy.action.server import ServerGoalHandle
-from rclpy.node import Node
 
 from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.ros.goals import GoalEnd, GoalServer, Stopped, check_running, stopped_end
+from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.lockstep import create_timer, require_match
 from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters
@@ -119,7 +119,9 @@ class _Following:
         self.follower = follower
 
 
-class ControllerServer(Node):
+class ControllerServer(ManagedNode):
+    """A lifecycle node, as Nav2's: it follows paths only while active."""
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("controller_server", **kwargs)
         self.params = p = declare_parameters(self, ControllerServerParameters)
@@ -137,7 +139,7 @@ class ControllerServer(Node):
         self.local_plan_pub = self.create_publisher(Path, "local_plan", 1)
         require_match(self, self.create_subscription(Odometry, p.odom_topic, guarded(self, self._on_odom, "Odometry"),
                                                      10))
-        self.server = GoalServer(self, FollowPath, "follow_path", self._on_goal)
+        self.server = GoalServer(self, FollowPath, "follow_path", self._on_goal, accept=self.taking_goals)
         # The control loop runs while a path is followed (an idle controller makes no sync times).
         self.timer = create_timer(self, 1.0 / p.controller_frequency, self._control)
         self.timer.cancel()

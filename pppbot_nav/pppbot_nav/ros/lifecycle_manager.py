@@ -24,7 +24,7 @@ from __future__ import annotations
 import sys
 import threading
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import rclpy
@@ -51,8 +51,9 @@ from pppbot_nav.lifecycle import (
     validate_node_names,
 )
 
-#: How long a node's lifecycle services may take to appear, and to answer (s, wall).
-SERVICE_WAIT_S = 10.0
+#: How long a node's lifecycle services may take to appear (a process still importing on a busy
+#: machine), and to answer (s, wall).
+SERVICE_WAIT_S = 60.0
 CALL_TIMEOUT_S = 30.0
 
 
@@ -76,9 +77,16 @@ class LifecycleManager(Node):
     #: run_nodes leaves this node out of the process's executor: it spins itself.
     spins_itself = True
 
-    def __init__(self, name: str = "lifecycle_manager", node_names: Sequence[str] = (), **kwargs: Any) -> None:
+    def __init__(self, name: str = "lifecycle_manager", node_names: Sequence[str] = (), autostart: bool = False,
+                 **kwargs: Any) -> None:
+        """``node_names`` and ``autostart``: the defaults of the parameters (a bringup's), which a
+        parameters file overrides."""
         super().__init__(name, **kwargs)
+        given = set(self._parameter_overrides)  # from the command line and parameters files
         self.params = p = declare_parameters(self, LifecycleManagerParameters)
+        if "autostart" not in given and autostart:
+            self.set_parameters([Parameter("autostart", value=True)])
+            self.params = p = replace(p, autostart=True)
         self.node_names = [str(n) for n in p.node_names] if list(p.node_names) != [""] else list(node_names)
         if not self.node_names:
             raise ParameterError("node_names", p.node_names, "must name the lifecycle nodes to manage, in start order")

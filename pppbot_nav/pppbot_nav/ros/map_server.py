@@ -12,10 +12,11 @@ Loads ``yaml_filename`` (a Nav2 map YAML and its image) at startup and publishes
   unreadable image); on failure the current map stays.
 
 A relative file name is looked up in the working directory, then in ppp_bot's ``maps/``
-(``yaml_filename:=maze`` finds ``maps/maze.yaml``). Nav2's node is a lifecycle node
-started by a lifecycle manager; pppbot has none, so this one is active once it runs. A
-map file that cannot be loaded at startup stops the node with one line naming the file
-and the problem; an empty ``yaml_filename`` waits for ``~/load_map``.
+(``yaml_filename:=maze`` finds ``maps/maze.yaml``). As Nav2's, it is a lifecycle node
+(:class:`~pppbot_common.ros.lifecycle.ManagedNode`) that a lifecycle manager brings up
+(``lifecycle_manager_localization``): *configure* loads ``yaml_filename`` — a file that
+cannot be loaded fails the transition with one line naming the file and the problem — and
+*activate* publishes it; an empty ``yaml_filename`` waits for ``~/load_map``.
 """
 from __future__ import annotations
 
@@ -27,11 +28,11 @@ from typing import Any
 from nav2_msgs.srv import LoadMap
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.srv import GetMap
-from rclpy.node import Node
 
 from pppbot_common.maps import MapFileError, load_map_image, read_map_metadata
 from pppbot_common.params import ParameterError, param
 from pppbot_common.resources import maps_directory
+from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.maps import grid_message
 from pppbot_common.ros.node_main import run_node
 from pppbot_common.ros.params import declare_parameters
@@ -93,20 +94,30 @@ def load_map_file(name: str) -> tuple[Path, Any]:
     return path, grid
 
 
-class MapServer(Node):
+class MapServer(ManagedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("map_server", **kwargs)
         self.params = p = declare_parameters(self, MapServerParameters)
         self.map_pub = self.create_publisher(OccupancyGridMsg, p.topic_name, LATCHED)
         self.current: OccupancyGridMsg | None = None
-        if p.yaml_filename:
-            self.serve(*load_map_file(p.yaml_filename))
-        else:
-            self.get_logger().info(f"no yaml_filename: waiting for {self.get_fully_qualified_name()}/load_map")
         self.create_service(GetMap, "~/map", self._on_get_map)
         self.create_service(LoadMap, "~/load_map", self._on_load_map)
 
+    def configure(self) -> None:
+        if self.params.yaml_filename:
+            self.serve(*load_map_file(self.params.yaml_filename))
+        else:
+            self.get_logger().info(f"no yaml_filename: waiting for {self.get_fully_qualified_name()}/load_map")
+
+    def activate(self) -> None:
+        if self.current is not None:
+            self.map_pub.publish(self.current)
+
+    def cleanup(self) -> None:
+        self.current = None
+
     def serve(self, path: Path, grid: Any) -> None:
+        """Take a loaded map: published at once when active, else on activation."""
         msg = grid_message(grid, self.get_clock().now().to_msg())
         msg.header.frame_id = self.params.frame_id
         self.current = msg
@@ -136,7 +147,7 @@ class MapServer(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node(MapServer, "map_server", args, fatal=(ParameterError, MapFileError))
+    return run_node(MapServer, "map_server", args, fatal=(ParameterError,))
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
-"""``navigation``: planner_server, controller_server and navigator in one process.
+"""``navigation``: planner_server, controller_server and bt_navigator in one process, with
+``lifecycle_manager_navigation`` bringing them up in that order.
 
 Nav2's bringup composes its servers into one container by default (``use_composition``);
 ``launch_sim`` does the same with these three (``use_composition:=false`` starts each as its
@@ -11,15 +12,19 @@ subscription, and one lockstep participant answering for all three.
 from __future__ import annotations
 
 import sys
+from functools import partial
 
 from pppbot_common.ros.node_main import run_nodes
+from pppbot_nav.lifecycle import NAVIGATION_NODES
 from pppbot_nav.ros.controller_server import ControllerServer
+from pppbot_nav.ros.lifecycle_manager import LifecycleManager
 from pppbot_nav.ros.navigator import Navigator
 from pppbot_nav.ros.planner_server import PlannerServer
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_nodes([PlannerServer, ControllerServer, Navigator], "navigation", args)
+    manager = partial(LifecycleManager, "lifecycle_manager_navigation", NAVIGATION_NODES, autostart=True)
+    return run_nodes([PlannerServer, ControllerServer, Navigator, manager], "navigation", args)
 
 
 if __name__ == "__main__":

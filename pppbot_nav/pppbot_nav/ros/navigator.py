@@ -38,12 +38,12 @@ from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Path
 from rclpy.action.server import ServerGoalHandle
 from rclpy.duration import Duration
-from rclpy.node import Node
 from rclpy.task import Future
 
 from pppbot_common.params import check_finite_range, param
 from pppbot_common.ros.action_client import ActionClient
 from pppbot_common.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stopped, check_running, stopped_end
+from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.lockstep import Participant, count_deliveries, create_timer, require_match
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
@@ -108,9 +108,11 @@ def path_length_from(path: np.ndarray, xy: tuple[float, float]) -> float:
 TICK_S = 0.05
 
 
-class Navigator(Node):
+class Navigator(ManagedNode):
+    """Nav2's ``bt_navigator``: a lifecycle node that takes goals only while active."""
+
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__("navigator", **kwargs)
+        super().__init__("bt_navigator", **kwargs)
         self.params = declare_parameters(self, NavigatorParameters)
         self._warn = Warnings(self)
         self.tf = TfListener(self, self._warn).buffer
@@ -129,7 +131,7 @@ class Navigator(Node):
         count_deliveries(self, self.create_subscription(OccupancyGridMsg, "local_costmap/costmap", on_costmap, LATCHED))
         self._active: tuple[ServerGoalHandle, Flow[None], _Progress] | None = None
         self._self_client = ActionClient(self, NavigateToPose, "navigate_to_pose")
-        self.server = GoalServer(self, NavigateToPose, "navigate_to_pose", self._on_goal)
+        self.server = GoalServer(self, NavigateToPose, "navigate_to_pose", self._on_goal, accept=self.taking_goals)
         self.create_subscription(PoseStamped, "goal_pose", guarded(self, self._on_goal_pose, "PoseStamped"), 10)
         #: why the robot is not upright, from its base's /diagnostics (the simulator's, or a driver's); None: upright
         self.not_upright: str | None = None
@@ -138,7 +140,7 @@ class Navigator(Node):
         # Ticks while a goal runs (an idle navigator makes no sync times in lockstep).
         self.timer = create_timer(self, TICK_S, self._tick)
         self.timer.cancel()
-        self.get_logger().info("navigator ready: navigate_to_pose and goal_pose")
+        self.get_logger().info("bt_navigator: navigate_to_pose and goal_pose once active")
 
     def destroy_node(self) -> None:
         self.server.destroy()
@@ -156,7 +158,9 @@ class Navigator(Node):
                                                         f"{status.message}"
 
     def _on_goal_pose(self, msg: PoseStamped) -> None:
-        """As bt_navigator does: a goal on the topic becomes a goal of the action."""
+        """As bt_navigator does: a goal on the topic becomes a goal of the action (while active)."""
+        if not self.taking_goals():
+            return
         goal = NavigateToPose.Goal()
         goal.pose = msg
         self.get_logger().info(f"goal_pose: ({msg.pose.position.x:.2f}, {msg.pose.position.y:.2f}) "
@@ -445,7 +449,7 @@ class _Progress:
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_nodes([Navigator], "navigator", args)
+    return run_nodes([Navigator], "bt_navigator", args)
 
 
 if __name__ == "__main__":

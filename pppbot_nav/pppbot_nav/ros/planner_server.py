@@ -23,9 +23,9 @@ from nav_msgs.msg import Path
 from rclpy.action import ActionServer
 from rclpy.action.server import ServerGoalHandle
 from rclpy.duration import Duration
-from rclpy.node import Node
 
 from pppbot_common.params import ParameterError, param
+from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.node_main import run_nodes
 from pppbot_common.ros.params import declare_parameters
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
@@ -98,7 +98,9 @@ def planar_pose(msg: PoseStamped) -> tuple[float, float, float]:
     return msg.pose.position.x, msg.pose.position.y, yaw_from_quaternion(o.x, o.y, o.z, o.w)
 
 
-class PlannerServer(Node):
+class PlannerServer(ManagedNode):
+    """A lifecycle node, as Nav2's: it plans only while active."""
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("planner_server", **kwargs)
         self.params = declare_parameters(self, PlannerServerParameters)
@@ -106,7 +108,8 @@ class PlannerServer(Node):
         self.composed_nodes = [self.costmap_node]
         self.planner = GridPlanner(self.params.settings())
         self.plan_pub = self.create_publisher(Path, "plan", 1)
-        self.server = ActionServer(self, ComputePathToPose, "compute_path_to_pose", self._execute)
+        self.server = ActionServer(self, ComputePathToPose, "compute_path_to_pose", self._execute,
+                                   goal_callback=self.gated())
         self.get_logger().info(f"planner '{PLANNER_ID}' ready on global_costmap")
 
     def destroy_node(self) -> None:
