@@ -17,6 +17,7 @@ from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, Twist
 from lifecycle_msgs.srv import GetState
 from nav2_msgs.action import NavigateToPose
+from nav2_msgs.srv import GetCostmap
 from nav_msgs.msg import OccupancyGrid, Odometry
 from nav_msgs.msg import Path as PathMsg
 from rclpy.action import ActionClient
@@ -61,12 +62,7 @@ def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spaw
                                      lambda msg, name=name: costmaps.__setitem__(name, msg), LATCHED)
     client = ActionClient(ros_node, NavigateToPose, "navigate_to_pose")
     assert client.wait_for_server(timeout_sec=20)
-    # Up as BasicNavigator.waitUntilNav2Active() sees it: amcl and bt_navigator active, and the
-    # lifecycle managers say so.
-    for node in ("map_server", "amcl", "planner_server", "controller_server", "bt_navigator"):
-        assert lifecycle_state(ros_node, node) == "active", node
-    for manager in ("lifecycle_manager_localization", "lifecycle_manager_navigation"):
-        assert call(ros_node, Trigger, f"/{manager}/is_active", Trigger.Request()).success, manager
+    assert_nav2_up(ros_node)
 
     # 1. A goal reached: the robot ends within the goal checker's tolerances, with feedback on the way.
     feedback: list[Any] = []
@@ -123,6 +119,20 @@ def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spaw
     assert "the goal (-2.50, 0.00) is in an obstacle: navigating to the nearest free pose" in result.error_msg
     x, y, _ = truth_pose(truths[-1])
     assert 0.2 < math.hypot(x + 2.5, y) < 0.6
+
+
+def assert_nav2_up(node: Any) -> None:
+    """Up as BasicNavigator sees it: amcl and bt_navigator active (waitUntilNav2Active), the
+    lifecycle managers say so, and the costmaps answer getGlobalCostmap() / getLocalCostmap()."""
+    for name in ("map_server", "amcl", "planner_server", "controller_server", "bt_navigator"):
+        assert lifecycle_state(node, name) == "active", name
+    for manager in ("lifecycle_manager_localization", "lifecycle_manager_navigation"):
+        assert call(node, Trigger, f"/{manager}/is_active", Trigger.Request()).success, manager
+    global_map = call(node, GetCostmap, "/global_costmap/get_costmap", GetCostmap.Request()).map
+    local_map = call(node, GetCostmap, "/local_costmap/get_costmap", GetCostmap.Request()).map
+    assert global_map.header.frame_id == "map" and 254 in bytes(global_map.data)  # walls are lethal
+    assert len(global_map.data) == global_map.metadata.size_x * global_map.metadata.size_y > 0
+    assert local_map.header.frame_id == "odom" and (local_map.metadata.size_x, local_map.metadata.size_y) == (100, 100)
 
 
 def call(node: Any, srv_type: Any, name: str, request: Any) -> Any:

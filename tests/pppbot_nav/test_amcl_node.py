@@ -10,6 +10,7 @@ import pytest
 from amcl_synthetic import BEAMS, LIDAR, RANGE_MAX, drive, grid, ranges
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from nav2_msgs.msg import ParticleCloud
+from nav2_msgs.srv import SetInitialPose
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.time import Time
@@ -149,6 +150,18 @@ def test_services_and_bad_input_keep_the_node_running(ros_node, spawn):
     future = client.call_async(Empty.Request())
     wait_until(lambda: future.done() or None, 20, "a reply", node=ros_node)
     amcl.wait_for_output(r"global localization: 2000 particles over the free space", 10)
+    # Nav2's set_initial_pose service does what /initialpose does.
+    setter = ros_node.create_client(SetInitialPose, "/set_initial_pose")
+    wait_until(lambda: setter.service_is_ready() or None, 20, "set_initial_pose", node=ros_node)
+    request = SetInitialPose.Request()
+    request.pose.header.frame_id = "map"
+    request.pose.pose.pose.position.x, request.pose.pose.pose.position.y = 0.25, -0.75
+    request.pose.pose.pose.orientation.w = 1.0
+    request.pose.pose.covariance[0] = request.pose.pose.covariance[7] = 0.25
+    request.pose.pose.covariance[35] = 0.07
+    future = setter.call_async(request)
+    wait_until(lambda: future.done() or None, 20, "a reply", node=ros_node)
+    amcl.wait_for_output(r"initial pose \(0\.250, -0\.750, 0\.000\)", 10)
     wait_until(lambda: robot.pose_pub.get_subscription_count() > 0 or None, 20, "amcl on /initialpose",
                node=ros_node)
     robot.initial_pose((math.nan, 0.0, 0.0))

@@ -87,3 +87,27 @@ def test_scans_within_observation_persistence_are_all_applied(context: None) -> 
 def test_a_bad_observation_persistence_is_refused_with_its_name(context: None) -> None:
     with pytest.raises(Exception, match="observation_persistence"):
         local_costmap(persistence=-1.0)
+
+
+def test_get_costmap_answers_the_master_grid_with_nav2s_costs(context: None) -> None:
+    from nav2_msgs.srv import GetCostmap
+
+    node = local_costmap(persistence=0.0)
+    try:
+        empty = node._get_costmap(GetCostmap.Request(), GetCostmap.Response())
+        assert empty.map.metadata.size_x == 0  # nothing yet: an empty costmap
+        node._on_scan(scan(1.0, 1.5))
+        node.update()
+        answer = node._get_costmap(GetCostmap.Request(), GetCostmap.Response()).map
+        meta = answer.metadata
+        assert answer.header.frame_id == "odom" and meta.layer == "master"
+        assert (meta.size_x, meta.size_y) == (80, 80) and meta.resolution == pytest.approx(0.05)
+        assert (meta.origin.position.x, meta.origin.position.y) == pytest.approx((-2.0, -2.0))
+        # Row-major from cell (0, 0): the wall 1.5 m ahead of the robot at the window's centre.
+        col = int((1.52 - meta.origin.position.x) / meta.resolution)
+        row = int(-meta.origin.position.y / meta.resolution)
+        assert answer.data[row * meta.size_x + col] == LETHAL_OBSTACLE
+        assert answer.data[row * meta.size_x + col - 10] == FREE_SPACE
+        assert len(answer.data) == 80 * 80
+    finally:
+        node.destroy_node()

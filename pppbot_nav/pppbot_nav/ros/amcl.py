@@ -6,7 +6,8 @@ Subscribes the map (``map_topic``, transient local), scans (``scan_topic``), TF
 Estimate" sends). Publishes ``amcl_pose`` (transient local, on each filter update),
 ``particle_cloud`` (nav2_msgs/ParticleCloud, best effort) and the TF
 ``global_frame_id → odom_frame_id`` at every scan, stamped with the scan's time plus
-``transform_tolerance``. Services (std_srvs/Empty): ``reinitialize_global_localization``
+``transform_tolerance``. Services: ``set_initial_pose`` (nav2_msgs/SetInitialPose, as a
+message on ``initialpose``), and (std_srvs/Empty) ``reinitialize_global_localization``
 (particles spread over the map's free space) and ``request_nomotion_update`` (update on
 the next scan without motion). Until it has an initial pose (``set_initial_pose`` with
 ``initial_pose.*``, ``/initialpose`` or global localization) it says so every 2 s, as
@@ -31,6 +32,7 @@ from typing import Any
 import numpy as np
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav2_msgs.msg import Particle, ParticleCloud
+from nav2_msgs.srv import SetInitialPose
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rclpy.duration import Duration
 from rclpy.time import Time
@@ -192,6 +194,7 @@ class Amcl(ManagedNode):
         require_match(self, self.create_subscription(LaserScan, p.scan_topic, on_scan, SENSOR))
         self.create_subscription(PoseWithCovarianceStamped, "initialpose",
                                  guarded(self, self._on_initial_pose, "PoseWithCovarianceStamped"), 10)
+        self.create_service(SetInitialPose, "set_initial_pose", self._set_initial_pose)
         self.create_service(Empty, "reinitialize_global_localization", self._global_localization)
         self.create_service(Empty, "request_nomotion_update", self._nomotion_update)
         if p.set_initial_pose:
@@ -260,6 +263,12 @@ class Amcl(ManagedNode):
             self._start_at(mean, covariance)
         except AmclError as exc:
             self._warn("initial pose", f"ignoring an initial pose: {exc}")
+
+    def _set_initial_pose(self, request: SetInitialPose.Request,
+                          response: SetInitialPose.Response) -> SetInitialPose.Response:
+        """Nav2's ``set_initial_pose`` service: as a message on ``initialpose``."""
+        self._on_initial_pose(request.pose)
+        return response
 
     def _global_localization(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
         if self.localizer is None:

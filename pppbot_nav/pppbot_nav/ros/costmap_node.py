@@ -26,7 +26,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from nav2_msgs.srv import ClearEntireCostmap
+from nav2_msgs.msg import Costmap as Nav2Costmap
+from nav2_msgs.srv import ClearEntireCostmap, GetCostmap
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
@@ -130,6 +131,22 @@ class CostmapParameters:
         return made
 
 
+def costmap_message(costmap: Costmap, stamp: Any) -> Nav2Costmap:
+    """A costmap as nav2_msgs/Costmap: its costs as they are (not translated to occupancy)."""
+    msg = Nav2Costmap()
+    msg.header.frame_id = costmap.frame_id
+    msg.header.stamp = stamp
+    meta = msg.metadata
+    meta.map_load_time = meta.update_time = stamp
+    meta.layer = "master"
+    meta.resolution = float(costmap.resolution)
+    meta.size_x, meta.size_y = costmap.width, costmap.height
+    meta.origin.position.x, meta.origin.position.y = float(costmap.origin[0]), float(costmap.origin[1])
+    meta.origin.orientation.w = 1.0
+    msg.data = costmap.costs.ravel().tobytes()
+    return msg
+
+
 class CostmapNode(Node):
     def __init__(self, name: str, **kwargs: Any) -> None:
         super().__init__(name, namespace=name, **kwargs)
@@ -161,6 +178,7 @@ class CostmapNode(Node):
             on_scan = guarded(self, at_step(self, self._on_scan), "LaserScan")
             require_match(self, self.create_subscription(LaserScan, p.scan_topic, on_scan, SENSOR))
         self.create_service(ClearEntireCostmap, f"clear_entirely_{name}", self._clear)
+        self.create_service(GetCostmap, "get_costmap", self._get_costmap)
         create_timer(self, 1.0 / p.update_frequency, self.update)
         create_timer(self, 1.0 / p.publish_frequency, self.publish)
         self.get_logger().info(f"{name}: {', '.join(p.plugins)} in '{p.global_frame}'"
@@ -292,6 +310,18 @@ class CostmapNode(Node):
         self._observations.clear()
         self._applied = None
         self.update()
+
+    def _get_costmap(self, request: GetCostmap.Request, response: GetCostmap.Response) -> GetCostmap.Response:
+        """Nav2's ``get_costmap``: the whole master grid as nav2_msgs/Costmap (Nav2's costs, 0–255,
+        row-major from cell (0, 0)); an empty one before the first update. ``specs`` is not
+        used, as in Nav2."""
+        costmap = self.costmap
+        if costmap is None:
+            self.get_logger().warning(f"get_costmap: {self.costmap_name} has no costmap yet")
+            return response
+        now = self.get_clock().now().to_msg()
+        response.map = costmap_message(costmap, now)
+        return response
 
     def _clear(self, request: ClearEntireCostmap.Request,
                response: ClearEntireCostmap.Response) -> ClearEntireCostmap.Response:
