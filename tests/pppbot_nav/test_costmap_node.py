@@ -111,3 +111,25 @@ def test_get_costmap_answers_the_master_grid_with_nav2s_costs(context: None) -> 
         assert len(answer.data) == 80 * 80
     finally:
         node.destroy_node()
+
+
+def test_clear_around_and_clear_except_forget_a_square_around_the_robot(context: None) -> None:
+    from nav2_msgs.srv import ClearCostmapAroundRobot, ClearCostmapExceptRegion
+
+    node = local_costmap(persistence=0.0)
+    try:
+        node._on_scan(scan(1.0, 1.5))  # a wall 1.5 m ahead
+        node.update()
+        around = ClearCostmapAroundRobot.Request(reset_distance=2.0)  # a 2 m square: the wall is outside it
+        node._clear_around(around, ClearCostmapAroundRobot.Response())
+        assert cost(node, 1.52) == LETHAL_OBSTACLE and cost(node, 0.5) == NO_INFORMATION
+        node._clear_around(ClearCostmapAroundRobot.Request(reset_distance=3.2), ClearCostmapAroundRobot.Response())
+        assert cost(node, 1.52) == NO_INFORMATION  # inside the 3.2 m square now: forgotten
+        node._on_scan(scan(1.1, 1.5))
+        node.update()
+        assert cost(node, 1.52) == LETHAL_OBSTACLE and cost(node, 1.0) == FREE_SPACE
+        node._clear_except(ClearCostmapExceptRegion.Request(reset_distance=2.4), ClearCostmapExceptRegion.Response())
+        assert cost(node, 1.52) == NO_INFORMATION and cost(node, 1.0) == FREE_SPACE  # outside forgotten, inside kept
+        assert not node.clear_square(math.nan, inside=True)  # a bad distance is refused
+    finally:
+        node.destroy_node()

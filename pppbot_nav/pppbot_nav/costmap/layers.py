@@ -134,6 +134,19 @@ class ObstacleLayer:
         ok = grid.inside(rows, cols)
         grid.costs[rows[ok], cols[ok]] = LETHAL_OBSTACLE
 
+    def clear_square(self, centre_xy: tuple[float, float], side_m: float, inside: bool = True) -> None:
+        """Forget what was seen in the axis-aligned square of side ``side_m`` centred at ``centre_xy``
+        (``inside=False``: everywhere but there), as Nav2's ``clearArea`` behind its
+        ``clear_around_*`` and ``clear_except_*`` services."""
+        if self.grid is None:
+            return
+        g = self.grid
+        half = side_m / 2.0
+        xs = g.origin[0] + (np.arange(g.width) + 0.5) * g.resolution
+        ys = g.origin[1] + (np.arange(g.height) + 0.5) * g.resolution
+        in_square = (np.abs(ys - centre_xy[1])[:, None] <= half) & (np.abs(xs - centre_xy[0])[None, :] <= half)
+        g.costs[in_square if inside else ~in_square] = self.unknown
+
     def clear(self) -> None:
         """Forget every observation (Nav2's clear_entirely_* services)."""
         if self.grid is not None:

@@ -21,13 +21,14 @@ costmap updating at 1 Hz marks one scan a second, not the lidar's ten.
 """
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from nav2_msgs.msg import Costmap as Nav2Costmap
-from nav2_msgs.srv import ClearEntireCostmap, GetCostmap
+from nav2_msgs.srv import ClearCostmapAroundRobot, ClearCostmapExceptRegion, ClearEntireCostmap, GetCostmap
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
@@ -179,6 +180,8 @@ class CostmapNode(Node):
             require_match(self, self.create_subscription(LaserScan, p.scan_topic, on_scan, SENSOR))
         self.create_service(ClearEntireCostmap, f"clear_entirely_{name}", self._clear)
         self.create_service(GetCostmap, "get_costmap", self._get_costmap)
+        self.create_service(ClearCostmapAroundRobot, f"clear_around_{name}", self._clear_around)
+        self.create_service(ClearCostmapExceptRegion, f"clear_except_{name}", self._clear_except)
         create_timer(self, 1.0 / p.update_frequency, self.update)
         create_timer(self, 1.0 / p.publish_frequency, self.publish)
         self.get_logger().info(f"{name}: {', '.join(p.plugins)} in '{p.global_frame}'"
@@ -321,6 +324,32 @@ class CostmapNode(Node):
             return response
         now = self.get_clock().now().to_msg()
         response.map = costmap_message(costmap, now)
+        return response
+
+    def clear_square(self, side_m: float, inside: bool) -> bool:
+        """Clear the obstacle layers in the square of side ``side_m`` around the robot
+        (``inside=False``: outside it); False without a robot pose or with a bad side."""
+        if not (math.isfinite(side_m) and side_m >= 0):
+            self.get_logger().warning(f"{self.costmap_name}: reset_distance must be a number >= 0, not {side_m}")
+            return False
+        pose = self.robot_pose()
+        if pose is None:
+            return False
+        for layer in self.obstacles:
+            layer.clear_square((pose[0], pose[1]), side_m, inside)
+        self.update()
+        return True
+
+    def _clear_around(self, request: ClearCostmapAroundRobot.Request,
+                      response: ClearCostmapAroundRobot.Response) -> ClearCostmapAroundRobot.Response:
+        if self.clear_square(float(request.reset_distance), inside=True):
+            self.get_logger().info(f"{self.costmap_name}: cleared within {request.reset_distance:g} m of the robot")
+        return response
+
+    def _clear_except(self, request: ClearCostmapExceptRegion.Request,
+                      response: ClearCostmapExceptRegion.Response) -> ClearCostmapExceptRegion.Response:
+        if self.clear_square(float(request.reset_distance), inside=False):
+            self.get_logger().info(f"{self.costmap_name}: cleared beyond {request.reset_distance:g} m of the robot")
         return response
 
     def _clear(self, request: ClearEntireCostmap.Request,
