@@ -16,7 +16,7 @@ import pytest
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, Twist
 from lifecycle_msgs.srv import GetState
-from nav2_msgs.action import NavigateToPose
+from nav2_msgs.action import ComputePathThroughPoses, NavigateToPose
 from nav2_msgs.srv import GetCostmap
 from nav_msgs.msg import OccupancyGrid, Odometry
 from nav_msgs.msg import Path as PathMsg
@@ -63,6 +63,7 @@ def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spaw
     client = ActionClient(ros_node, NavigateToPose, "navigate_to_pose")
     assert client.wait_for_server(timeout_sec=20)
     assert_nav2_up(ros_node)
+    assert_plans_through_poses(ros_node)
 
     # 1. A goal reached: the robot ends within the goal checker's tolerances, with feedback on the way.
     feedback: list[Any] = []
@@ -128,11 +129,37 @@ def assert_nav2_up(node: Any) -> None:
         assert lifecycle_state(node, name) == "active", name
     for manager in ("lifecycle_manager_localization", "lifecycle_manager_navigation"):
         assert call(node, Trigger, f"/{manager}/is_active", Trigger.Request()).success, manager
-    global_map = call(node, GetCostmap, "/global_costmap/get_costmap", GetCostmap.Request()).map
-    local_map = call(node, GetCostmap, "/local_costmap/get_costmap", GetCostmap.Request()).map
+    def costmap(name: str) -> Any:  # empty until the costmap's first update (the robot's pose in its frame)
+        answer = call(node, GetCostmap, f"/{name}/get_costmap", GetCostmap.Request()).map
+        return answer if answer.metadata.size_x else None
+
+    global_map = wait_until(lambda: costmap("global_costmap"), 20, "the global costmap", node=node)
+    local_map = wait_until(lambda: costmap("local_costmap"), 20, "the local costmap", node=node)
     assert global_map.header.frame_id == "map" and 254 in bytes(global_map.data)  # walls are lethal
     assert len(global_map.data) == global_map.metadata.size_x * global_map.metadata.size_y > 0
     assert local_map.header.frame_id == "odom" and (local_map.metadata.size_x, local_map.metadata.size_y) == (100, 100)
+
+
+def assert_plans_through_poses(node: Any) -> None:
+    """compute_path_through_poses (BasicNavigator.getPathThroughPoses()): one path through each
+    goal in turn, ending at the last; none without goals, with Nav2's error code."""
+    client = ActionClient(node, ComputePathThroughPoses, "compute_path_through_poses")
+    assert client.wait_for_server(timeout_sec=20)
+    via, end = (1.5, 0.5), (-1.5, -1.0)  # free places of the room (goals of the test below)
+    goal = ComputePathThroughPoses.Goal(goals=[goal_pose(*via, 0.0), goal_pose(*end, 1.57)])
+    handle = send_goal(client, goal, node)
+    assert handle.accepted
+    done = handle.get_result_async()
+    result = wait_until(lambda: done.result() if done.done() else None, 30, "the path through poses", node=node).result
+    assert result.error_code == ComputePathThroughPoses.Result.NONE, result.error_msg
+    xy = [(p.pose.position.x, p.pose.position.y) for p in result.path.poses]
+    assert min(math.hypot(x - via[0], y - via[1]) for x, y in xy) < 0.05  # through the first goal
+    assert math.hypot(xy[-1][0] - end[0], xy[-1][1] - end[1]) < 0.05
+    last = result.path.poses[-1].pose.orientation
+    assert abs(yaw_from_quaternion(last.x, last.y, last.z, last.w) - 1.57) < 1e-3
+    empty = send_goal(client, ComputePathThroughPoses.Goal(), node).get_result_async()
+    failed = wait_until(lambda: empty.result() if empty.done() else None, 30, "no goals' answer", node=node)
+    assert failed.result.error_code == ComputePathThroughPoses.Result.NO_VIAPOINTS_GIVEN
 
 
 def call(node: Any, srv_type: Any, name: str, request: Any) -> Any:

@@ -2,7 +2,8 @@
 
 Runs the ``global_costmap`` (:mod:`pppbot_nav.ros.costmap_node`) in the same process, as Nav2
 does. Serves ``compute_path_to_pose`` (nav2_msgs/action/ComputePathToPose: from the robot's
-pose, or ``start`` with ``use_start``) and publishes each path on ``plan`` (nav_msgs/Path, in
+pose, or ``start`` with ``use_start``) and ``compute_path_through_poses`` (through each of
+``goals`` in turn, one plan per leg), and publishes each path on ``plan`` (nav_msgs/Path, in
 the costmap's frame; each pose faces along the path, the last one the goal's heading). The
 planner is :mod:`pppbot_nav.planner.grid_astar` under the plugin name ``GridBased``; its
 failures come back as the action's error codes (START_OCCUPIED, GOAL_OCCUPIED, NO_VALID_PATH,
@@ -18,7 +19,7 @@ from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped
-from nav2_msgs.action import ComputePathToPose
+from nav2_msgs.action import ComputePathThroughPoses, ComputePathToPose
 from nav_msgs.msg import Path
 from rclpy.action import ActionServer
 from rclpy.action.server import ServerGoalHandle
@@ -35,15 +36,20 @@ from pppbot_nav.planner.grid_astar import GridPlanner, PlannerSettings
 from pppbot_nav.planner.smoother import SmootherSettings
 from pppbot_nav.ros.costmap_node import CostmapNode
 
-Result = ComputePathToPose.Result
-ERROR_CODES: dict[type[errors.PlannerError], int] = {
-    errors.StartOutsideMap: Result.START_OUTSIDE_MAP,
-    errors.GoalOutsideMap: Result.GOAL_OUTSIDE_MAP,
-    errors.StartOccupied: Result.START_OCCUPIED,
-    errors.GoalOccupied: Result.GOAL_OCCUPIED,
-    errors.NoValidPath: Result.NO_VALID_PATH,
-    errors.PlannerTimedOut: Result.TIMEOUT,
+#: Each planning failure's error code, by its name in both actions' results (Nav2's 2xx for
+#: compute_path_to_pose, 3xx for compute_path_through_poses).
+ERROR_NAMES: dict[type[errors.PlannerError], str] = {
+    errors.StartOutsideMap: "START_OUTSIDE_MAP",
+    errors.GoalOutsideMap: "GOAL_OUTSIDE_MAP",
+    errors.StartOccupied: "START_OCCUPIED",
+    errors.GoalOccupied: "GOAL_OCCUPIED",
+    errors.NoValidPath: "NO_VALID_PATH",
+    errors.PlannerTimedOut: "TIMEOUT",
 }
+
+
+class NoViapoints(errors.PlannerError):
+    """compute_path_through_poses without goals (Nav2's NO_VIAPOINTS_GIVEN)."""
 PLANNER_ID = "GridBased"
 
 
@@ -108,12 +114,18 @@ class PlannerServer(ManagedNode):
         self.composed_nodes = [self.costmap_node]
         self.planner = GridPlanner(self.params.settings())
         self.plan_pub = self.create_publisher(Path, "plan", 1)
-        self.server = ActionServer(self, ComputePathToPose, "compute_path_to_pose", self._execute,
+        self.server = ActionServer(self, ComputePathToPose, "compute_path_to_pose",
+                                   lambda handle: self._execute(handle, ComputePathToPose, self.compute),
                                    goal_callback=self.gated())
+        self.through_server = ActionServer(self, ComputePathThroughPoses, "compute_path_through_poses",
+                                           lambda handle: self._execute(handle, ComputePathThroughPoses,
+                                                                        self.compute_through),
+                                           goal_callback=self.gated())
         self.get_logger().info(f"planner '{PLANNER_ID}' ready on global_costmap")
 
     def destroy_node(self) -> None:
         self.server.destroy()
+        self.through_server.destroy()
         self.costmap_node.destroy_node()
         super().destroy_node()
 
@@ -125,22 +137,25 @@ class PlannerServer(ManagedNode):
             return pose
         return compose(self.costmap_node.tf.lookup(frame, source), pose)
 
-    def _execute(self, goal_handle: ServerGoalHandle) -> ComputePathToPose.Result:
+    def _execute(self, goal_handle: ServerGoalHandle, action: Any, compute: Any) -> Any:
+        """One goal of ``action`` (either planning action), planned by ``compute``, with its error codes."""
         request = goal_handle.request
-        result = Result()
+        result = action.Result()
         t0 = time.perf_counter()
         try:
-            result.path, result.error_msg = self.compute(request)
-            result.error_code = Result.NONE
+            result.path, result.error_msg = compute(request)
+            result.error_code = result.NONE
+        except NoViapoints as exc:
+            result.error_code, result.error_msg = result.NO_VIAPOINTS_GIVEN, str(exc)
         except errors.PlannerError as exc:
-            result.error_code = ERROR_CODES.get(type(exc), Result.UNKNOWN)
+            result.error_code = getattr(result, ERROR_NAMES.get(type(exc), "UNKNOWN"))
             result.error_msg = str(exc)
         except TransformError as exc:
-            result.error_code, result.error_msg = Result.TF_ERROR, str(exc)
+            result.error_code, result.error_msg = result.TF_ERROR, str(exc)
         except RuntimeError as exc:  # no costmap yet
-            result.error_code, result.error_msg = Result.UNKNOWN, str(exc)
+            result.error_code, result.error_msg = result.UNKNOWN, str(exc)
         result.planning_time = Duration(seconds=time.perf_counter() - t0).to_msg()
-        if result.error_code == Result.NONE:
+        if result.error_code == result.NONE:
             goal_handle.succeed()
         else:
             self.get_logger().warning(f"planning failed: {result.error_msg}")
@@ -154,6 +169,16 @@ class PlannerServer(ManagedNode):
             PlannerError: a typed planning failure. TransformError: a pose cannot be placed
             in the costmap's frame. RuntimeError: no costmap yet.
         """
+        return self._plan_through(request, [request.goal])
+
+    def compute_through(self, request: ComputePathThroughPoses.Goal) -> tuple[Path, str]:
+        """A path through every goal of a compute_path_through_poses request, in order: one plan
+        per leg, each from where the last one ended (as Nav2's planner server chains them)."""
+        if not request.goals:
+            raise NoViapoints("no goals to plan through")
+        return self._plan_through(request, list(request.goals))
+
+    def _plan_through(self, request: Any, goals: list[PoseStamped]) -> tuple[Path, str]:
         if request.planner_id not in ("", PLANNER_ID):
             raise errors.PlannerError(f"unknown planner_id '{request.planner_id}' (pppbot has '{PLANNER_ID}')")
         costmap = self.costmap_node.update()
@@ -167,12 +192,21 @@ class PlannerServer(ManagedNode):
             if pose is None:
                 raise TransformError(f"no robot pose in '{costmap.frame_id}'")
             start = pose
-        goal = self._in_costmap_frame(request.goal)
-        plan = self.planner.plan((start[0], start[1]), (goal[0], goal[1]))
-        msg = path_message(plan.points_xy, goal[2], costmap.frame_id, self.get_clock().now().to_msg())
+        legs: list[np.ndarray] = []
+        notes: list[str] = []
+        here = (start[0], start[1])
+        for i, goal_msg in enumerate(goals):
+            goal = self._in_costmap_frame(goal_msg)
+            plan = self.planner.plan(here, (goal[0], goal[1]))
+            legs.append(plan.points_xy if not legs else plan.points_xy[1:])
+            moved = math.hypot(plan.goal_xy[0] - goal[0], plan.goal_xy[1] - goal[1])
+            if moved > 1e-6:
+                notes.append(f"goal{f' {i + 1}' if len(goals) > 1 else ''} moved {moved:.2f} m to a reachable cell")
+            here = (float(plan.goal_xy[0]), float(plan.goal_xy[1]))
+        points = np.vstack([leg for leg in legs if len(leg)])
+        msg = path_message(points, goal[2], costmap.frame_id, self.get_clock().now().to_msg())
         self.plan_pub.publish(msg)
-        moved = math.hypot(plan.goal_xy[0] - goal[0], plan.goal_xy[1] - goal[1])
-        return msg, (f"goal moved {moved:.2f} m to a reachable cell" if moved > 1e-6 else "")
+        return msg, "; ".join(notes)
 
 
 def main(args: list[str] | None = None) -> int:
