@@ -2,16 +2,18 @@
 
 Feedback k (k = 1..4, every 50 ms) reports current_pose at k/4 of the way from the origin and
 distance_remaining accordingly; the result is error_code NONE with an empty
-error_msg. Prints "ready" when the server is up. Stops on SIGINT.
+error_msg. With ``--reject`` it rejects every goal (an inactive bt_navigator). Prints "ready"
+when the server is up. Stops on SIGINT.
 """
 from __future__ import annotations
 
 import math
+import sys
 import time
 
 import rclpy
 from nav2_msgs.action import NavigateToPose
-from rclpy.action import ActionServer
+from rclpy.action import ActionServer, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -51,7 +53,9 @@ def execute(node: Node, goal_handle: ServerGoalHandle) -> NavigateToPose.Result:
 def main() -> None:
     rclpy.init()
     node = rclpy.create_node("navigate_to_pose_server")
-    ActionServer(node, NavigateToPose, "navigate_to_pose", lambda handle: execute(node, handle))
+    reject = "--reject" in sys.argv[1:]
+    ActionServer(node, NavigateToPose, "navigate_to_pose", lambda handle: execute(node, handle),
+                 goal_callback=lambda _goal: GoalResponse.REJECT if reject else GoalResponse.ACCEPT)
     print("ready", flush=True)
     try:
         rclpy.spin(node)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 
 import rclpy
@@ -15,9 +16,13 @@ from action_msgs.msg import GoalStatus
 from nav2_msgs.action import NavigateToPose
 from rclpy.node import Node
 
+from pppbot_common.errors import TimeoutExpired
 from pppbot_common.ros.action_client import ActionClient
+from pppbot_common.ros.wait import send_goal
 from pppbot_common.se2 import quaternion_from_yaw
 
+#: How long a goal may wait for the navigator's answer (s; resent meanwhile, see send_goal).
+GOAL_ANSWER_S = 30.0
 STATUS = {GoalStatus.STATUS_SUCCEEDED: "succeeded", GoalStatus.STATUS_ABORTED: "failed",
           GoalStatus.STATUS_CANCELED: "canceled"}
 
@@ -74,11 +79,15 @@ def main(args: argparse.Namespace) -> int:
             print(f"at ({p.x:.2f}, {p.y:.2f}), {fb.distance_remaining:.2f} m to go, "
                   f"{fb.navigation_time.sec} s, {fb.number_of_recoveries} recoveries", flush=True)
 
-        future = client.send_goal_async(goal, feedback_callback=feedback)
-        rclpy.spin_until_future_complete(node, future)
-        handle = future.result()
+        try:
+            handle = send_goal(client, goal, node, GOAL_ANSWER_S, feedback_callback=feedback)
+        except TimeoutExpired:
+            print(f"pppbot nav: no answer from navigate_to_pose in {GOAL_ANSWER_S:g} s", file=sys.stderr)
+            return 1
         if handle is None or not handle.accepted:
-            print("pppbot nav: the goal was refused")
+            print("pppbot nav: bt_navigator refused the goal; it takes goals only while active "
+                  "(ros2 lifecycle get /bt_navigator; /lifecycle_manager_navigation/manage_nodes brings it up)",
+                  file=sys.stderr)
             return 1
         print(f"navigating to ({args.x}, {args.y}, {args.yaw}) in '{args.frame}'", flush=True)
         result_future = handle.get_result_async()
