@@ -16,7 +16,7 @@ import pytest
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, Twist
 from lifecycle_msgs.srv import GetState
-from nav2_msgs.action import ComputePathThroughPoses, NavigateToPose
+from nav2_msgs.action import ComputePathThroughPoses, NavigateThroughPoses, NavigateToPose
 from nav2_msgs.srv import GetCostmap
 from nav_msgs.msg import OccupancyGrid, Odometry
 from nav_msgs.msg import Path as PathMsg
@@ -121,6 +121,10 @@ def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spaw
     x, y, _ = truth_pose(truths[-1])
     assert 0.2 < math.hypot(x + 2.5, y) < 0.6
 
+    # 6. Through poses (BasicNavigator.goThroughPoses()): by the first, to the last; the poses
+    #    remaining counted down in the feedback.
+    assert_goes_through_poses(ros_node, truths, [(0.0, 0.0), (1.5, -1.0)])
+
 
 def assert_nav2_up(node: Any) -> None:
     """Up as BasicNavigator sees it: amcl and bt_navigator active (waitUntilNav2Active), the
@@ -160,6 +164,30 @@ def assert_plans_through_poses(node: Any) -> None:
     empty = send_goal(client, ComputePathThroughPoses.Goal(), node).get_result_async()
     failed = wait_until(lambda: empty.result() if empty.done() else None, 30, "no goals' answer", node=node)
     assert failed.result.error_code == ComputePathThroughPoses.Result.NO_VIAPOINTS_GIVEN
+
+
+def assert_goes_through_poses(node: Any, truths: list[Odometry], poses: list[tuple[float, float]]) -> None:
+    client = ActionClient(node, NavigateThroughPoses, "navigate_through_poses")
+    assert client.wait_for_server(timeout_sec=20)
+    feedback: list[Any] = []
+    passed: list[float] = []  # how close the robot came to the first pose
+    goal = NavigateThroughPoses.Goal(poses=[goal_pose(x, y, 0.0) for x, y in poses])
+    handle = send_goal(client, goal, node, feedback_callback=lambda msg: feedback.append(msg.feedback))
+    assert handle.accepted
+    done = handle.get_result_async()
+
+    def ended() -> bool:
+        x, y, _ = truth_pose(truths[-1])
+        passed.append(math.hypot(x - poses[0][0], y - poses[0][1]))
+        return done.done()
+
+    wait_until(ended, 180, "the end of the through-poses goal", node=node)
+    assert done.result().status == GoalStatus.STATUS_SUCCEEDED, done.result().result.error_msg
+    assert min(passed) < 0.6  # by the first pose (within Nav2's passed-goal radius and a margin)
+    x, y, _ = truth_pose(truths[-1])
+    assert math.hypot(x - poses[-1][0], y - poses[-1][1]) < 0.35
+    remaining = [fb.number_of_poses_remaining for fb in feedback]
+    assert remaining[0] == 2 and remaining[-1] == 1 and remaining == sorted(remaining, reverse=True)
 
 
 def call(node: Any, srv_type: Any, name: str, request: Any) -> Any:

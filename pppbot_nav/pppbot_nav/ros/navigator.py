@@ -1,8 +1,12 @@
 """``navigator``: goals to the robot's arrival, in Nav2's ``bt_navigator`` (and ``behavior_server``) place.
 
-Accepts goals as the ``navigate_to_pose`` action (nav2_msgs/action/NavigateToPose) and on
-``goal_pose`` (geometry_msgs/PoseStamped, RViz's "2D Goal Pose"); a new goal preempts the
-running one, cancel stops the robot. It runs Nav2's default tree
+Accepts goals as the ``navigate_to_pose`` action (nav2_msgs/action/NavigateToPose), on
+``goal_pose`` (geometry_msgs/PoseStamped, RViz's "2D Goal Pose") and as the
+``navigate_through_poses`` action (nav2_msgs/action/NavigateThroughPoses: through each pose in
+turn, planned by ``compute_path_through_poses``; a pose the robot has come within
+:data:`PASSED_GOAL_M` of is dropped before the next plan, as Nav2's ``RemovePassedGoals``, and
+the feedback counts the poses remaining); a new goal of either preempts the running one,
+cancel stops the robot. It runs Nav2's default tree
 (``navigate_to_pose_w_replanning_and_recovery``) as a loop:
 
 * plan (``compute_path_to_pose``) at ``replanning_frequency`` (1 Hz) and hand each path to the
@@ -32,7 +36,13 @@ from typing import Any
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, Twist
-from nav2_msgs.action import ComputePathToPose, FollowPath, NavigateToPose
+from nav2_msgs.action import (
+    ComputePathThroughPoses,
+    ComputePathToPose,
+    FollowPath,
+    NavigateThroughPoses,
+    NavigateToPose,
+)
 from nav2_msgs.srv import ClearEntireCostmap
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Path
@@ -104,6 +114,9 @@ def path_length_from(path: np.ndarray, xy: tuple[float, float]) -> float:
     return float(math.hypot(rest[0, 0] - xy[0], rest[0, 1] - xy[1]) + np.hypot(*np.diff(rest, axis=0).T).sum())
 
 
+#: A pose of a navigate_through_poses goal is passed once the robot comes this close (m; Nav2's
+#: RemovePassedGoals radius).
+PASSED_GOAL_M = 0.5
 #: The navigator's loop period (sim s): feedback, goal checks, recovery commands.
 TICK_S = 0.05
 
@@ -117,6 +130,7 @@ class Navigator(ManagedNode):
         self._warn = Warnings(self)
         self.tf = TfListener(self, self._warn).buffer
         self.planner = ActionClient(self, ComputePathToPose, "compute_path_to_pose")
+        self.planner_through = ActionClient(self, ComputePathThroughPoses, "compute_path_through_poses")
         self.controller = ActionClient(self, FollowPath, "follow_path")
         self.clear_global = self.create_client(ClearEntireCostmap, "global_costmap/clear_entirely_global_costmap")
         self.clear_local = self.create_client(ClearEntireCostmap, "local_costmap/clear_entirely_local_costmap")
@@ -125,6 +139,7 @@ class Navigator(ManagedNode):
         participant = Participant.current()
         if participant is not None:
             participant.require_when("the compute_path_to_pose server", self.planner.server_is_ready)
+            participant.require_when("the compute_path_through_poses server", self.planner_through.server_is_ready)
             participant.require_when("the follow_path server", self.controller.server_is_ready)
         self._local_costmap: OccupancyGridMsg | None = None
         on_costmap = guarded(self, self._on_local_costmap, "OccupancyGrid")
@@ -132,6 +147,8 @@ class Navigator(ManagedNode):
         self._active: tuple[ServerGoalHandle, Flow[None], _Progress] | None = None
         self._self_client = ActionClient(self, NavigateToPose, "navigate_to_pose")
         self.server = GoalServer(self, NavigateToPose, "navigate_to_pose", self._on_goal, accept=self.taking_goals)
+        self.through_server = GoalServer(self, NavigateThroughPoses, "navigate_through_poses", self._on_through_goal,
+                                         accept=self.taking_goals)
         self.create_subscription(PoseStamped, "goal_pose", guarded(self, self._on_goal_pose, "PoseStamped"), 10)
         #: why the robot is not upright, from its base's /diagnostics (the simulator's, or a driver's); None: upright
         self.not_upright: str | None = None
@@ -144,6 +161,7 @@ class Navigator(ManagedNode):
 
     def destroy_node(self) -> None:
         self.server.destroy()
+        self.through_server.destroy()
         super().destroy_node()
 
     # ----------------------------------------------------------------- inputs
@@ -168,17 +186,27 @@ class Navigator(ManagedNode):
         self._self_client.send_goal_async(goal)
 
     def _on_goal(self, handle: ServerGoalHandle) -> None:
+        """A navigate_to_pose goal."""
+        self._start(handle, [handle.request.pose], through=False)
+
+    def _on_through_goal(self, handle: ServerGoalHandle) -> None:
+        """A navigate_through_poses goal."""
+        self._start(handle, list(handle.request.poses), through=True)
+
+    def _start(self, handle: ServerGoalHandle, goals: list[PoseStamped], through: bool) -> None:
         """A new goal preempts the running one (which aborts) and starts its flow."""
         previous = self._active
-        request: PoseStamped = handle.request.pose
-        if not request.header.frame_id:
-            request.header.frame_id = self.params.global_frame
+        for goal in goals:
+            if not goal.header.frame_id:
+                goal.header.frame_id = self.params.global_frame
         p = self.params
         state = _Progress(self._now_s(), NavigationPolicy(PolicySettings(
-            number_of_retries=p.number_of_retries, server_timeout_s=p.server_timeout)))
-        at = request.pose.position
-        self.get_logger().info(f"navigating to ({at.x:.2f}, {at.y:.2f}) in '{request.header.frame_id}'")
-        flow: Flow[None] = Flow(self._navigate(handle, request, state), self._now_s,
+            number_of_retries=p.number_of_retries, server_timeout_s=p.server_timeout)), goals, through)
+        if goals:
+            at = goals[-1].pose.position
+            self.get_logger().info(f"navigating to ({at.x:.2f}, {at.y:.2f}) in '{goals[-1].header.frame_id}'"
+                                   + (f" through {len(goals) - 1} poses" if through else ""))
+        flow: Flow[None] = Flow(self._navigate(handle, state), self._now_s,
                                 lambda value, error: self._ended(handle, state, error),
                                 check=lambda: self._check(handle))
         self._active = (handle, flow, state)
@@ -216,12 +244,13 @@ class Navigator(ManagedNode):
         """The goal's flow ended: success, a stop (cancel or preemption) or a failure."""
         if self._active is not None and self._active[0] is handle:
             self._active = None
-        result = NavigateToPose.Result()
+        result = state.action.Result()
+        server = self.through_server if state.through else self.server
         if error is None:
             self.get_logger().info(f"goal reached in {self._now_s() - state.start_s:.1f} s "
                                    f"({state.recoveries} recoveries)")
             result.error_msg = state.moved_note or ""
-            self.server.finish(handle, GoalEnd.SUCCEEDED, result)
+            server.finish(handle, GoalEnd.SUCCEEDED, result)
             return
         self._cancel_follow(state)
         if isinstance(error, Stopped):
@@ -229,7 +258,7 @@ class Navigator(ManagedNode):
             end = stopped_end(handle)
             if end is GoalEnd.CANCELED:
                 self.stop()  # canceled: stand still (a preempted goal's successor drives on)
-            self.server.finish(handle, end, result)
+            server.finish(handle, end, result)
             return
         self.stop()
         if isinstance(error, Failed):
@@ -239,7 +268,7 @@ class Navigator(ManagedNode):
         else:
             result.error_code, result.error_msg = 0, f"{type(error).__name__}: {error}"
         self.get_logger().warning(f"navigation failed: {result.error_msg}")
-        self.server.finish(handle, GoalEnd.ABORTED, result)
+        server.finish(handle, GoalEnd.ABORTED, result)
 
     def _cancel_follow(self, state: _Progress) -> None:
         if state.follow is not None:
@@ -251,10 +280,14 @@ class Navigator(ManagedNode):
         return Sleep(self._now_s() + seconds)
 
     # ------------------------------------------------------------ navigation
-    def _navigate(self, handle: ServerGoalHandle, request: PoseStamped, state: _Progress) -> Step[None]:
+    def _navigate(self, handle: ServerGoalHandle, state: _Progress) -> Step[None]:
         p = self.params
+        if not state.goals:
+            raise Failed(0, "no poses to navigate through")
         deadline = self._now_s() + p.server_timeout
-        for client, name in ((self.planner, "compute_path_to_pose"), (self.controller, "follow_path")):
+        planner = (self.planner_through, "compute_path_through_poses") if state.through \
+            else (self.planner, "compute_path_to_pose")
+        for client, name in (planner, (self.controller, "follow_path")):
             while not client.server_is_ready():
                 if self._now_s() > deadline:
                     raise Failed(0, f"the {name} server is not available")
@@ -262,7 +295,7 @@ class Navigator(ManagedNode):
         yield from self._wait_for_pose()
         while True:
             try:
-                yield from self._plan_and_follow(request, state)
+                yield from self._plan_and_follow(state)
                 return
             except Failed as exc:
                 recovery = state.policy.after_failure(exc.code)
@@ -287,7 +320,7 @@ class Navigator(ManagedNode):
                     raise Failed(ComputePathToPose.Result.TF_ERROR, f"no robot pose: {exc}") from exc
             yield self._sleep(0.1)
 
-    def _plan(self, request: PoseStamped, policy: NavigationPolicy) -> Step[Path]:
+    def _plan(self, state: _Progress) -> Step[Path]:
         """A path from the planner. A planner that is not ready yet (no robot pose, no map: TF_ERROR
         or UNKNOWN, as a just-started stack's may be) is asked again every half second for up to
         ``server_timeout`` s; any other failure once more after clearing the global costmap.
@@ -295,18 +328,24 @@ class Navigator(ManagedNode):
         Raises:
             Failed: with the planner's error code.
         """
-        goal = ComputePathToPose.Goal()
-        goal.goal = request
-        not_ready = (ComputePathToPose.Result.TF_ERROR, ComputePathToPose.Result.UNKNOWN)
+        policy = state.policy
+        action, client = (ComputePathThroughPoses, self.planner_through) if state.through \
+            else (ComputePathToPose, self.planner)
+        goal = action.Goal()
+        if state.through:
+            goal.goals = list(state.goals)
+        else:
+            goal.goal = state.goals[0]
+        not_ready = (action.Result.TF_ERROR, action.Result.UNKNOWN)
         started_s = self._now_s()
         cleared = False
         while True:
-            handle = yield self.planner.send_goal_async(goal)
+            handle = yield client.send_goal_async(goal)
             if handle is None or not handle.accepted:
-                raise Failed(ComputePathToPose.Result.UNKNOWN, "the planner refused the goal")
+                raise Failed(action.Result.UNKNOWN, "the planner refused the goal")
             response = yield handle.get_result_async()
             res = response.result
-            if res.error_code == ComputePathToPose.Result.NONE and res.path.poses:
+            if res.error_code == action.Result.NONE and res.path.poses:
                 return res.path
             decision = policy.after_plan_failure(res.error_code in not_ready, self._now_s() - started_s, cleared)
             if decision is PlanDecision.RETRY_LATER:
@@ -317,16 +356,17 @@ class Navigator(ManagedNode):
             else:
                 raise Failed(res.error_code, f"planning: {res.error_msg}")
 
-    def _plan_and_follow(self, request: PoseStamped, state: _Progress) -> Step[None]:
+    def _plan_and_follow(self, state: _Progress) -> Step[None]:
         follow_failures = 0
         next_plan = -math.inf
         while True:
             now = self._now_s()
             if now >= next_plan:
                 next_plan = now + 1.0 / self.params.replanning_frequency
-                path = yield from self._plan(request, state.policy)
+                self._drop_passed_goals(state)
+                path = yield from self._plan(state)
                 state.path = np.array([[ps.pose.position.x, ps.pose.position.y] for ps in path.poses])
-                self._note_moved_goal(request, state)
+                self._note_moved_goal(state.goals[-1], state)
                 follow = FollowPath.Goal()
                 follow.path = path
                 handle = yield self.controller.send_goal_async(follow, feedback_callback=state.on_feedback)
@@ -347,6 +387,19 @@ class Navigator(ManagedNode):
             # Until the follow ends or the next plan is due, whichever comes first.
             yield Sleep(next_plan, wake=state.follow_result)
 
+    def _drop_passed_goals(self, state: _Progress) -> None:
+        """Nav2's RemovePassedGoals: the poses before the last that the robot has come within
+        :data:`PASSED_GOAL_M` of (in their frame) are done."""
+        while state.through and len(state.goals) > 1:
+            goal = state.goals[0]
+            try:
+                x, y, _ = self._pose(goal.header.frame_id)
+            except TransformError:
+                return
+            if math.hypot(goal.pose.position.x - x, goal.pose.position.y - y) > PASSED_GOAL_M:
+                return
+            state.goals.pop(0)
+
     def _note_moved_goal(self, request: PoseStamped, state: _Progress) -> None:
         """The planner moved an unreachable goal to the nearest free pose within its tolerance: say so
         once (the log, and the result's message)."""
@@ -364,7 +417,9 @@ class Navigator(ManagedNode):
             x, y, yaw = self._pose(self.params.global_frame)
         except TransformError:
             return  # no pose yet (a stack starting): the flow says so if it lasts
-        fb = NavigateToPose.Feedback()
+        fb = state.action.Feedback()
+        if state.through:
+            fb.number_of_poses_remaining = len(state.goals)
         fb.current_pose.header.frame_id = self.params.global_frame
         fb.current_pose.header.stamp = self.get_clock().now().to_msg()
         fb.current_pose.pose.position.x, fb.current_pose.pose.position.y = x, y
@@ -431,9 +486,12 @@ class Navigator(ManagedNode):
 class _Progress:
     """One goal's running state."""
 
-    def __init__(self, start_s: float, policy: NavigationPolicy) -> None:
+    def __init__(self, start_s: float, policy: NavigationPolicy, goals: list[PoseStamped], through: bool) -> None:
         self.start_s = start_s
         self.policy = policy
+        self.goals = goals  # the poses still to reach, the goal last
+        self.through = through  # a navigate_through_poses goal
+        self.action: Any = NavigateThroughPoses if through else NavigateToPose
         self.path: np.ndarray | None = None
         self.follow: Any = None
         self.follow_result: Future | None = None
