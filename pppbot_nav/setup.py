@@ -25,6 +25,7 @@ setup(
             'planner_server = pppbot_nav.ros.planner_server:main',
             'controller_server = pppbot_nav.ros.controller_server:main',
             'bt_navigator = pppbot_nav.ros.navigator:main',
+            'behavior_server = pppbot_nav.ros.behavior_server:main',
             'navigation = pppbot_nav.ros.navigation:main',
             'localization = pppbot_nav.ros.localization:main',
             'lifecycle_manager = pppbot_nav.ros.lifecycle_manager:main',

@@ -175,3 +175,41 @@ def ros_node(request: pytest.FixtureRequest) -> Iterator[Any]:
     finally:
         node.destroy_node()
         rclpy.shutdown()
+
+
+@pytest.fixture
+def spin_in_background(ros_node: Any) -> Iterator[Callable[..., Any]]:
+    """``spin_in_background(*nodes)``: spin ``nodes`` (the code under test, as one process of
+    ``run_nodes`` would) on an EventsExecutor in a thread until the test ends; then the executor
+    stops and the nodes are destroyed, before ``ros_node``'s context ends. Returns the executor
+    (more nodes may be added to it)."""
+    import threading
+
+    from rclpy.experimental import EventsExecutor
+
+    executor = EventsExecutor()
+    stop = threading.Event()
+    spun: list[Any] = []
+
+    def spin() -> None:
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.05)
+
+    thread = threading.Thread(target=spin, daemon=True)
+
+    def start(*nodes: Any) -> Any:
+        for node in nodes:
+            executor.add_node(node)
+            spun.append(node)
+        if not thread.is_alive():
+            thread.start()
+        return executor
+    try:
+        yield start
+    finally:
+        stop.set()
+        if thread.is_alive():
+            thread.join(5)
+        executor.shutdown()
+        for node in spun:
+            node.destroy_node()

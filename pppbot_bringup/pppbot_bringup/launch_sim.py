@@ -424,7 +424,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
             raise ArgumentError("navigation:=true needs a map frame: localization:=true or use_slam:=true")
         nav2_params = adapted_file(config / "nav2_params.yaml", robot, urdf_file.parent, files, start_info)
         servers = {"planner_server": "/compute_path_to_pose", "controller_server": "/follow_path",
-                   "bt_navigator": "/navigate_to_pose"}
+                   "behavior_server": "/spin", "bt_navigator": "/navigate_to_pose"}
         # Up once lifecycle_manager_navigation has them all active (bt_navigator last), as
         # BasicNavigator.waitUntilNav2Active() sees it; in lockstep, once joined as well.
         active = ReadyCheck("bt_navigator active", probes.lifecycle_active("bt_navigator"))

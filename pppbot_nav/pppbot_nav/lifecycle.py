@@ -18,7 +18,7 @@ from pppbot_nav.errors import LifecycleError
 #: The lifecycle nodes of Nav2's bringup, in start order: lifecycle_manager_localization's
 #: and lifecycle_manager_navigation's ``node_names``.
 LOCALIZATION_NODES = ("map_server", "amcl")
-NAVIGATION_NODES = ("planner_server", "controller_server", "bt_navigator")
+NAVIGATION_NODES = ("planner_server", "controller_server", "behavior_server", "bt_navigator")
 
 
 class Command(IntEnum):

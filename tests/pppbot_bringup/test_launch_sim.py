@@ -19,6 +19,7 @@ from rosbags.rosbag2 import Reader
 from pppbot_bringup.launch_sim import ARGUMENTS, LaunchArgs, NavigationMode, plan
 from pppbot_common.launch_args import ArgumentError, describe
 from pppbot_common.ros.wait import wait_until
+from pppbot_nav.lifecycle import NAVIGATION_NODES
 
 ROOT = Path(__file__).resolve().parents[2]
 PPPBOT = str(ROOT / "pppbot")
@@ -220,11 +221,12 @@ def test_localization_serves_the_worlds_map_and_starts_amcl_at_the_spawn_pose_in
     assert {name: asked["action_servers"] for name, asked in probes.endpoints_asked.items()
             if asked["action_servers"]} == {"planner_server": ("/compute_path_to_pose",),
                                             "controller_server": ("/follow_path",),
+                                            "behavior_server": ("/spin",),
                                             "bt_navigator": ("/navigate_to_pose",)}
     assert by_name["bt_navigator"].ready.description == "its navigate_to_pose action server"
     nav_manager = by_name["lifecycle_manager_navigation"]
-    assert "node_names:=['planner_server', 'controller_server', 'bt_navigator']" in nav_manager.cmd
-    assert nav_manager.after == ("planner_server", "controller_server", "bt_navigator")
+    assert f"node_names:={list(NAVIGATION_NODES)}" in nav_manager.cmd
+    assert nav_manager.after == NAVIGATION_NODES
     assert nav_manager.ready.description == "bt_navigator active" and probes.lifecycle_asked == ["bt_navigator"]
     other = {n.name: n for n in fake_plan("localization:=true", f"map:={ROOT / 'maps' / 'room.yaml'}")[0].nodes}
     assert f"yaml_filename:={ROOT / 'maps' / 'room.yaml'}" in " ".join(other["localization"].cmd)
@@ -261,15 +263,14 @@ def test_navigation_is_one_composed_process_unless_use_composition_is_false():
     assert nav.ready.description == "navigation (joined lockstep)"  # and bt_navigator active
     separate = {n.name: n for n in fake_plan("localization:=true", "lockstep:=true", "use_composition:=false")[0].nodes}
     assert "navigation" not in separate
-    for name in ("planner_server", "controller_server", "bt_navigator"):
+    for name in NAVIGATION_NODES:
         assert separate[name].cmd[0] == f"/bin/pppbot_nav/{name}" and f"lockstep_name:={name}" in separate[name].cmd
     free_running = {n.name: n for n in fake_plan("localization:=true")[0].nodes}  # composed too, as Nav2's bringup
     assert not {"planner_server", "controller_server", "bt_navigator"} & free_running.keys()
     assert free_running["navigation"].ready.description == "bt_navigator active"
     assert not any("lockstep" in arg for arg in free_running["navigation"].cmd)
     apart = {n.name for n in fake_plan("localization:=true", "use_composition:=false")[0].nodes}
-    assert "navigation" not in apart and {"planner_server", "controller_server", "bt_navigator",
-                                          "lifecycle_manager_navigation"} <= apart
+    assert "navigation" not in apart and {*NAVIGATION_NODES, "lifecycle_manager_navigation"} <= apart
 
 
 def test_record_adds_a_recorder_right_after_the_simulator(tmp_path):

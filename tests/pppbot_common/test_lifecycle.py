@@ -1,8 +1,7 @@
 """ManagedNode: Nav2's lifecycle on rclpy, over real DDS (its services called as ``ros2 lifecycle`` calls them)."""
 from __future__ import annotations
 
-import threading
-from collections.abc import Iterator
+from collections.abc import Callable
 from typing import Any
 
 import pytest
@@ -10,7 +9,6 @@ from lifecycle_msgs.msg import State, Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 from nav2_msgs.action import NavigateToPose
 from rclpy.action import ActionClient, ActionServer
-from rclpy.experimental import EventsExecutor
 from std_msgs.msg import String
 
 from pppbot_common.errors import PppbotError
@@ -52,25 +50,10 @@ class Talker(ManagedNode):
 
 
 @pytest.fixture
-def talker(ros_node: Any) -> Iterator[Talker]:
+def talker(spin_in_background: Callable[..., Any]) -> Talker:
     node = Talker()
-    executor = EventsExecutor()
-    executor.add_node(node)
-    stop = threading.Event()
-
-    def spin() -> None:
-        while not stop.is_set():
-            executor.spin_once(timeout_sec=0.05)
-
-    thread = threading.Thread(target=spin, daemon=True)
-    thread.start()
-    try:
-        yield node
-    finally:
-        stop.set()
-        thread.join(5)
-        executor.shutdown()
-        node.destroy_node()
+    spin_in_background(node)
+    return node
 
 
 def change(node: Any, transition: int = 0, label: str = "") -> bool:

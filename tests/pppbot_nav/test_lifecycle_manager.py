@@ -2,13 +2,11 @@
 launch_sim composes them, and the plans they follow."""
 from __future__ import annotations
 
-import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
 from nav2_msgs.srv import ManageLifecycleNodes
-from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
 
@@ -73,21 +71,11 @@ class Server(ManagedNode):
 
 
 @pytest.fixture
-def process(ros_node: Any) -> Iterator[tuple[dict[str, Server], list[str], Any]]:
+def process(spin_in_background: Callable[..., Any]) -> Iterator[tuple[dict[str, Server], list[str], Any]]:
     """Three managed nodes spun by one executor, as run_nodes composes them; managers are made by the test."""
     log: list[str] = []
     servers = {name: Server(name, log) for name in NODES}
-    executor = EventsExecutor()
-    for server in servers.values():
-        executor.add_node(server)
-    stop = threading.Event()
-
-    def spin() -> None:
-        while not stop.is_set():
-            executor.spin_once(timeout_sec=0.05)
-
-    thread = threading.Thread(target=spin, daemon=True)
-    thread.start()
+    spin_in_background(*servers.values())
     managers: list[LifecycleManager] = []
 
     def manager(**parameters: Any) -> LifecycleManager:
@@ -99,11 +87,6 @@ def process(ros_node: Any) -> Iterator[tuple[dict[str, Server], list[str], Any]]
     finally:
         for m in managers:
             m.destroy_node()
-        stop.set()
-        thread.join(5)
-        executor.shutdown()
-        for server in servers.values():
-            server.destroy_node()
 
 
 def call(node: Any, srv_type: Any, name: str, request: Any) -> Any:

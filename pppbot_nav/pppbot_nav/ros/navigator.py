@@ -1,4 +1,4 @@
-"""``navigator``: goals to the robot's arrival, in Nav2's ``bt_navigator`` (and ``behavior_server``) place.
+"""``bt_navigator``: goals to the robot's arrival, in Nav2's ``bt_navigator`` place.
 
 Accepts goals as the ``navigate_to_pose`` action (nav2_msgs/action/NavigateToPose), on
 ``goal_pose`` (geometry_msgs/PoseStamped, RViz's "2D Goal Pose") and as the
@@ -13,18 +13,16 @@ cancel stops the robot. It runs Nav2's default tree
   controller (``follow_path``), which takes a new path as an update of the one it follows;
 * a failed plan clears the global costmap and tries once more, a failed follow clears the
   local costmap and tries once more; then one recovery of the round robin (clear both
-  costmaps, spin ``spin_dist``, wait ``wait_duration``, back up ``backup_dist`` at
-  ``backup_speed``; :mod:`pppbot_nav.behaviors`) and the loop again, at most
+  costmaps, then the behavior_server's actions: ``spin`` by ``spin_dist``, ``wait``
+  ``wait_duration``, ``backup`` ``backup_dist`` at ``backup_speed``) and the loop again, at most
   ``number_of_retries`` recoveries per goal. These decisions are
   :class:`pppbot_nav.navigation_policy.NavigationPolicy`'s (no ROS, unit-tested); this node
   carries them out.
 
 Feedback: the robot's pose in ``global_frame``, the navigation time, the distance left along
 the path, an estimated time remaining, and the recoveries so far. A goal that fails carries
-the failing server's error code and message. Behaviours command ``cmd_vel`` themselves and
-stop where Nav2's collision check would stop them on ``/local_costmap/costmap``: no spin on a
-cell within ``robot_radius`` of an obstacle, no backing up onto one
-(:func:`pppbot_nav.behaviors.collision_ahead`).
+the failing server's error code and message. The navigator commands no velocity itself: the
+controller and the behaviours do (and stop the robot when their goal ends or is canceled).
 """
 from __future__ import annotations
 
@@ -35,7 +33,8 @@ from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PoseStamped, Twist
+from geometry_msgs.msg import PoseStamped
+from nav2_msgs.action import BackUp as BackUpAction
 from nav2_msgs.action import (
     ComputePathThroughPoses,
     ComputePathToPose,
@@ -43,8 +42,9 @@ from nav2_msgs.action import (
     NavigateThroughPoses,
     NavigateToPose,
 )
+from nav2_msgs.action import Spin as SpinAction
+from nav2_msgs.action import Wait as WaitAction
 from nav2_msgs.srv import ClearEntireCostmap
-from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Path
 from rclpy.action.server import ServerGoalHandle
 from rclpy.duration import Duration
@@ -54,16 +54,14 @@ from pppbot_common.params import check_finite_range, param
 from pppbot_common.ros.action_client import ActionClient
 from pppbot_common.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stopped, check_running, stopped_end
 from pppbot_common.ros.lifecycle import ManagedNode
-from pppbot_common.ros.lockstep import Participant, count_deliveries, create_timer, require_match
-from pppbot_common.ros.maps import grid_from_message
+from pppbot_common.ros.lockstep import Participant, create_timer
 from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters
-from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.tf_listener import TfListener
 from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_common.transforms import TransformError
 from pppbot_common.upright import UPRIGHT_STATUS
-from pppbot_nav.behaviors import BackUp, Recovery, Spin, Wait, collision_ahead
+from pppbot_nav.behaviors import Recovery
 from pppbot_nav.navigation_policy import FollowDecision, NavigationPolicy, PlanDecision, PolicySettings
 
 
@@ -134,16 +132,16 @@ class Navigator(ManagedNode):
         self.controller = ActionClient(self, FollowPath, "follow_path")
         self.clear_global = self.create_client(ClearEntireCostmap, "global_costmap/clear_entirely_global_costmap")
         self.clear_local = self.create_client(ClearEntireCostmap, "local_costmap/clear_entirely_local_costmap")
-        self.cmd_pub = self.create_publisher(Twist, "cmd_vel", 1)
-        require_match(self, self.cmd_pub)
+        self.behaviors = {Recovery.SPIN: ActionClient(self, SpinAction, "spin"),
+                          Recovery.BACKUP: ActionClient(self, BackUpAction, "backup"),
+                          Recovery.WAIT: ActionClient(self, WaitAction, "wait")}
         participant = Participant.current()
         if participant is not None:
             participant.require_when("the compute_path_to_pose server", self.planner.server_is_ready)
             participant.require_when("the compute_path_through_poses server", self.planner_through.server_is_ready)
             participant.require_when("the follow_path server", self.controller.server_is_ready)
-        self._local_costmap: OccupancyGridMsg | None = None
-        on_costmap = guarded(self, self._on_local_costmap, "OccupancyGrid")
-        count_deliveries(self, self.create_subscription(OccupancyGridMsg, "local_costmap/costmap", on_costmap, LATCHED))
+            for recovery, client in self.behaviors.items():
+                participant.require_when(f"the {recovery.value} server", client.server_is_ready)
         self._active: tuple[ServerGoalHandle, Flow[None], _Progress] | None = None
         self._self_client = ActionClient(self, NavigateToPose, "navigate_to_pose")
         self.server = GoalServer(self, NavigateToPose, "navigate_to_pose", self._on_goal, accept=self.taking_goals)
@@ -165,9 +163,6 @@ class Navigator(ManagedNode):
         super().destroy_node()
 
     # ----------------------------------------------------------------- inputs
-    def _on_local_costmap(self, msg: OccupancyGridMsg) -> None:
-        self._local_costmap = msg
-
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
             if status.name.endswith(UPRIGHT_STATUS):
@@ -237,9 +232,6 @@ class Navigator(ManagedNode):
         if self.not_upright is not None:  # no goal succeeds with a robot on its side
             raise NotUpright(self.not_upright)
 
-    def stop(self) -> None:
-        self.cmd_pub.publish(Twist())
-
     def _ended(self, handle: ServerGoalHandle, state: _Progress, error: BaseException | None) -> None:
         """The goal's flow ended: success, a stop (cancel or preemption) or a failure."""
         if self._active is not None and self._active[0] is handle:
@@ -255,12 +247,8 @@ class Navigator(ManagedNode):
         self._cancel_follow(state)
         if isinstance(error, Stopped):
             result.error_msg = str(error)
-            end = stopped_end(handle)
-            if end is GoalEnd.CANCELED:
-                self.stop()  # canceled: stand still (a preempted goal's successor drives on)
-            server.finish(handle, end, result)
+            server.finish(handle, stopped_end(handle), result)
             return
-        self.stop()
         if isinstance(error, Failed):
             result.error_code, result.error_msg = error.code, str(error)
         elif isinstance(error, NotUpright):
@@ -302,7 +290,6 @@ class Navigator(ManagedNode):
                 if recovery is None:
                     raise Failed(exc.code, f"{exc} (after {state.recoveries} recoveries)") from exc
                 self._cancel_follow(state)
-                self.stop()
                 self.get_logger().info(f"recovery {state.recoveries}/{p.number_of_retries}: {recovery.value} "
                                        f"(after: {exc})")
                 yield from self._recover(recovery)
@@ -441,46 +428,51 @@ class Navigator(ManagedNode):
 
     # ------------------------------------------------------------ recoveries
     def _recover(self, recovery: Recovery) -> Step[None]:
+        """One recovery of the round robin: clear both costmaps, or the behavior_server's spin, wait
+        or backup action (its failure, a collision ahead or a timeout, is logged; the round robin
+        goes on)."""
         p = self.params
         if recovery is Recovery.CLEAR_COSTMAPS:
             yield from self._clear(self.clear_local)
             yield from self._clear(self.clear_global)
             return
-        behavior: Spin | BackUp | Wait
+        client = self.behaviors[recovery]
+        goal: Any
         if recovery is Recovery.SPIN:
-            behavior = Spin(spin_dist_rad=p.spin_dist)
+            goal = SpinAction.Goal(target_yaw=p.spin_dist,
+                                   time_allowance=Duration(seconds=BEHAVIOR_ALLOWANCE_S).to_msg())
+            allowance = BEHAVIOR_ALLOWANCE_S
         elif recovery is Recovery.BACKUP:
-            behavior = BackUp(backup_dist_m=p.backup_dist, backup_speed=p.backup_speed)
+            goal = BackUpAction.Goal(speed=p.backup_speed,
+                                     time_allowance=Duration(seconds=BEHAVIOR_ALLOWANCE_S).to_msg())
+            goal.target.x = p.backup_dist
+            allowance = BEHAVIOR_ALLOWANCE_S
         else:
-            behavior = Wait(wait_duration_s=p.wait_duration)
-        odom_frame = self._local_costmap.header.frame_id if self._local_costmap is not None else "odom"
-        try:
-            behavior.start(self._pose(odom_frame), self._now_s())
-        except TransformError as exc:
-            self._warn("behavior", f"{recovery.value} skipped: {exc}")
+            goal = WaitAction.Goal(time=Duration(seconds=p.wait_duration).to_msg())
+            allowance = p.wait_duration
+        if not client.server_is_ready():
+            self._warn("behavior", f"{recovery.value} skipped: the behavior_server's {recovery.value} action "
+                                   "is not available")
             return
-        end = self._now_s() + {Recovery.SPIN: 12.0, Recovery.BACKUP: 12.0}.get(recovery, p.wait_duration + 1.0)
+        handle = yield client.send_goal_async(goal)
+        if handle is None or not handle.accepted:
+            self._warn("behavior", f"{recovery.value} skipped: the behavior_server refused it (not active?)")
+            return
+        result = handle.get_result_async()
         try:
-            while self._now_s() < end:
-                try:
-                    pose = self._pose(odom_frame)
-                except TransformError:
-                    yield self._sleep(TICK_S)
-                    continue
-                command = behavior.step(pose, self._now_s())
-                if command is None:
-                    return
-                costmap = grid_from_message(self._local_costmap) if self._local_costmap is not None else None
-                stop = collision_ahead(behavior, costmap, pose)
-                if stop is not None:
-                    self._warn("behavior", f"{recovery.value} stopped: {stop}")
-                    return
-                twist = Twist()
-                twist.linear.x, twist.angular.z = command
-                self.cmd_pub.publish(twist)
-                yield self._sleep(TICK_S)
+            deadline = self._now_s() + allowance + BEHAVIOR_ALLOWANCE_S
+            while not result.done() and self._now_s() < deadline:
+                yield Sleep(deadline, wake=result)
         finally:
-            self.stop()
+            if not result.done():  # the goal was canceled or preempted meanwhile, or the server hangs
+                handle.cancel_goal_async()
+        if result.done() and result.result().result.error_code != 0:
+            res = result.result().result
+            self.get_logger().info(f"{recovery.value} ended early: {res.error_msg}")
+
+
+#: The time a spin or backup recovery is allowed (s; Nav2's default tree's time_allowance).
+BEHAVIOR_ALLOWANCE_S = 10.0
 
 
 class _Progress:
