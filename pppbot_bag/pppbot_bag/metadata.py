@@ -15,6 +15,9 @@ import yaml
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2.metadata import dump_qos_v9
 
+from pppbot_bag.errors import BagError
+from pppbot_common.param_files import load_yaml_file
+
 VERSION = 9
 STORAGE_ID = "mcap"
 #: Durations rmw calls infinite (RMW_DURATION_INFINITE as sec/nsec).
@@ -34,6 +37,49 @@ def qos(reliability: str = "reliable", durability: str = "volatile", depth: int 
 def qos_yaml(profiles: Sequence[Qos]) -> str:
     """The ``offered_qos_profiles`` string of an MCAP channel (rosbag2's version-9 form)."""
     return yaml.safe_dump(dump_qos_v9(list(profiles)), default_flow_style=False, sort_keys=False).strip()
+
+
+#: The keys of ``rosbag2_bagfile_information`` a reader needs, with the type each must have.
+_REQUIRED_KEYS: dict[str, tuple[type, ...]] = {
+    "version": (int,), "storage_identifier": (str,), "relative_file_paths": (list,),
+    "topics_with_message_count": (list,), "duration": (dict,), "starting_time": (dict,),
+    "message_count": (int,),
+}
+_TYPE_NAMES = {int: "a whole number", str: "a string", list: "a list", dict: "a mapping"}
+
+
+def check_metadata_file(path: Path) -> dict[str, Any]:
+    """The ``rosbag2_bagfile_information`` mapping of a bag's ``metadata.yaml``, checked.
+
+    Raises:
+        BagError: naming the file and what is wrong: unreadable, not UTF-8 text, not valid YAML
+            (with line and column), not a mapping with ``rosbag2_bagfile_information``, a missing
+            key or one of the wrong type, a version newer than :data:`VERSION`.
+    """
+    document = load_yaml_file(path, BagError)
+    info = document.get("rosbag2_bagfile_information") if isinstance(document, dict) else None
+    if not isinstance(info, dict):
+        found = ("it is empty" if document is None else f"it holds {document!r:.40}, not a mapping") \
+            if not isinstance(document, dict) else "'rosbag2_bagfile_information' is missing or not a mapping"
+        raise BagError(f"{path}: not rosbag2 metadata ({found}); the file is a mapping with one key, "
+                       "'rosbag2_bagfile_information'")
+    for key, types in _REQUIRED_KEYS.items():
+        if key not in info:
+            raise BagError(f"{path}: rosbag2_bagfile_information has no '{key}'")
+        value = info[key]
+        if isinstance(value, bool) or not isinstance(value, types):
+            raise BagError(f"{path}: rosbag2_bagfile_information.{key} must be {_TYPE_NAMES[types[0]]}, "
+                           f"not {value!r:.60}")
+    if not 1 <= info["version"] <= VERSION:
+        raise BagError(f"{path}: rosbag2 metadata version {info['version']} is not supported (1 to {VERSION})")
+    for i, topic in enumerate(info["topics_with_message_count"]):
+        meta = topic.get("topic_metadata") if isinstance(topic, dict) else None
+        if not isinstance(meta, dict) or not all(isinstance(meta.get(k), str) for k in ("name", "type")) \
+                or not isinstance(topic.get("message_count"), int):
+            raise BagError(f"{path}: rosbag2_bagfile_information.topics_with_message_count[{i}] must be "
+                           f"{{topic_metadata: {{name, type, serialization_format, ...}}, message_count}}, "
+                           f"not {topic!r:.80}")
+    return info
 
 
 @dataclass

@@ -13,6 +13,7 @@ from rosbags.rosbag2 import Reader
 from rosbags.rosbag2.errors import ReaderError
 
 from pppbot_bag.errors import BagError
+from pppbot_bag.metadata import check_metadata_file
 
 
 @contextmanager
@@ -20,7 +21,8 @@ def open_bag(path: Path | str) -> Iterator[Reader]:
     """An open reader for a bag directory or one ``.mcap`` file.
 
     Raises:
-        BagError: no such path, no ``metadata.yaml`` (with how to recover), or unreadable.
+        BagError: no such path, no ``metadata.yaml`` (with how to recover), a ``metadata.yaml``
+            that is not rosbag2 metadata (naming it and what is wrong), or unreadable.
     """
     path = Path(path)
     if not path.exists():
@@ -29,6 +31,8 @@ def open_bag(path: Path | str) -> Iterator[Reader]:
         hint = (f"; if the recorder was killed, `pppbot bag reindex {path}` rebuilds it"
                 if any(path.glob("*.mcap")) else "")
         raise BagError(f"'{path}' is not a bag: it has no metadata.yaml{hint}")
+    if path.is_dir():
+        check_metadata_file(path / "metadata.yaml")
     try:
         reader = Reader(path)
         reader.open()

@@ -42,3 +42,13 @@ class TemplateError(PppbotError, ValueError):
 
 class LockstepError(PppbotError):
     """A lockstep protocol error; the message names the participant and what it did."""
+
+
+class ParameterFileError(PppbotError, ValueError):
+    """A ROS 2 parameter file is unreadable, not YAML, or not of the params-file shape; the message
+    names the file, where in it (line and column when known) and what is allowed."""
+
+    def __init__(self, path: Any, what: str, line: int | None = None, column: int | None = None) -> None:
+        where = f"line {line}, column {column}: " if line is not None and column is not None else ""
+        super().__init__(f"{path}: {where}{what}")
+        self.path, self.what, self.line, self.column = path, what, line, column

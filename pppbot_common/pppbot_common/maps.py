@@ -35,9 +35,10 @@ from typing import Any
 
 import numpy as np
 import yaml
-from PIL import Image, UnidentifiedImageError
+from PIL import Image
 
 from pppbot_common.errors import MapFileError
+from pppbot_common.map_images import open_map_image
 
 FREE, OCCUPIED, UNKNOWN = 0, 100, -1
 #: What a trinary map file records: 0 → p 1.0 occupied, 254 → p 0.004 free, 205 → p 0.196 unknown.
@@ -163,12 +164,31 @@ def read_map_metadata(path: str | Path) -> MapMetadata:
 
 
 def pixels_to_occupancy(pixels: np.ndarray, meta: MapMetadata, alpha: np.ndarray | None = None) -> np.ndarray:
-    """Nav2's loading rule: grey levels (0-255, image orientation) → int8 cells (same orientation).
+    """Nav2's loading rule: grey levels (image orientation) → int8 cells (same orientation).
 
-    ``alpha`` (0-255, same shape), when the image has it: in ``scale`` mode a pixel
-    that is not fully opaque is unknown.
+    ``pixels``: 8-bit levels (``uint8``, 0-255) or 16-bit ones (``uint16``, on the 0-65535 scale:
+    ``v = level·255/65535``); any other dtype is taken as ``v`` itself. Integer levels go
+    through a table of every level (:func:`occupancy_table`): no temporaries beyond the cells.
+    ``alpha`` (0-255, same shape), when the image has it: in ``scale`` mode a pixel that is not
+    fully opaque is unknown.
     """
-    values = pixels.astype(np.float64)
+    if pixels.dtype in (np.uint8, np.uint16):
+        out = occupancy_table(meta, 256 if pixels.dtype == np.uint8 else 65536)[pixels]
+    else:
+        out = _occupancy_of_grey(np.asarray(pixels, dtype=np.float64), meta)
+    if meta.mode is MapMode.SCALE and alpha is not None:
+        out[alpha < 255] = UNKNOWN
+    return out
+
+
+def occupancy_table(meta: MapMetadata, levels: int = 256) -> np.ndarray:
+    """The cell of every grey level ``0 .. levels - 1`` (int8, ``levels`` long): level ``i`` is
+    ``v = i·255/(levels - 1)`` on the 0-255 scale."""
+    return _occupancy_of_grey(np.arange(levels, dtype=np.float64) * (255.0 / (levels - 1)), meta)
+
+
+def _occupancy_of_grey(values: np.ndarray, meta: MapMetadata) -> np.ndarray:
+    """Nav2's rule on ``v`` (0-255 scale, float64)."""
     if meta.mode is MapMode.RAW:
         level = np.rint(values)
         return np.where((level >= FREE) & (level <= OCCUPIED), level, UNKNOWN).astype(np.int8)
@@ -180,8 +200,6 @@ def pixels_to_occupancy(pixels: np.ndarray, meta: MapMetadata, alpha: np.ndarray
         between = (p >= meta.free_thresh) & (p <= meta.occupied_thresh)
         span = max(meta.occupied_thresh - meta.free_thresh, 1e-9)
         out[between] = np.rint(100.0 * (p[between] - meta.free_thresh) / span).astype(np.int8)
-        if alpha is not None:
-            out[alpha < 255] = UNKNOWN
     return out
 
 
@@ -203,14 +221,6 @@ def occupancy_to_pixels(data: np.ndarray, mode: MapMode = MapMode.TRINARY,
     return out
 
 
-def _grey_levels(image: Image.Image) -> np.ndarray:
-    """The image's grey levels on a 0-255 scale: colour as luma (GraphicsMagick's intensity,
-    as Nav2 reads it), 16-bit grey scaled down instead of clipped."""
-    if image.mode == "I" or image.mode.startswith("I;16"):
-        return np.asarray(image, dtype=np.float64) * (255.0 / 65535.0)
-    return np.asarray(image.convert("L"), dtype=np.float64)
-
-
 def load_map(path: str | Path) -> tuple[OccupancyGrid, MapMetadata]:
     """Load a Nav2 map (YAML and its image).
 
@@ -225,21 +235,24 @@ def load_map(path: str | Path) -> tuple[OccupancyGrid, MapMetadata]:
 def load_map_image(path: str | Path, meta: MapMetadata) -> OccupancyGrid:
     """The grid of the map file ``path`` whose YAML says ``meta`` (its image, read by Nav2's rule).
 
+    The image is read and converted a block of rows at a time
+    (:mod:`pppbot_common.map_images`): the memory a load takes is the grid (a byte a cell) and,
+    for images other than 8-bit binary PGM, Pillow's decoded image, plus a few MiB.
+    ``benchmarks/map_load_memory.py`` measures it.
+
     Raises:
-        MapFileError: the image is missing or unreadable, naming the file.
+        MapFileError: the image is missing, unreadable, malformed (naming what in its header) or
+            bigger than :data:`pppbot_common.map_images.MAX_MAP_PIXELS`, naming the file.
     """
     path = Path(path)
     image_path = Path(meta.image) if Path(meta.image).is_absolute() else path.parent / meta.image
-    try:
-        with Image.open(image_path) as opened:
-            image = opened.convert("RGBA") if opened.mode == "P" and "transparency" in opened.info else opened
-            pixels = _grey_levels(image)
-            alpha = np.asarray(image.getchannel("A")) if "A" in image.getbands() else None
-    except FileNotFoundError:
-        raise MapFileError(f"{path}: image '{meta.image}' not found at {image_path}") from None
-    except (UnidentifiedImageError, OSError) as exc:
-        raise MapFileError(f"{image_path}: not a readable image ({exc})") from exc
-    cells = pixels_to_occupancy(pixels, meta, alpha)[::-1]
+    if not image_path.is_file():
+        raise MapFileError(f"{path}: image '{meta.image}' not found at {image_path}")
+    with open_map_image(image_path) as image:
+        cells = np.empty((image.height, image.width), dtype=np.int8)
+        for block in image.blocks():
+            bottom = image.height - block.top  # image row 0 is the grid's top row
+            cells[bottom - len(block.grey):bottom] = pixels_to_occupancy(block.grey, meta, block.alpha)[::-1]
     return OccupancyGrid(cells, meta.resolution, meta.origin)
 
 

@@ -216,3 +216,76 @@ def test_unknown_image_format_writes_nothing(tmp_path):
     with pytest.raises(MapFileError, match="image format 'jpg' is not supported"):
         save_map(sample_grid(), tmp_path / "out" / "m", image_format="jpg")
     assert not (tmp_path / "out").exists()
+
+
+def pgm_map(tmp_path, data: bytes):
+    (tmp_path / "m.pgm").write_bytes(data)
+    (tmp_path / "m.yaml").write_text("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n" + NAV2_KEYS)
+    return tmp_path / "m.yaml"
+
+
+@pytest.mark.parametrize("data, message", [
+    (b"P5\n4x 3\n255\n" + bytes(12), "malformed PGM header: width '4x' is not a whole number"),
+    (b"P5\n# a comment\n4 three\n255\n" + bytes(12), "malformed PGM header: height 'three' is not a whole number"),
+    (b"P5\n4 3\n", "malformed PGM header: maxval is missing"),
+    (b"P5\n4 3\n70000\n" + bytes(24), "maxval 70000 is not allowed (1 to 65535)"),
+    (b"P5\n0 3\n255\n", "size 0 × 3; width and height must be at least 1"),
+    (b"P5\n4 3\n255\n" + bytes(5),
+     "the PGM is cut short: its 4 × 3 pixels need 12 bytes after the header, the file has 5"),
+    (b"P2\n2 1\n255\n0 x\n", "not a readable image"),
+])
+def test_a_malformed_pgm_is_named_with_what_is_wrong(tmp_path, data, message):
+    with pytest.raises(MapFileError) as info:
+        load_map(pgm_map(tmp_path, data))
+    assert str(info.value).startswith(f"{tmp_path / 'm.pgm'}: ")
+    assert message in str(info.value)
+
+
+def test_an_ascii_pgm_reads_as_the_binary_one(tmp_path):
+    load_ascii = load_map(pgm_map(tmp_path, b"P2\n3 1\n255\n0 205 254\n"))[0]
+    assert load_ascii.data.tolist() == [[OCCUPIED, FREE, FREE]]  # 205 → p 0.196 < 0.25: free
+
+
+def test_a_big_map_loads_cell_for_cell(tmp_path):
+    """6000 × 6000 read in blocks of rows: every block lands flipped in its place."""
+    rng = np.random.default_rng(0)
+    pixels = rng.choice(np.array([0, 205, 254], dtype=np.uint8), size=(6000, 6000))
+    Image.fromarray(pixels).save(tmp_path / "big.pgm")
+    (tmp_path / "big.yaml").write_text("image: big.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\n"
+                                       "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    grid, _ = load_map(tmp_path / "big.yaml")
+    expected = np.select([pixels == 0, pixels == 254], [OCCUPIED, FREE], UNKNOWN).astype(np.int8)[::-1]
+    assert grid.data.shape == (6000, 6000)
+    assert np.array_equal(grid.data, expected)
+
+
+def test_map_images_beyond_pillows_bomb_limit_load_up_to_the_cap(tmp_path, monkeypatch):
+    from pppbot_common import map_images
+    Image.fromarray(np.full((30, 40), 254, dtype=np.uint8)).save(tmp_path / "m.png")
+    (tmp_path / "m.yaml").write_text("image: m.png\nresolution: 1.0\norigin: [0, 0, 0]\n" + NAV2_KEYS)
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 100)  # Pillow would refuse it
+    assert load_map(tmp_path / "m.yaml")[0].data.shape == (30, 40)
+    assert Image.MAX_IMAGE_PIXELS == 100  # and its limit is left as it was
+    monkeypatch.setattr(map_images, "MAX_MAP_PIXELS", 1000)
+    with pytest.raises(MapFileError, match=r"m\.png: the image is 40 × 30 = 1200 pixels; map images may have "
+                                           r"at most 1000"):
+        load_map(tmp_path / "m.yaml")
+    monkeypatch.setattr(map_images, "MAX_MAP_PIXELS", 500)  # twice over: Pillow's own refusal, named
+    with pytest.raises(MapFileError, match=r"m\.png: the image has more than 1000 pixels; map images may have "
+                                           r"at most 500"):
+        load_map(tmp_path / "m.yaml")
+    monkeypatch.setattr(map_images, "MAX_MAP_PIXELS", 100)
+    pgm = pgm_map(tmp_path, b"P5\n20 10\n255\n" + bytes(200))
+    with pytest.raises(MapFileError, match=r"m\.pgm: the image is 20 × 10 = 200 pixels"):
+        load_map(pgm)
+
+
+@pytest.mark.parametrize("mode", ["trinary", "scale", "raw"])
+@pytest.mark.parametrize("negate", [0, 1])
+def test_the_level_table_is_nav2s_rule_for_every_level(mode, negate):
+    from pppbot_common.maps import MapMetadata, pixels_to_occupancy
+    meta = MapMetadata("m.png", 1.0, (0.0, 0.0, 0.0), MapMode(mode), bool(negate), 0.65, 0.25)
+    levels = np.arange(256, dtype=np.uint8)
+    assert np.array_equal(pixels_to_occupancy(levels, meta), pixels_to_occupancy(levels.astype(np.float64), meta))
+    wide = np.arange(0, 65536, 7, dtype=np.uint16)
+    assert np.array_equal(pixels_to_occupancy(wide, meta), pixels_to_occupancy(wide * (255.0 / 65535.0), meta))

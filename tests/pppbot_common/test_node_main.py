@@ -217,3 +217,26 @@ def test_warnings_that_are_normal_while_a_stack_comes_up_are_debug_until_settled
     late("transform", "still no transform")
     assert log.lines == [("debug", "no transform yet"), ("warning", "a malformed scan"),
                          ("warning", "no transform any more"), ("warning", "still no transform")]
+
+
+@pytest.mark.parametrize("text, message", [
+    ("map_server:\n  ros__parameters:\n    yaml_filename: [unclosed\n    x: 1\n",
+     "line 4, column 6: not valid YAML"),
+    ("map_server:\n  yaml_filename: maze\n", "line 2, column 18: key 'map_server/yaml_filename' must hold"),
+])
+def test_a_node_given_a_bad_params_file_says_so_in_one_line_and_exits_1(tmp_path, text, message):
+    params = tmp_path / "params.yaml"
+    params.write_text(text)
+    done = subprocess.run([sys.executable, "-m", "pppbot_nav.ros.map_server", "--ros-args", "--params-file",
+                           str(params)], capture_output=True, text=True, timeout=30, check=False)
+    assert done.returncode == 1
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1, done.stderr
+    assert lines[0].startswith(f"[map_server] error: {params}: {message}")
+
+
+def test_a_command_line_rcl_refuses_is_one_line_and_exit_1():
+    done = subprocess.run([sys.executable, "-m", "pppbot_nav.ros.map_server", "--ros-args", "--no-such-flag"],
+                          capture_output=True, text=True, timeout=30, check=False)
+    assert done.returncode == 1
+    assert done.stderr == "[map_server] error: unknown ROS argument(s) after --ros-args: ['--no-such-flag']\n"

@@ -12,7 +12,9 @@ leaves, the executor stops, the nodes are destroyed and the context shuts down. 
 shuts the context down under a running callback, so no node dies on its way down.
 
 A bad parameter (or any of ``fatal`` errors) at start prints one line naming it and
-exits 1; a stop by signal or shutdown exits 0.
+exits 1; so does a ``--params-file`` that is not a parameter file (checked before rcl reads
+it: :func:`pppbot_common.param_files.check_parameter_file` names the file, line and column)
+or a command line rcl refuses. A stop by signal or shutdown exits 0.
 
 SIGUSR1 prints the stack of every thread to stderr (:mod:`faulthandler`, from C, so it
 works while the main thread is stuck in a binding call): the launch sends it to a node
@@ -21,6 +23,7 @@ hang on the way down leaves its place in the log.
 """
 from __future__ import annotations
 
+import re
 import signal
 import sys
 import threading
@@ -33,12 +36,15 @@ import rclpy
 from rclpy.clock import ROSClock
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from pppbot_common.errors import PppbotError
+from pppbot_common.errors import ParameterFileError, PppbotError
+from pppbot_common.param_files import check_parameter_file, parameter_file_arguments
 from pppbot_common.process import STOP_SIGNALS, dump_stacks_on_signal
 from pppbot_common.ros.lockstep import Participant
+from pppbot_common.ros.unread_parameters import declared_names, warn_unread_parameters
 from pppbot_common.throttle import Throttle
 
 N = TypeVar("N", bound=Node)
@@ -101,7 +107,8 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str, args: list[str
     (the loop's, or 0). ``lockstep=False``: the process never takes part in lockstep (the
     simulator, which runs it)."""
     stop_requested = take_stop_signals()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    if not _init(name, args, SignalHandlerOptions.NO):
+        return 1
     nodes: list[Node] = []
     participant: Participant | None = None
     try:
@@ -114,7 +121,9 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str, args: list[str
         return 1
     executor = EventsExecutor()
     share_clock(_with_composed(nodes))
+    read_in_process = declared_names(_with_composed(nodes))
     for node in _with_composed(nodes):
+        warn_unread_parameters(node, read_in_process)
         executor.add_node(node)
     if participant is not None:
         executor.add_node(participant.node)
@@ -136,6 +145,31 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str, args: list[str
             participant.leave()
         _teardown(executor, nodes, participant, process)
     return code or 0
+
+
+def _init(name: str, args: list[str] | None, signal_handler_options: SignalHandlerOptions | None) -> bool:
+    """``rclpy.init``, after checking the command line's parameter files; False (one line said why)
+    when a file or the command line is refused."""
+    try:
+        for path in parameter_file_arguments(sys.argv if args is None else args):
+            check_parameter_file(path)
+    except ParameterFileError as exc:
+        print(f"[{name}] error: {exc}", file=sys.stderr)
+        return False
+    try:
+        rclpy.init(args=args, signal_handler_options=signal_handler_options)
+    except _rclpy.UnknownROSArgsError as exc:
+        print(f"[{name}] error: unknown ROS argument(s) after --ros-args: {exc}", file=sys.stderr)
+        return False
+    except _rclpy.RCLError as exc:  # rclpy re-exports it only from rclpy.action.server
+        print(f"[{name}] error: {rcl_error_text(exc)}", file=sys.stderr)
+        return False
+    return True
+
+
+def rcl_error_text(exc: BaseException) -> str:
+    """rcl's message without the C source locations it appends (``, at /project/src/parse.c:782``)."""
+    return re.sub(r",? at \S+\.c:\d+", "", str(exc)).strip()
 
 
 def _with_composed(nodes: Sequence[Node]) -> list[Node]:
@@ -192,7 +226,8 @@ def run_node(factory: Callable[[], N], name: str, args: list[str] | None = None,
         return run_nodes([factory], name, args, fatal=fatal)
     dump_stacks_on_signal()
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)  # rclpy's handlers take them from here
-    rclpy.init(args=args, signal_handler_options=None if signal_handlers else SignalHandlerOptions.NO)
+    if not _init(name, args, None if signal_handlers else SignalHandlerOptions.NO):
+        return 1
     try:
         node = factory()
     except fatal as exc:
