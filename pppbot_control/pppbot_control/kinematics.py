@@ -92,6 +92,11 @@ class Odometry:
         self.x, self.y, self.yaw, self.v, self.w = x, y, wrap_angle(yaw), 0.0, 0.0
         self._left = self._right = None
 
+    def carry_over(self, other: Odometry) -> None:
+        """Continue from ``other``'s pose, twist and last wheel angles (a new geometry, same robot)."""
+        self.x, self.y, self.yaw, self.v, self.w = other.x, other.y, other.yaw, other.v, other.w
+        self._left, self._right = other._left, other._right
+
     def update_from_positions(self, left: float, right: float, dt: float) -> None:
         """Integrate wheel angles (rad, cumulative); the first call only records them."""
         if self._left is None or self._right is None:

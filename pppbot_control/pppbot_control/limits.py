@@ -1,11 +1,20 @@
 """Velocity, acceleration and jerk limits of one axis, as diff_drive_controller applies them.
 
-NaN means unlimited (Jazzy's convention). Accelerating away from zero uses
-``max_acceleration`` (``max_acceleration_reverse`` when moving backwards);
-slowing towards zero uses ``max_deceleration`` (``max_deceleration_reverse``),
-each falling back to the forward value, and the deceleration limits fall back to
-the legacy ``min_acceleration`` (a negative number) and then to
-``max_acceleration``. Jerk limits bound the change of acceleration per second.
+NaN means unlimited. The signs are Jazzy's (ros2_controllers 4.x): each limit is
+the bound on the signed rate of change, so
+
+* ``max_acceleration`` ≥ 0 bounds speeding up forwards (dv/dt > 0 at v ≥ 0);
+* ``max_deceleration`` ≤ 0 bounds slowing down forwards (dv/dt < 0 at v > 0);
+* ``max_acceleration_reverse`` ≤ 0 bounds speeding up backwards (dv/dt < 0 at v ≤ 0);
+* ``max_deceleration_reverse`` ≥ 0 bounds slowing down backwards (dv/dt > 0 at v < 0).
+
+A limit left NaN falls back to its mirror: ``max_deceleration`` to the legacy
+``min_acceleration`` (Humble's, negative) and then to ``-max_acceleration``;
+``max_acceleration_reverse`` to ``-max_acceleration``; ``max_deceleration_reverse``
+to ``-max_deceleration``. A limit with the wrong sign is refused, naming it, as
+Jazzy's parameter validation refuses it (a Humble-style positive ``max_deceleration``
+is not silently read as a magnitude). Jerk limits (``max_jerk`` ≥ 0, ``min_jerk`` ≤ 0)
+bound the change of acceleration per second.
 """
 from __future__ import annotations
 
@@ -13,6 +22,10 @@ import math
 from dataclasses import dataclass
 
 NAN = math.nan
+#: Limits that bound an increase of the signed speed (or of the acceleration): > 0.
+POSITIVE = ("max_acceleration", "max_deceleration_reverse", "max_jerk")
+#: Limits that bound a decrease: < 0 (Jazzy's signs; ``min_acceleration`` is Humble's).
+NEGATIVE = ("max_deceleration", "max_acceleration_reverse", "min_acceleration", "min_jerk")
 
 
 def _first(*values: float) -> float:
@@ -43,15 +56,15 @@ class AxisLimits:
     def problems(self, axis: str) -> list[tuple[str, float, str]]:
         """What is inconsistent, as (parameter, value, rule) (empty when valid)."""
         out = []
-        for name in ("max_acceleration", "max_deceleration", "max_acceleration_reverse",
-                     "max_deceleration_reverse", "max_jerk"):
+        for name in POSITIVE:
             value = getattr(self, name)
             if not math.isnan(value) and not value > 0:
                 out.append((f"{axis}.{name}", value, "must be positive (or NaN for unlimited)"))
-        for name in ("min_acceleration", "min_jerk"):
+        for name in NEGATIVE:
             value = getattr(self, name)
             if not math.isnan(value) and not value < 0:
-                out.append((f"{axis}.{name}", value, "must be negative (or NaN for unlimited)"))
+                out.append((f"{axis}.{name}", value, "must be negative, as in Jazzy: it bounds a decrease of the "
+                                                     "signed speed (or NaN for unlimited)"))
         for name in ("max_velocity", "min_velocity"):
             if math.isinf(getattr(self, name)):
                 out.append((f"{axis}.{name}", getattr(self, name), "must be finite (or NaN for unlimited)"))
@@ -62,14 +75,13 @@ class AxisLimits:
 
     def acceleration_bounds(self, previous: float, target: float) -> tuple[float, float]:
         """(lowest, highest) allowed acceleration going from ``previous`` towards ``target``."""
-        decel = _first(self.max_deceleration, -self.min_acceleration, self.max_acceleration)
-        accel = self.max_acceleration
-        accel_rev = _first(self.max_acceleration_reverse, accel)
-        decel_rev = _first(self.max_deceleration_reverse, decel)
+        decel = _first(self.max_deceleration, self.min_acceleration, -self.max_acceleration)  # ≤ 0
+        accel = self.max_acceleration  # ≥ 0
+        accel_rev = _first(self.max_acceleration_reverse, -accel)  # ≤ 0
+        decel_rev = _first(self.max_deceleration_reverse, -decel)  # ≥ 0
         if previous > 0 or (previous == 0 and target >= 0):
-            # moving forward: speeding up is +, slowing down is -
-            return -decel, accel
-        return -accel_rev, decel_rev
+            return decel, accel  # moving forward: slowing down is -, speeding up is +
+        return accel_rev, decel_rev  # moving backward: speeding up is -, slowing down is +
 
 
 @dataclass

@@ -37,6 +37,7 @@ class ControllerPlan:
     update_rate_hz: float
     diff_drives: tuple[str, ...]
     unsupported: tuple[tuple[str, str], ...]  # (name, type)
+    broadcasters: tuple[str, ...] = ()  # the joint_state_broadcasters (the simulator's /joint_states)
 
 
 def controllers_file(robot: RobotModel) -> Path | None:
@@ -75,16 +76,18 @@ def read_plan(path: Path) -> ControllerPlan:
     rate = params.get("update_rate", 100)
     if not isinstance(rate, (int, float)) or isinstance(rate, bool) or not 0 < rate <= 10000:
         raise SpawnError(f"{path}: controller_manager update_rate = {rate!r}: must be a number in (0, 10000] Hz")
-    diff_drives, unsupported = [], []
+    diff_drives, broadcasters, unsupported = [], [], []
     for name, value in params.items():
         if not isinstance(value, dict) or "type" not in value:
             continue
         kind = str(value["type"])
         if kind == DIFF_DRIVE:
             diff_drives.append(name)
-        elif kind != JOINT_STATE_BROADCASTER:
+        elif kind == JOINT_STATE_BROADCASTER:
+            broadcasters.append(name)
+        else:
             unsupported.append((name, kind))
-    return ControllerPlan(path, float(rate), tuple(diff_drives), tuple(unsupported))
+    return ControllerPlan(path, float(rate), tuple(diff_drives), tuple(unsupported), tuple(broadcasters))
 
 
 def controller_parameters(path: Path, name: str) -> dict[str, Any]:

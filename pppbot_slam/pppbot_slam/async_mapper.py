@@ -181,6 +181,24 @@ class AsyncMapper:
         if _put_dropping_oldest(self._scans, (self.hold(), scan)):
             self.events.warn("behind", f"scan processing is {MAX_QUEUED} scans behind: dropping the oldest")
 
+    def clear_queue(self) -> int:
+        """Drop the scans waiting for the processing thread (slam_toolbox's ``clear_queue``);
+        their holds are released. Returns how many went."""
+        dropped, stop = 0, False
+        while True:
+            try:
+                item = self._scans.get_nowait()
+            except queue.Empty:
+                break
+            if item is None:
+                stop = True
+                continue
+            item[0]()
+            dropped += 1
+        if stop:
+            _put_dropping_oldest(self._scans, None)
+        return dropped
+
     def process(self, scan: ScanInput) -> KeyframeAdded | None:
         """Match one scan (the processing thread does this for each queued scan)."""
         with self.lock:

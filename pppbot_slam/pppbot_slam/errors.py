@@ -22,3 +22,7 @@ class OccupancyError(PppbotError, ValueError):
 
 class MatcherError(PppbotError, ValueError):
     """Bad matcher settings, or nothing to match against; the message names the value."""
+
+
+class SessionStartError(PppbotError, ValueError):
+    """A pose graph cannot be continued as asked (match type, start pose); the message names it."""

@@ -93,7 +93,7 @@ def test_the_slam_node_maps_the_bag_as_the_core_maps_the_log(ros_node, spawn, tm
                                                               load_benchmark) -> None:
     """slam_toolbox users map a bag: ``bag play --clock`` into the node. Its pose graph at the end
     (serialize_map) must be the core's for the same scans and odometry, keyframe for keyframe."""
-    from std_srvs.srv import Trigger
+    from slam_toolbox.srv import SerializePoseGraph
 
     from pppbot_common.ros.wait import wait_until
     from pppbot_slam.serialization import load_posegraph
@@ -114,13 +114,13 @@ def test_the_slam_node_maps_the_bag_as_the_core_maps_the_log(ros_node, spawn, tm
     log = read_carmen(log_path)
     odometry = synthesize_odometry(log.poses, (0.05, 0.05, 0.05, 0.05), np.random.default_rng(0))
     _, core, _ = carmen.run_slam(log, odometry, carmen.slam_parameters(params_file))
-    client = ros_node.create_client(Trigger, "/slam_toolbox/serialize_map")
+    client = ros_node.create_client(SerializePoseGraph, "/slam_toolbox/serialize_map")
     assert client.wait_for_service(timeout_sec=10)
 
     def serialized() -> Any:
-        future = client.call_async(Trigger.Request())
+        future = client.call_async(SerializePoseGraph.Request(filename=str(graph)))
         done = wait_until(lambda: future.result() if future.done() else None, 10, "serialize_map", node=ros_node)
-        node_map = load_posegraph(graph) if done.success else None
+        node_map = load_posegraph(graph) if done.result == done.RESULT_SUCCESS else None
         # the node maps in threads: once every scan is a keyframe and the loops are in, it is done
         return node_map if node_map and len(node_map.keyframes) == len(core.keyframes) else None
 

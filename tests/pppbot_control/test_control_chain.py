@@ -106,7 +106,7 @@ def test_one_metre_through_the_whole_chain(ros_node, chain):
     tele = publisher(ros_node, "/cmd_vel_teleop")
     odoms: list[Odometry] = []
     truths: list[Odometry] = []
-    ros_node.create_subscription(Odometry, "/odom", odoms.append, 10)
+    ros_node.create_subscription(Odometry, "/diff_drive_base_controller/odom", odoms.append, 10)
     ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
     # The previous test may leave the robot rolling: start from a standstill, like the end.
     odom0, truth0 = standstill(ros_node, tele, odoms, truths)
@@ -124,7 +124,7 @@ def test_one_metre_through_the_whole_chain(ros_node, chain):
 
 
 def test_controller_publishes_odometry_tf_and_wheel_commands(ros_node, chain):
-    (odom,) = wait_for_messages(ros_node, Odometry, "/odom", timeout_s=10)
+    (odom,) = wait_for_messages(ros_node, Odometry, "/diff_drive_base_controller/odom", timeout_s=10)
     assert (odom.header.frame_id, odom.child_frame_id) == ("odom", "base_link")
     assert odom.pose.covariance[0] == pytest.approx(0.001) and odom.pose.covariance[35] == pytest.approx(0.01)
     (cmd,) = wait_for_messages(ros_node, JointState, "/joint_commands", timeout_s=10)
@@ -142,6 +142,8 @@ def test_non_finite_command_is_dropped_with_a_warning(ros_node, chain):
 @pytest.mark.parametrize("param, message", [
     ("wheel_radius:=0.0", "parameter 'wheel_radius' = 0.0: must be a finite number in (0.0, 1000.0]"),
     ("linear.x.max_acceleration:=-1.0", "parameter 'linear.x.max_acceleration' = -1.0: must be positive"),
+    # Jazzy's signs: a Humble-style positive deceleration is refused, naming it, as Jazzy's validation does.
+    ("linear.x.max_deceleration:=2.0", "parameter 'linear.x.max_deceleration' = 2.0: must be negative"),
     ("left_wheel_names:=['']", "parameter 'left_wheel_names' = ['']: must be a non-empty list of joint names"),
 ])
 def test_bad_parameters_stop_the_controller(spawn, param, message):

@@ -35,7 +35,7 @@ def test_acceleration_ramp_reaches_target_without_overshoot():
 
 
 def test_separate_deceleration_limit():
-    limiter = SpeedLimiter(AxisLimits(max_acceleration=1.0, max_deceleration=4.0))
+    limiter = SpeedLimiter(AxisLimits(max_acceleration=1.0, max_deceleration=-4.0))  # Jazzy's sign
     run(limiter, 1.0, 200)
     down = run(limiter, 0.0, 30)
     assert down[0] == pytest.approx(1.0 - 0.04)
@@ -49,10 +49,22 @@ def test_legacy_min_acceleration_is_the_deceleration():
 
 
 def test_reverse_limits_apply_when_moving_backwards():
-    limiter = SpeedLimiter(AxisLimits(max_acceleration=1.0, max_acceleration_reverse=0.5))
+    limiter = SpeedLimiter(AxisLimits(max_acceleration=1.0, max_acceleration_reverse=-0.5))
     assert limiter.limit(-1.0, 0.1) == pytest.approx(-0.05)
     limiter.reset()
     assert limiter.limit(1.0, 0.1) == pytest.approx(0.1)
+
+
+def test_reverse_deceleration_mirrors_the_forward_one_when_unset():
+    limiter = SpeedLimiter(AxisLimits(max_acceleration=1.0, max_deceleration=-4.0))
+    run(limiter, -1.0, 200)
+    assert limiter.limit(0.0, 0.01) == pytest.approx(-1.0 + 0.04)
+
+
+def test_jazzy_signed_limits_are_valid():
+    limits = AxisLimits(max_velocity=2.0, min_velocity=-2.0, max_acceleration=1.0, max_deceleration=-2.0,
+                        max_acceleration_reverse=-1.0, max_deceleration_reverse=2.0, max_jerk=5.0, min_jerk=-5.0)
+    assert limits.problems("linear.x") == []
 
 
 def test_jerk_limits_the_change_of_acceleration():
@@ -65,6 +77,10 @@ def test_jerk_limits_the_change_of_acceleration():
 @pytest.mark.parametrize("limits, parameter", [
     (AxisLimits(max_acceleration=-1.0), "linear.x.max_acceleration"),
     (AxisLimits(min_acceleration=1.0), "linear.x.min_acceleration"),
+    (AxisLimits(max_deceleration=1.0), "linear.x.max_deceleration"),  # Humble-style positive: refused, as Jazzy
+    (AxisLimits(max_acceleration_reverse=1.0), "linear.x.max_acceleration_reverse"),
+    (AxisLimits(max_deceleration_reverse=-1.0), "linear.x.max_deceleration_reverse"),
+    (AxisLimits(min_jerk=1.0), "linear.x.min_jerk"),
     (AxisLimits(max_velocity=1.0, min_velocity=2.0), "linear.x.min_velocity"),
     (AxisLimits(max_velocity=math.inf), "linear.x.max_velocity"),
 ])

@@ -29,7 +29,7 @@ def test_odometry_is_stamped_when_the_wheels_were_measured(ros_node, spawn):
     clock = ros_node.create_publisher(Clock, "/clock", 10)
     joints = ros_node.create_publisher(JointState, "/joint_states", 10)
     odoms: list[Odometry] = []
-    ros_node.create_subscription(Odometry, "/odom", odoms.append, 10)
+    ros_node.create_subscription(Odometry, "/diff_drive_base_controller/odom", odoms.append, 10)
     wait_until(lambda: joints.get_subscription_count() and clock.get_subscription_count(), 10, "the controller")
     measured = JointState(name=["left_wheel_joint", "right_wheel_joint"], position=[1.0, 1.0], velocity=[0.0, 0.0])
     measured.header.stamp.sec, measured.header.stamp.nanosec = 9, 500_000_000

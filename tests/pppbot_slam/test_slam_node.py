@@ -6,7 +6,6 @@ reset, reload, unknown frames, getting lost)."""
 from __future__ import annotations
 
 import math
-import re
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -20,12 +19,11 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
-from rcl_interfaces.srv import SetParameters
-from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from slam_synthetic import ROOM, beam_angles, cast_ranges
-from std_srvs.srv import SetBool, Trigger
+from slam_toolbox.srv import DeserializePoseGraph, Pause, Reset, SaveMap, SerializePoseGraph
+from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -34,6 +32,7 @@ from pppbot_common.process import ChildProcess
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.wait import wait_until
+from pppbot_slam.serialization import load_posegraph
 
 pytestmark = pytest.mark.ros
 
@@ -149,11 +148,10 @@ def test_map_to_odom_is_published_and_corrects_nothing_with_exact_odometry(room:
 
 
 def test_the_pose_graph_is_shown_as_a_sphere_per_keyframe_and_a_line_per_edge(room: Room):
-    serialized = call(room.node, Trigger, "/slam_toolbox/serialize_map", Trigger.Request())
-    assert serialized.success, serialized.message
-    count = re.search(r"\((\d+) keyframes\)", serialized.message)
-    assert count, serialized.message
-    keyframes = int(count.group(1))
+    serialized = call(room.node, SerializePoseGraph, "/slam_toolbox/serialize_map",
+                      SerializePoseGraph.Request(filename=str(room.map_file)))
+    assert serialized.result == SerializePoseGraph.Response.RESULT_SUCCESS
+    keyframes = len(load_posegraph(room.map_file).keyframes)
     wait_until(lambda: room.graphs and len(room.graphs[-1].markers[0].points) == keyframes, 20, "graph markers",
                node=room.node)
     spheres, links, loops = room.graphs[-1].markers
@@ -165,30 +163,77 @@ def test_the_pose_graph_is_shown_as_a_sphere_per_keyframe_and_a_line_per_edge(ro
     assert len(links.points) == 2 * (keyframes - 1) and loops.points == []
 
 
-def test_save_reset_and_reload_the_serialized_graph_give_the_same_map(room: Room):
-    node = room.node
-    assert call(node, Trigger, "/slam_toolbox/serialize_map", Trigger.Request()).success
-    reply = call(node, Trigger, "/slam_toolbox/save_map", Trigger.Request())
-    assert reply.success, reply.message
-    saved, _ = load_map(room.map_file.with_suffix(".yaml"))
-    assert (saved.data == OCCUPIED).sum() > 100
-    assert call(node, SetBool, "/slam_toolbox/pause_new_measurements", SetBool.Request(data=True)).success
-    assert call(node, Trigger, "/slam_toolbox/reset", Trigger.Request()).success
-    empty = call(node, Trigger, "/slam_toolbox/save_map", Trigger.Request())
-    assert not empty.success and "no map yet" in empty.message
-    # Load the serialized graph back (the file name is a parameter, set at run time).
-    unset = call(node, Trigger, "/slam_toolbox/deserialize_map", Trigger.Request())
-    assert not unset.success and "map_file_name" in unset.message
-    set_reply = call(node, SetParameters, "/slam_toolbox/set_parameters", SetParameters.Request(
-        parameters=[Parameter("map_file_name", value=str(room.map_file)).to_parameter_msg()]))
-    assert set_reply.results[0].successful
-    loaded = call(node, Trigger, "/slam_toolbox/deserialize_map", Trigger.Request())
-    assert loaded.success, loaded.message
-    again = call(node, Trigger, "/slam_toolbox/save_map", Trigger.Request())
-    assert again.success, again.message
-    reloaded, _ = load_map(room.map_file.with_suffix(".yaml"))
+def save_map(room: Room, name: Path) -> int:
+    reply = call(room.node, SaveMap, "/slam_toolbox/save_map", SaveMap.Request(name=String(data=str(name))))
+    return int(reply.result)
+
+
+def keyframe_count(room: Room, name: Path) -> int:
+    reply = call(room.node, SerializePoseGraph, "/slam_toolbox/serialize_map",
+                 SerializePoseGraph.Request(filename=str(name)))
+    assert reply.result == SerializePoseGraph.Response.RESULT_SUCCESS
+    return len(load_posegraph(name).keyframes)
+
+
+def deserialize(room: Room, name: Path, match_type: int, x: float = 0.0, y: float = 0.0, theta: float = 0.0) -> None:
+    request = DeserializePoseGraph.Request(filename=str(name), match_type=match_type)
+    request.initial_pose.x, request.initial_pose.y, request.initial_pose.theta = x, y, theta
+    call(room.node, DeserializePoseGraph, "/slam_toolbox/deserialize_map", request)  # Jazzy's reply is empty
+
+
+def test_save_map_writes_the_yaml_and_pgm_the_request_names(room: Room, tmp_path: Path):
+    assert save_map(room, tmp_path / "named") == SaveMap.Response.RESULT_SUCCESS
+    saved, _ = load_map(tmp_path / "named.yaml")
+    assert (tmp_path / "named.pgm").is_file() and (saved.data == OCCUPIED).sum() > 100
+
+
+def test_save_reset_and_reload_the_serialized_graph_give_the_same_map(room: Room, tmp_path: Path):
+    graph = tmp_path / "graph"
+    keyframes = keyframe_count(room, graph)
+    assert (tmp_path / "graph.posegraph").is_file() and keyframes >= 3
+    assert save_map(room, tmp_path / "before") == SaveMap.Response.RESULT_SUCCESS
+    saved, _ = load_map(tmp_path / "before.yaml")
+    reset = call(room.node, Reset, "/slam_toolbox/reset", Reset.Request(pause_new_measurements=True))
+    assert reset.result == Reset.Response.RESULT_SUCCESS
+    assert save_map(room, tmp_path / "empty") == SaveMap.Response.RESULT_NO_MAP_RECEIEVD
+    # UNSET is refused (the log says so) and the node keeps what it had: nothing
+    deserialize(room, graph, DeserializePoseGraph.Request.UNSET)
+    room.slam.wait_for_output(r"deserialize_map: not loaded.*UNSET", 20)
+    assert save_map(room, tmp_path / "still_empty") == SaveMap.Response.RESULT_NO_MAP_RECEIEVD
+    deserialize(room, graph, DeserializePoseGraph.Request.START_AT_FIRST_NODE)
+    room.slam.wait_for_output(r"mapping on from .*graph.posegraph: \d+ keyframes, starting at \(", 20)
+    assert save_map(room, tmp_path / "after") == SaveMap.Response.RESULT_SUCCESS
+    reloaded, _ = load_map(tmp_path / "after.yaml")
     np.testing.assert_array_equal(reloaded.data, saved.data)
-    assert call(node, SetBool, "/slam_toolbox/pause_new_measurements", SetBool.Request(data=False)).success
+    # Paused by the reset: scans that would make keyframes are ignored ...
+    drive(room, 20.0, [0.0, 0.5, 1.0])
+    assert keyframe_count(room, tmp_path / "paused") == keyframes
+    # ... and Pause toggles it back: the map goes on from the loaded graph.
+    assert call(room.node, Pause, "/slam_toolbox/pause_new_measurements", Pause.Request()).status
+    room.slam.wait_for_output(r"pause_new_measurements: taking new scans", 20)
+    drive(room, 25.0, [1.0, 1.0, 1.0, 1.0])
+    wait_until(lambda: keyframe_count(room, tmp_path / "continued") > keyframes, 20, "a keyframe after the load",
+               node=room.node)
+
+
+def test_deserialize_at_a_given_pose_starts_the_new_session_there(room: Room, tmp_path: Path):
+    graph = tmp_path / "graph"
+    keyframe_count(room, graph)
+    deserialize(room, graph, DeserializePoseGraph.Request.START_AT_GIVEN_POSE, 0.5, -0.25, 0.1)
+    room.slam.wait_for_output(r"mapping on from .*graph.posegraph: \d+ keyframes, starting at \(0\.50, -0\.25, "
+                              r"0\.100\)", 20)
+    deserialize(room, graph, DeserializePoseGraph.Request.LOCALIZE_AT_POSE)
+    room.slam.wait_for_output(r"deserialize_map: not loaded.*LOCALIZE_AT_POSE", 20)
+
+
+def drive(room: Room, t0: float, xs: list[float]) -> None:
+    """Scans of the room from x (m, odometry), one every 0.2 s of sim time from ``t0``."""
+    for k, x in enumerate(xs):
+        t = t0 + 0.2 * k
+        room.tick(t)
+        room.tf.publish(TFMessage(transforms=[transform("odom", "base_link", t, x, 0.0, 0.0)]))
+        room.scans.publish(room.scan(t, cast_ranges(ROOM, np.array([x + 0.05, 0.0, 0.0])).astype(np.float32)))
+        rclpy_spin(room.node, 0.1)
 
 
 def test_a_scan_from_an_unknown_frame_is_dropped_with_a_warning_and_health_stays_ok(room: Room):

@@ -1,11 +1,16 @@
 """``diff_drive_controller``: Jazzy's diff_drive_controller (with its joint-state wiring) for pppbot.
 
-Node name ``diff_drive_base_controller``. Takes ``~/cmd_vel`` (TwistStamped, as
-Jazzy) and ``~/cmd_vel_unstamped`` (Twist, as ppp_bot's twist_mux feeds it);
-limits the command per axis; integrates odometry from the wheels (positions, or
-velocities, or the command in open loop) and publishes ``/odom`` and TF ``odom →
+Node name ``diff_drive_base_controller``. Takes ``~/cmd_vel`` (TwistStamped, Jazzy's
+default) or, with ``use_stamped_vel: false`` as ppp_bot's file sets it,
+``~/cmd_vel_unstamped`` (Twist, what ppp_bot's twist_mux feeds it). A stamped command
+older than ``cmd_vel_timeout`` when it arrives is dropped with a warning (a zero stamp
+counts as now), as Jazzy's does. It limits the command per axis (Jazzy's signs:
+:mod:`pppbot_control.limits`); integrates odometry from the wheels (positions, or
+velocities, or the command in open loop) and publishes it on ``~/odom`` and TF ``odom →
 base_link``. With no command for ``cmd_vel_timeout`` it brakes to zero within its
-deceleration limits.
+deceleration limits. A parameter set at run time takes effect without resetting the
+odometry. ``deactivate()`` (controller_manager's switch) commands the wheels to zero and
+ignores commands until ``activate()``.
 
 Two ways to run, as ros2_control has them:
 
@@ -64,7 +69,9 @@ class DiffDriveParameters:
     open_loop: bool = param(False, "integrate the command instead of wheel feedback")
     position_feedback: bool = param(True, "odometry from wheel positions (else from wheel velocities)")
     enable_odom_tf: bool = param(True, "publish odom → base frame on /tf")
-    cmd_vel_timeout: float = param(0.5, "seconds without a command before braking to zero")
+    cmd_vel_timeout: float = param(0.5, "seconds without a command before braking to zero; a stamped command "
+                                        "older than this on arrival is dropped")
+    use_stamped_vel: bool = param(True, "true: TwistStamped on ~/cmd_vel; false: Twist on ~/cmd_vel_unstamped")
     publish_limited_velocity: bool = param(False, "publish the limited command on ~/cmd_vel_out")
     publish_rate: float = param(50.0, "odometry and TF rate (Hz)")
     update_rate: float = param(100.0, "control loop rate (Hz); controller_manager's update_rate")
@@ -74,10 +81,12 @@ class DiffDriveParameters:
     linear_has_jerk_limits: bool = param(True, "legacy switch", "linear.x.has_jerk_limits")
     linear_max_velocity: float = param(NAN, "m/s; NaN = unlimited", "linear.x.max_velocity")
     linear_min_velocity: float = param(NAN, "m/s; NaN = unlimited", "linear.x.min_velocity")
-    linear_max_acceleration: float = param(NAN, "m/s²", "linear.x.max_acceleration")
-    linear_max_deceleration: float = param(NAN, "m/s²", "linear.x.max_deceleration")
-    linear_max_acceleration_reverse: float = param(NAN, "m/s²", "linear.x.max_acceleration_reverse")
-    linear_max_deceleration_reverse: float = param(NAN, "m/s²", "linear.x.max_deceleration_reverse")
+    linear_max_acceleration: float = param(NAN, "m/s², > 0: speeding up forwards", "linear.x.max_acceleration")
+    linear_max_deceleration: float = param(NAN, "m/s², < 0: slowing down forwards", "linear.x.max_deceleration")
+    linear_max_acceleration_reverse: float = param(NAN, "m/s², < 0: speeding up backwards",
+        "linear.x.max_acceleration_reverse")
+    linear_max_deceleration_reverse: float = param(NAN, "m/s², > 0: slowing down backwards",
+        "linear.x.max_deceleration_reverse")
     linear_min_acceleration: float = param(NAN, "m/s², negative (legacy)", "linear.x.min_acceleration")
     linear_max_jerk: float = param(NAN, "m/s³", "linear.x.max_jerk")
     linear_min_jerk: float = param(NAN, "m/s³, negative", "linear.x.min_jerk")
@@ -86,10 +95,12 @@ class DiffDriveParameters:
     angular_has_jerk_limits: bool = param(True, "legacy switch", "angular.z.has_jerk_limits")
     angular_max_velocity: float = param(NAN, "rad/s; NaN = unlimited", "angular.z.max_velocity")
     angular_min_velocity: float = param(NAN, "rad/s; NaN = unlimited", "angular.z.min_velocity")
-    angular_max_acceleration: float = param(NAN, "rad/s²", "angular.z.max_acceleration")
-    angular_max_deceleration: float = param(NAN, "rad/s²", "angular.z.max_deceleration")
-    angular_max_acceleration_reverse: float = param(NAN, "rad/s²", "angular.z.max_acceleration_reverse")
-    angular_max_deceleration_reverse: float = param(NAN, "rad/s²", "angular.z.max_deceleration_reverse")
+    angular_max_acceleration: float = param(NAN, "rad/s², > 0: speeding up forwards", "angular.z.max_acceleration")
+    angular_max_deceleration: float = param(NAN, "rad/s², < 0: slowing down forwards", "angular.z.max_deceleration")
+    angular_max_acceleration_reverse: float = param(NAN, "rad/s², < 0: speeding up backwards",
+        "angular.z.max_acceleration_reverse")
+    angular_max_deceleration_reverse: float = param(NAN, "rad/s², > 0: slowing down backwards",
+        "angular.z.max_deceleration_reverse")
     angular_min_acceleration: float = param(NAN, "rad/s², negative (legacy)", "angular.z.min_acceleration")
     angular_max_jerk: float = param(NAN, "rad/s³", "angular.z.max_jerk")
     angular_min_jerk: float = param(NAN, "rad/s³, negative", "angular.z.min_jerk")
@@ -161,17 +172,19 @@ class DiffDriveController(Node):
         self.params = declare_parameters(self, DiffDriveParameters)
         self._configure(self.params)
         self.hosted = hosted
-        self.cmd_sub = self.create_subscription(TwistStamped, "~/cmd_vel",
-                                                guarded(self, self.on_cmd_vel, "TwistStamped"), 10)
-        self.cmd_unstamped_sub = self.create_subscription(Twist, "~/cmd_vel_unstamped",
-                                                          guarded(self, self.on_cmd_vel_unstamped, "Twist"), 10)
+        self.active = True  # controller_manager's state: inactive ignores commands and is not updated
+        if self.params.use_stamped_vel:
+            self.cmd_sub = self.create_subscription(TwistStamped, "~/cmd_vel",
+                                                    guarded(self, self.on_cmd_vel, "TwistStamped"), 10)
+        else:
+            self.cmd_sub = self.create_subscription(Twist, "~/cmd_vel_unstamped",
+                                                    guarded(self, self.on_cmd_vel_unstamped, "Twist"), 10)
         count_deliveries(self, self.cmd_sub)  # in lockstep a step waits for the commands sent before it
-        count_deliveries(self, self.cmd_unstamped_sub)
         if hosted is None:
             count_deliveries(self, self.create_subscription(JointState, "/joint_states",
                                                             guarded(self, self.on_joint_states, "JointState"), 10))
             self.command_pub = self.create_publisher(JointState, "/joint_commands", 10)
-        self.odom_pub = self.create_publisher(OdometryMsg, "odom", 10)
+        self.odom_pub = self.create_publisher(OdometryMsg, "~/odom", 10)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
         self.limited_pub = self.create_publisher(TwistStamped, "~/cmd_vel_out", 10)
         self._warn = Warnings(self, WARN_PERIOD_S)
@@ -190,16 +203,22 @@ class DiffDriveController(Node):
             f"wheels {self.params.left_wheel_names} / {self.params.right_wheel_names}, separation "
             f"{self.params.wheel_separation} m, radius {self.params.wheel_radius} m; odometry "
             f"{'open loop' if self.params.open_loop else 'from wheel ' + feedback}"
-            f"; {'in the simulator, ' if hosted else ''}{self.params.update_rate:g} Hz")
+            f"; {'in the simulator, ' if hosted else ''}{self.params.update_rate:g} Hz; commands on "
+            f"{self.cmd_sub.topic_name}, odometry on {self.odom_pub.topic_name}")
 
     def _configure(self, params: DiffDriveParameters) -> None:
+        """Geometry, limiters, frames and message templates from ``params``; the odometry (pose,
+        last wheel angles), the limiters' last command and the velocity windows carry over."""
         self.geometry = params.geometry()
+        old = getattr(self, "odometry", None)
         self.odometry = Odometry(self.geometry)
-        self.linear = SpeedLimiter(params.limits("linear"))
-        self.angular = SpeedLimiter(params.limits("angular"))
+        if old is not None:
+            self.odometry.carry_over(old)
+        self.linear = _carry_over(getattr(self, "linear", None), SpeedLimiter(params.limits("linear")))
+        self.angular = _carry_over(getattr(self, "angular", None), SpeedLimiter(params.limits("angular")))
         window = params.velocity_rolling_window_size
-        self._v_window: deque[float] = deque(maxlen=window)
-        self._w_window: deque[float] = deque(maxlen=window)
+        self._v_window: deque[float] = deque(getattr(self, "_v_window", ()), maxlen=window)
+        self._w_window: deque[float] = deque(getattr(self, "_w_window", ()), maxlen=window)
         namespace = self.get_namespace().strip("/")
         prefix = params.tf_frame_prefix or (namespace if params.tf_frame_prefix_enable else "")
         self.prefix = f"{prefix.rstrip('/')}/" if prefix else ""
@@ -225,6 +244,8 @@ class DiffDriveController(Node):
 
     def _apply(self, params: DiffDriveParameters) -> None:
         rate_changed = params.update_rate != self.params.update_rate
+        if params.use_stamped_vel != self.params.use_stamped_vel:
+            self.get_logger().warning("use_stamped_vel applies at the next start of the controller")
         self.params = params
         self._configure(params)
         if rate_changed and self.timer is not None:
@@ -233,15 +254,30 @@ class DiffDriveController(Node):
 
     # ------------------------------------------------------------------ inputs
 
-    def _set_target(self, v: float, w: float) -> None:
+    def _set_target(self, v: float, w: float, stamp_ns: int | None = None) -> None:
+        """Store a command; ``stamp_ns`` is when it was made (None: now)."""
+        if not self.active:
+            return
         if not (math.isfinite(v) and math.isfinite(w)):
             self._warn("nonfinite", f"dropping a velocity command with non-finite values (v={v}, w={w})")
             return
         self._target = (v, w)
-        self._target_ns = self.get_clock().now().nanoseconds
+        self._target_ns = self.get_clock().now().nanoseconds if stamp_ns is None else stamp_ns
 
     def on_cmd_vel(self, msg: TwistStamped) -> None:
-        self._set_target(msg.twist.linear.x, msg.twist.angular.z)
+        """A stamped command: its age counts from its stamp (zero: now); one already older than
+        ``cmd_vel_timeout`` is dropped, as Jazzy's diff_drive_controller drops it."""
+        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        if stamp_ns == 0:
+            self._warn("zero_stamp", "a TwistStamped with a zero stamp counts as made now")
+            stamp_ns = self.get_clock().now().nanoseconds
+        age_s = (self.get_clock().now().nanoseconds - stamp_ns) * 1e-9
+        timeout_s = self.params.cmd_vel_timeout
+        if timeout_s > 0 and age_s >= timeout_s:
+            self._warn("stale", f"dropping a velocity command stamped {stamp_ns * 1e-9:.6f} s: {age_s:.4f} s old, "
+                                f"older than cmd_vel_timeout {timeout_s:g} s")
+            return
+        self._set_target(msg.twist.linear.x, msg.twist.angular.z, stamp_ns)
 
     def on_cmd_vel_unstamped(self, msg: Twist) -> None:
         self._set_target(msg.linear.x, msg.angular.z)
@@ -281,9 +317,26 @@ class DiffDriveController(Node):
         self._wheels = sample
         self._wheels_stamp_ns = stamp_ns
 
+    # ------------------------------------------------------------- lifecycle
+    def deactivate(self) -> None:
+        """controller_manager's deactivate: wheels commanded to zero, commands ignored, no updates."""
+        self.active = False
+        self._target, self._target_ns = (0.0, 0.0), None
+        self.linear.reset()
+        self.angular.reset()
+        self._send_wheels(0.0, 0.0, self.get_clock().now().nanoseconds)
+
+    def activate(self) -> None:
+        """controller_manager's activate: commands count again, from a standstill; odometry goes on."""
+        self._target, self._target_ns = (0.0, 0.0), None
+        self._last_update_ns = None
+        self.active = True
+
     # ------------------------------------------------------------------- loop
     def update(self) -> None:
         """One control period: read the wheels (hosted), limit the command, send it, integrate odometry."""
+        if not self.active:
+            return
         if self.hosted is not None:
             names, positions, velocities, stamp_ns = self.hosted.read()
             self._store_wheels(names, positions, velocities, stamp_ns)
@@ -301,15 +354,8 @@ class DiffDriveController(Node):
             v, w = 0.0, 0.0
         v = self.linear.limit(v, dt)
         w = self.angular.limit(w, dt)
-        left, right = self.geometry.wheel_speeds(v, w)
+        self._send_wheels(*self.geometry.wheel_speeds(v, w), now_ns)
         p = self.params
-        speeds = [left] * len(p.left_wheel_names) + [right] * len(p.right_wheel_names)
-        if self.hosted is not None:
-            self.hosted.write(dict(zip(self._command_names, speeds, strict=True)))
-        else:
-            command = JointState(name=self._command_names, velocity=speeds)
-            command.header.stamp = _time_msg(now_ns)
-            self.command_pub.publish(command)
         if p.publish_limited_velocity:
             out = TwistStamped()
             out.header.stamp = _time_msg(now_ns)
@@ -331,6 +377,17 @@ class DiffDriveController(Node):
             # transform at its own stamp when the rates divide).
             period_ns = max(1, round(1e9 / p.publish_rate))
             self._next_odom_publish_ns = (now_ns // period_ns + 1) * period_ns
+
+    def _send_wheels(self, left: float, right: float, now_ns: int) -> None:
+        """Wheel speeds (rad/s) to every left and right wheel: directly when hosted, else on /joint_commands."""
+        p = self.params
+        speeds = [left] * len(p.left_wheel_names) + [right] * len(p.right_wheel_names)
+        if self.hosted is not None:
+            self.hosted.write(dict(zip(self._command_names, speeds, strict=True)))
+        else:
+            command = JointState(name=self._command_names, velocity=speeds)
+            command.header.stamp = _time_msg(now_ns)
+            self.command_pub.publish(command)
 
     def _integrate(self, v: float, w: float, dt: float) -> None:
         if self.params.open_loop:
@@ -359,6 +416,13 @@ class DiffDriveController(Node):
                 **stamp_values(stamp_ns, "transforms.0.header.stamp"), "transforms.0.transform.translation.x": o.x,
                 "transforms.0.transform.translation.y": o.y, "transforms.0.transform.rotation.z": qz,
                 "transforms.0.transform.rotation.w": qw}))
+
+
+def _carry_over(old: SpeedLimiter | None, new: SpeedLimiter) -> SpeedLimiter:
+    """``new`` (new limits) starting from ``old``'s last command and acceleration."""
+    if old is not None:
+        new.previous, new.previous_acceleration = old.previous, old.previous_acceleration
+    return new
 
 
 def _time_msg(ns: int) -> TimeMsg:

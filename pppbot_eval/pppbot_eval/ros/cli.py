@@ -283,7 +283,8 @@ class Run:
         writes): the graph, keyframes and scans, for a later session or an offline replay. A
         by-product: when it cannot be written the run says so and goes on (no ``posegraph``)."""
         progress.message("serializing the pose graph")
-        future = node.serialize()
+        path = self.out / "map.posegraph"
+        future = node.serialize(str(path.with_suffix("").resolve()))
         deadline = time.monotonic() + FINAL_MAP_TIMEOUT_S
         while not future.done():
             node.spin_pending(0.05)
@@ -295,11 +296,11 @@ class Run:
                                  f"{FINAL_MAP_TIMEOUT_S:.0f} s")
                 return
         reply = future.result()
-        path = self.out / "map.posegraph"  # where map_save_name (slam_params) has it written
-        if not reply.success:
-            progress.message(f"no pose graph: /slam_toolbox/serialize_map failed: {reply.message}")
-        elif not path.is_file():  # another slam node answered, or its parameters were not ours
-            progress.message(f"no pose graph: the slam node answered '{reply.message}' but {path} is not there")
+        if reply.result != reply.RESULT_SUCCESS:
+            progress.message(f"no pose graph: /slam_toolbox/serialize_map could not write {path} "
+                             f"(result {reply.result}; the slam node's log says why)")
+        elif not path.is_file():  # another slam node answered
+            progress.message(f"no pose graph: the slam node answered but {path} is not there")
         else:
             self.recording.posegraph = str(path.resolve())
 

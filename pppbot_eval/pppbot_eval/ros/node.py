@@ -23,7 +23,8 @@ from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
-from std_srvs.srv import Empty, Trigger
+from slam_toolbox.srv import SerializePoseGraph
+from std_srvs.srv import Empty
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.ros.action_client import ActionClient
@@ -103,7 +104,7 @@ class EvalNode:
             self.navigator = ActionClient(node, NavigateToPose, "navigate_to_pose")
             self.servers["the navigate_to_pose server"] = self.navigator.server_is_ready
         if wants_map:
-            self.serialize_client = node.create_client(Trigger, "/slam_toolbox/serialize_map")
+            self.serialize_client = node.create_client(SerializePoseGraph, "/slam_toolbox/serialize_map")
             self.servers["the serialize_map service"] = self.serialize_client.service_is_ready
         if self.participant is not None:
             for what, ready in self.servers.items():
@@ -177,9 +178,10 @@ class EvalNode:
         """Ask AMCL to spread its particles over the map."""
         return self.global_client.call_async(Empty.Request())
 
-    def serialize(self) -> Future:
-        """Ask the slam node to write its pose graph (``/slam_toolbox/serialize_map``)."""
-        return self.serialize_client.call_async(Trigger.Request())
+    def serialize(self, filename: str) -> Future:
+        """Ask the slam node to write its pose graph to ``filename`` + ``.posegraph``
+        (``/slam_toolbox/serialize_map``, slam_toolbox/srv/SerializePoseGraph)."""
+        return self.serialize_client.call_async(SerializePoseGraph.Request(filename=filename))
 
     # --------------------------------------------------------------- records
     def _on_truth(self, msg: Odometry) -> None:

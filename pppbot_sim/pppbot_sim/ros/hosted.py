@@ -15,7 +15,9 @@ reading and commanding the wheels directly. A controller in the simulator's proc
 misses a period, whatever the machine is doing; that is what ppp_bot's controllers get in
 Gazebo. ``diff_drive_controller/DiffDriveController`` is hosted;
 ``joint_state_broadcaster/JointStateBroadcaster`` is the simulator's own ``/joint_states``;
-any other type is named in a warning and left out.
+any other type is named in a warning and left out. A ``controller_manager`` node
+(:mod:`pppbot_control.ros.controller_manager`) lists and switches them, as gz_ros2_control's
+controller manager does.
 """
 from __future__ import annotations
 
@@ -26,6 +28,7 @@ from rclpy.node import Node
 from rclpy.time import Time
 
 from pppbot_sim.controllers import ControllerPlan
+from pppbot_sim.errors import SpawnError
 from pppbot_sim.runner import PhysicsRunner
 
 
@@ -53,7 +56,32 @@ def drive_clock(node: Node, t_ns: int) -> None:
         clock.set_ros_time_override(Time(nanoseconds=t_ns, clock_type=ClockType.ROS_TIME))
 
 
-def controller_arguments(plan: ControllerPlan) -> list[str]:
-    """The node arguments a hosted controller starts with: its parameters from the file, and
-    no /clock subscription (its clock is set by the simulator)."""
-    return ["--ros-args", "--params-file", str(plan.parameters_file), "-p", "use_sim_time:=false"]
+def controller_arguments(plan: ControllerPlan, remappings: Sequence[str] = ()) -> list[str]:
+    """The node arguments a hosted controller (and the controller manager) starts with: its
+    parameters from the file, no /clock subscription (its clock is set by the simulator), and
+    ``remappings`` (``from:=to``, as gz_ros2_control's ``<ros><remapping>`` elements give them).
+
+    Raises:
+        SpawnError: a remapping without ``:=``.
+    """
+    args = ["--ros-args", "--params-file", str(plan.parameters_file), "-p", "use_sim_time:=false"]
+    for rule in remappings:
+        source, sep, target = rule.partition(":=")
+        if not (source and sep and target):
+            raise SpawnError(f"controller remapping '{rule}': must read from:=to")
+        args += ["-r", rule]
+    return args
+
+
+class HostedBroadcaster:
+    """joint_state_broadcaster in the simulator: the simulator's own /joint_states, published
+    while it is active (controller_manager switches it)."""
+
+    def __init__(self) -> None:
+        self.active = True
+
+    def activate(self) -> None:
+        self.active = True
+
+    def deactivate(self) -> None:
+        self.active = False

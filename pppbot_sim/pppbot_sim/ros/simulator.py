@@ -10,7 +10,10 @@ upright: :mod:`pppbot_common.upright`); takes wheel velocity commands on
 clock: it never uses sim time itself, it makes it.
 
 Controllers named by the robot's gz_ros2_control plugin run in this process, ticked by
-the physics loop (:mod:`pppbot_sim.ros.hosted`). With ``lockstep:=true`` time advances
+the physics loop, with a ``controller_manager`` node that lists and switches them
+(:mod:`pppbot_sim.ros.hosted`). ``controller_remappings`` are applied to those nodes, as
+gz_ros2_control applies its plugin's ``<ros><remapping>``: by default
+``/diff_drive_base_controller/odom:=/odom``, where ppp_bot's odometry is read. With ``lockstep:=true`` time advances
 only when the lockstep participants have done their work (:mod:`pppbot_sim.ros.coordinator`);
 ``real_time_factor`` then caps the speed (0: as fast as they allow). Without lockstep it
 runs against the wall clock at ``real_time_factor``.
@@ -41,16 +44,23 @@ from pppbot_common.ros.node_main import Process, Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values, vector
 from pppbot_common.upright import MAX_TILT_RAD, MIN_HEIGHT_M, UPRIGHT_STATUS, UprightWatch
+from pppbot_control.ros.controller_manager import (
+    DIFF_DRIVE,
+    JOINT_STATE_BROADCASTER,
+    ControllerManager,
+    HardwareInterfaces,
+    LoadedController,
+)
 from pppbot_control.ros.diff_drive_controller import DiffDriveController
 from pppbot_description.errors import DescriptionError
-from pppbot_description.urdf_model import parse_urdf
+from pppbot_description.urdf_model import RobotModel, parse_urdf
 from pppbot_description.xacro_model import read_robot_description
-from pppbot_sim.controllers import controllers_file, read_plan
+from pppbot_sim.controllers import ControllerPlan, controllers_file, read_plan
 from pppbot_sim.errors import SpawnError, WorldError
 from pppbot_sim.mj_build import SpawnPose
 from pppbot_sim.ros.coordinator import Coordinator
 from pppbot_sim.ros.gz_diff_drive import host_diff_drives
-from pppbot_sim.ros.hosted import SimWheels, controller_arguments, drive_clock
+from pppbot_sim.ros.hosted import HostedBroadcaster, SimWheels, controller_arguments, drive_clock
 from pppbot_sim.runner import (
     ClockTick,
     CollisionReading,
@@ -99,6 +109,10 @@ class SimulatorParameters:
     wheel_slip: float = param(0.0, "standard deviation of each wheel's slip fraction as its encoder reports it "
                                    "(0.02 = 2 %); makes odometry drift; 0 = exact encoders")
     wheel_slip_correlation: float = param(2.0, "how long a wheel's slip persists (sim s)")
+    controller_remappings: list = param(
+        ["/diff_drive_base_controller/odom:=/odom"],
+        "remappings (from:=to) of the hosted controllers and the controller manager, as gz_ros2_control's "
+        "<ros><remapping>; [''] for none (odometry then on Jazzy's /diff_drive_base_controller/odom)")
     command_timeout: float = param(0.5, "wheels stop when no command came for this long (sim s); 0 = never")
     joint_states_rate: float = param(100.0, "/joint_states rate (Hz, sim time)")
     ground_truth_rate: float = param(50.0, "/ground_truth/odom rate (Hz, sim time)")
@@ -131,6 +145,11 @@ class SimulatorParameters:
             raise ParameterError("robot_name", self.robot_name, "must be a non-empty name without '/'")
         if not all(isinstance(n, str) for n in self.lockstep_participants):
             raise ParameterError("lockstep_participants", self.lockstep_participants, "must be a list of names")
+        for rule in self.controller_remappings:
+            source, sep, target = str(rule).partition(":=")
+            if rule and not (source and sep and target):
+                raise ParameterError("controller_remappings", self.controller_remappings,
+                                     f"each must read from:=to ('{rule}' does not)")
 
     def expected_participants(self) -> list[str]:
         return [n for n in self.lockstep_participants if n]
@@ -199,8 +218,11 @@ class Simulator(Node):
                                         lambda text: self.get_logger().info(text)) if p.lockstep else None)
         if self.coordinator is not None:
             count_deliveries(self, self._commands_sub)  # an external controller's wheel commands
+        self.broadcasters: list[HostedBroadcaster] = []
+        self.controller_manager: ControllerManager | None = None
         self.controllers = self._host_controllers(robot)
-        self.composed_nodes = list(self.controllers)
+        self.composed_nodes: list[Node] = [*self.controllers,
+                                           *([self.controller_manager] if self.controller_manager else [])]
         self.diff_drives = host_diff_drives(self, self.sim, p.cmd_vel_topic, self.runner.command)
         for hosted in self.diff_drives:
             d = hosted.spec
@@ -211,8 +233,9 @@ class Simulator(Node):
                 + f" at {d.odom_rate_hz:g} Hz")
         on_valid_update(self, lambda: self.params, self._apply)
 
-    def _host_controllers(self, robot: Any) -> list[DiffDriveController]:
-        """The controllers of the robot's gz_ros2_control plugin, in this process (see :mod:`.hosted`)."""
+    def _host_controllers(self, robot: RobotModel) -> list[DiffDriveController]:
+        """The controllers of the robot's gz_ros2_control plugin, in this process, and the
+        controller manager over them (see :mod:`.hosted`)."""
         path = controllers_file(robot)
         if path is None:
             return []
@@ -220,11 +243,13 @@ class Simulator(Node):
         for name, kind in plan.unsupported:
             self.get_logger().warning(f"controller '{name}' of type {kind} (in {path}) is not supported: left out")
         wheels = SimWheels(self.runner)
-        controllers = [DiffDriveController(hosted=wheels, cli_args=controller_arguments(plan))
+        arguments = controller_arguments(plan, [r for r in self.params.controller_remappings if r])
+        controllers = [DiffDriveController(hosted=wheels, cli_args=arguments)
                        if name == "diff_drive_base_controller" else
-                       DiffDriveController(hosted=wheels, cli_args=[*controller_arguments(plan), "-r",
-                                                                    f"__node:={name}"])
+                       DiffDriveController(hosted=wheels, cli_args=[*arguments, "-r", f"__node:={name}"])
                        for name in plan.diff_drives]
+        self.broadcasters = [HostedBroadcaster() for _ in plan.broadcasters]
+        self.controller_manager = _controller_manager(plan, robot, controllers, self.broadcasters, arguments)
         if controllers:
             self.sim.schedule.add(Event(EventKind.CONTROL), plan.update_rate_hz)
             names = ", ".join(c.get_name() for c in controllers)
@@ -232,14 +257,15 @@ class Simulator(Node):
         return controllers
 
     def destroy_node(self) -> None:
-        for controller in self.controllers:
-            controller.destroy_node()
+        for node in self.composed_nodes:
+            node.destroy_node()
         super().destroy_node()
 
     def _apply(self, params: SimulatorParameters) -> None:
         """Runtime updates: real_time_factor, command_timeout, step_count take effect now."""
-        fixed = ("world", "robot_description", "robot_name", "cmd_vel_topic", "x", "y", "z", "yaw", "seed",
-                 "wheel_slip", "wheel_slip_correlation", "lockstep", "lockstep_participants",
+        fixed = ("world", "robot_description", "robot_name", "cmd_vel_topic", "controller_remappings",
+                 "x", "y", "z", "yaw", "seed", "wheel_slip", "wheel_slip_correlation", "lockstep",
+                 "lockstep_participants",
                  "joint_states_rate", "ground_truth_rate", "clock_rate")
         changed = [n for n in fixed if getattr(params, n) != getattr(self.params, n)]
         if changed:
@@ -404,6 +430,8 @@ class Simulator(Node):
             self.clock_pub.publish(self._clock_wire.serialize(stamp_values(now_ns, "clock")))
 
     def _publish_joints(self, reading: JointStatesReading) -> None:
+        if self.broadcasters and not any(b.active for b in self.broadcasters):
+            return  # every joint_state_broadcaster deactivated (controller_manager's switch_controller)
         state = reading.state
         self.joint_pub.publish(self._joints_wire.serialize({**stamp_values(_ns(reading.stamp_s)),
                                                        "position": state.positions, "velocity": state.velocities,
@@ -541,6 +569,30 @@ class Simulator(Node):
                      + (f", a step repeated {c.repeats} time(s)" if c.repeats else ""))
         self.get_logger().info(f"real-time factor {sim_s / wall_s:.1f}x ({target}), t = {self.sim.time_s:.1f} s"
                                + extra)
+
+
+def _controller_manager(plan: ControllerPlan, robot: RobotModel, controllers: Sequence[DiffDriveController],
+                        broadcasters: Sequence[HostedBroadcaster], arguments: list[str]) -> ControllerManager:
+    """The controller manager over the hosted diff drives and joint_state_broadcasters, with the
+    robot's ``<ros2_control>`` interfaces."""
+    joints = robot.control_joints.values()
+    hardware = HardwareInterfaces(command=tuple(f"{j.name}/{i}" for j in joints for i in j.command_interfaces),
+                                  state=tuple(f"{j.name}/{i}" for j in joints for i in j.state_interfaces))
+    loaded = []
+    for controller in controllers:
+        p = controller.params
+        wheels = [*p.left_wheel_names, *p.right_wheel_names]
+        feedback = "position" if p.position_feedback else "velocity"
+        loaded.append(LoadedController(controller.get_name(), DIFF_DRIVE, controller, plan.update_rate_hz,
+                                       command_interfaces=tuple(f"{w}/velocity" for w in wheels),
+                                       state_interfaces=() if p.open_loop else tuple(f"{w}/{feedback}"
+                                                                                     for w in wheels)))
+    for name, broadcaster in zip(plan.broadcasters, broadcasters, strict=True):
+        loaded.append(LoadedController(name, JOINT_STATE_BROADCASTER, broadcaster, plan.update_rate_hz,
+                                       state_interfaces=hardware.state))
+    declared = {**dict.fromkeys(plan.diff_drives, DIFF_DRIVE),
+                **dict.fromkeys(plan.broadcasters, JOINT_STATE_BROADCASTER), **dict(plan.unsupported)}
+    return ControllerManager(loaded, hardware, declared, cli_args=arguments)
 
 
 def _spin(nodes: Sequence[Node], process: Process) -> int | None:

@@ -8,12 +8,16 @@ every ``map_update_interval`` in a thread of its own, so mapping never blocks sc
 ``transform_timeout`` as slam_toolbox does, the pose graph as markers
 (``~/graph_visualization``) and its health on ``/diagnostics`` (diagnostic_msgs, with the
 map: match responses, closures accepted, rejected and undone, the largest correction, and
-whether it is lost — also warned about in the log when it happens). Services (std_srvs; file names are parameters, which
-``ros2 param set`` may change at run time): ``~/save_map`` (Nav2 YAML + PGM at
-``map_save_name``), ``~/serialize_map`` (the pose graph with its scans,
-``map_save_name`` + ``.posegraph``), ``~/deserialize_map`` (load ``map_file_name``
-and map on from it; also done at startup when it is set), ``~/pause_new_measurements``
-(SetBool) and ``~/reset``. The algorithm is :mod:`pppbot_slam.mapper`.
+whether it is lost — also warned about in the log when it happens). Services, with
+slam_toolbox's own types (``slam_toolbox/srv/*``) and names: ``~/save_map`` (SaveMap: Nav2
+YAML + PGM at the request's ``name``), ``~/serialize_map`` (SerializePoseGraph: the pose
+graph with its scans at ``filename`` + ``.posegraph``), ``~/deserialize_map``
+(DeserializePoseGraph: load ``filename`` and map on from it, starting at the first keyframe
+or at ``initial_pose``; also done at startup when ``map_file_name`` is set),
+``~/pause_new_measurements`` (Pause: toggles taking scans), ``~/clear_queue`` (ClearQueue:
+drops the scans waiting) and ``~/reset`` (Reset). An empty file name falls back to the
+parameter ``map_save_name`` (saving) or ``map_file_name`` (loading). The algorithm is
+:mod:`pppbot_slam.mapper`.
 
 The work is :class:`pppbot_slam.async_mapper.AsyncMapper`'s three threads besides the
 executor's (scan processing, loop closing, map building); scans never wait for a loop
@@ -37,8 +41,8 @@ from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rclpy.duration import Duration
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
+from slam_toolbox.srv import ClearQueue, DeserializePoseGraph, Pause, Reset, SaveMap, SerializePoseGraph
 from std_msgs.msg import ColorRGBA, Header
-from std_srvs.srv import SetBool, Trigger
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -54,11 +58,13 @@ from pppbot_common.ros.qos import LATCHED, SENSOR
 from pppbot_common.ros.scan_odometry import ScanOdometry
 from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_slam.async_mapper import AsyncMapper, AsyncMapperEvents, KeyframeAdded, LoopsMerged, ScanInput
+from pppbot_slam.errors import SessionStartError
 from pppbot_slam.mapper import LOST_KEYFRAMES, Mapper, MapperError, MapperSettings
 from pppbot_slam.matcher import MatcherError, MatcherSettings
 from pppbot_slam.occupancy import OccupancyError, ScanRays
 from pppbot_slam.pose_graph import Edge
 from pppbot_slam.serialization import PoseGraphFileError, load_posegraph, posegraph_path, save_posegraph
+from pppbot_slam.session_start import check_start_pose, start_from_parameters, start_from_request
 
 WARN_PERIOD_S = 5.0
 
@@ -72,10 +78,12 @@ class SlamParameters:
     mode: str = param("mapping", "mapping (localization with a map is AMCL's job here)")
     map_file_name: str = param("", "a pose graph (.posegraph) to map on from, loaded at startup and by "
                                    "~/deserialize_map")
-    map_start_pose: list[float] = param([0.0, 0.0, 0.0], "where the robot starts in a loaded pose graph (x, y, yaw), "
-                                                 "unless map_start_at_dock")
-    map_start_at_dock: bool = param(True, "the robot starts at the loaded pose graph's first keyframe")
-    map_save_name: str = param("", "where ~/save_map and ~/serialize_map write (no extension); default maps/map")
+    map_start_pose: list[float] = param([], "where the robot starts in the pose graph loaded at startup "
+                                            "[x, y, yaw]; when given it wins over map_start_at_dock")
+    map_start_at_dock: bool = param(True, "without map_start_pose: start at the loaded pose graph's first "
+                                          "keyframe (false: at the map origin)")
+    map_save_name: str = param("", "where ~/save_map and ~/serialize_map write when the request names no file "
+                                   "(no extension); default maps/map")
     resolution: float = param(0.05, "map cell size (m)")
     max_laser_range: float = param(20.0, "beams are used up to this range (m)")
     minimum_travel_distance: float = param(0.5, "travel between keyframes (m)")
@@ -133,17 +141,19 @@ class SlamParameters:
         for name in ("odom_frame", "map_frame", "base_frame", "scan_topic"):
             if not getattr(self, name):
                 raise ParameterError(name, getattr(self, name), "must not be empty")
-        start = self.map_start_pose
-        if len(start) != 3 or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in start):
-            raise ParameterError("map_start_pose", start, "must be three finite numbers [x, y, yaw]")
+        try:
+            check_start_pose(self.map_start_pose)
+        except SessionStartError as exc:
+            raise ParameterError("map_start_pose", self.map_start_pose, "must be three finite numbers [x, y, yaw], "
+                                 "or empty (not given)") from exc
         try:
             self.mapper_settings()
         except (MapperError, MatcherError, OccupancyError) as exc:
             raise ParameterError("mapper", "", str(exc)) from exc
 
     def start_pose(self) -> np.ndarray | None:
-        """Where a loaded pose graph's new run starts (None: at its first keyframe)."""
-        return None if self.map_start_at_dock else np.array(self.map_start_pose, dtype=float)
+        """Where the pose graph loaded at startup has the robot start (None: at its first keyframe)."""
+        return start_from_parameters(self.map_start_pose, self.map_start_at_dock)
 
     def save_name(self) -> Path:
         return Path(self.map_save_name).expanduser() if self.map_save_name else maps_directory() / "map"
@@ -200,7 +210,7 @@ class Slam(Node):
         self._warn = Warnings(self, WARN_PERIOD_S, settling=("transform",))
         events = AsyncMapperEvents(keyframe=self._on_keyframe, loops=self._on_loops, map_built=self._on_map,
                                    warn=self._warn)
-        first = self._load(p.map_file_name) if p.map_file_name else Mapper(p.mapper_settings())
+        first = self._load(p.map_file_name, p.start_pose()) if p.map_file_name else Mapper(p.mapper_settings())
         self.mapping = AsyncMapper(first, events, hold=hold, map_frame=p.map_frame)
         self.scans = ScanOdometry(self, p.odom_frame, p.base_frame, self._queue, self._warn, p.tf_buffer_duration)
         self.map_pub = self.create_publisher(OccupancyGridMsg, "/map", LATCHED)
@@ -211,11 +221,12 @@ class Slam(Node):
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         on_scan = guarded(self, at_step(self, self.on_scan), "LaserScan")
         require_match(self, self.create_subscription(LaserScan, p.scan_topic, on_scan, SENSOR))
-        self.create_service(Trigger, "~/save_map", self._save_map)
-        self.create_service(Trigger, "~/serialize_map", self._serialize)
-        self.create_service(Trigger, "~/deserialize_map", self._deserialize)
-        self.create_service(SetBool, "~/pause_new_measurements", self._pause)
-        self.create_service(Trigger, "~/reset", self._reset)
+        self.create_service(SaveMap, "~/save_map", self._save_map)
+        self.create_service(SerializePoseGraph, "~/serialize_map", self._serialize)
+        self.create_service(DeserializePoseGraph, "~/deserialize_map", self._deserialize)
+        self.create_service(Pause, "~/pause_new_measurements", self._pause)
+        self.create_service(ClearQueue, "~/clear_queue", self._clear_queue)
+        self.create_service(Reset, "~/reset", self._reset)
         # map → odom is stamped ahead (transform_timeout): nobody waits for each one.
         create_timer(self, p.transform_publish_period, self._publish_transform, wakes=False)
         create_timer(self, p.map_update_interval, self.mapping.request_map)
@@ -227,14 +238,15 @@ class Slam(Node):
         self.params = params
         self.scans.odom_frame, self.scans.base_frame = params.odom_frame, params.base_frame
 
-    def _load(self, name: str) -> Mapper:
-        """A saved pose graph to map on from, the robot starting where the parameters say.
+    def _load(self, name: str, start_pose: np.ndarray | None) -> Mapper:
+        """A saved pose graph to map on from, the robot starting at ``start_pose`` (None: at its
+        first keyframe).
 
         Raises:
             PoseGraphFileError: the file is missing or bad (the message names it).
         """
         mapper = load_posegraph(name, self.params.mapper_settings())
-        mapper.start_session(self.params.start_pose())
+        mapper.start_session(start_pose)
         start = mapper.predict(np.zeros(3))  # the new session's first keyframe goes here
         self.get_logger().info(f"mapping on from {posegraph_path(name)}: {len(mapper.keyframes)} keyframes, "
                                f"starting at ({start[0]:.2f}, {start[1]:.2f}, {start[2]:.3f})")
@@ -349,51 +361,78 @@ class Slam(Node):
         self.graph_pub.publish(graph_markers(poses, edges, self.params.map_frame, stamp))
 
     # -------------------------------------------------------------- services
-    def _save_map(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+    def _save_map(self, request: SaveMap.Request, response: SaveMap.Response) -> SaveMap.Response:
+        """The map as map_saver writes it: ``<name>.yaml`` + ``<name>.pgm``."""
         grid = self.mapping.build_map()
         if grid is None:
-            response.success, response.message = False, "no map yet: no scan has been processed"
+            self.get_logger().error("save_map: no map yet, no scan has been processed")
+            response.result = SaveMap.Response.RESULT_NO_MAP_RECEIEVD
             return response
-        path = self.params.save_name()
+        path = Path(request.name.data).expanduser() if request.name.data else self.params.save_name()
         try:
             yaml_path = save_map(grid, path)
         except (MapFileError, OSError) as exc:
-            response.success, response.message = False, f"could not save the map to {path}: {exc}"
+            self.get_logger().error(f"save_map: could not save the map to {path}: {exc}")
+            response.result = SaveMap.Response.RESULT_UNDEFINED_FAILURE
             return response
-        response.success, response.message = True, f"saved {yaml_path}"
+        self.get_logger().info(f"save_map: saved {yaml_path}")
+        response.result = SaveMap.Response.RESULT_SUCCESS
         return response
 
-    def _serialize(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+    def _serialize(self, request: SerializePoseGraph.Request,
+                   response: SerializePoseGraph.Response) -> SerializePoseGraph.Response:
+        """The pose graph with its scans at ``<filename>.posegraph`` (pppbot's format)."""
         snapshot = self.mapping.read(Mapper.snapshot)  # written outside the lock: scans go on
+        name = Path(request.filename).expanduser() if request.filename else self.params.save_name()
         try:
-            path = save_posegraph(snapshot, self.params.save_name())
+            path = save_posegraph(snapshot, name)
         except PoseGraphFileError as exc:
-            response.success, response.message = False, str(exc)
+            self.get_logger().error(f"serialize_map: {exc}")
+            response.result = SerializePoseGraph.Response.RESULT_FAILED_TO_WRITE_FILE
             return response
-        response.success, response.message = True, f"saved {path} ({len(snapshot.keyframes)} keyframes)"
+        self.get_logger().info(f"serialize_map: saved {path} ({len(snapshot.keyframes)} keyframes)")
+        response.result = SerializePoseGraph.Response.RESULT_SUCCESS
         return response
 
-    def _deserialize(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        if not self.params.map_file_name:
-            response.success, response.message = False, "set the parameter map_file_name to the pose graph to load"
-            return response
+    def _deserialize(self, request: DeserializePoseGraph.Request,
+                     response: DeserializePoseGraph.Response) -> DeserializePoseGraph.Response:
+        """Load ``filename`` and map on from it. The reply is empty (as in Jazzy's slam_toolbox):
+        a refusal is in the log, and the running map is kept."""
+        name = request.filename or self.params.map_file_name
+        pose = request.initial_pose
         try:
-            mapper = self._load(self.params.map_file_name)
-        except PoseGraphFileError as exc:
-            response.success, response.message = False, str(exc)
+            if not name:
+                raise SessionStartError("no filename in the request and no map_file_name parameter")
+            start = start_from_request(request.match_type, (pose.x, pose.y, pose.theta))
+            mapper = self._load(name, start)
+        except (SessionStartError, PoseGraphFileError) as exc:
+            self.get_logger().error(f"deserialize_map: not loaded, mapping goes on as it was: {exc}")
             return response
         self.mapping.replace(mapper)
-        response.success, response.message = True, f"mapping on from {posegraph_path(self.params.map_file_name)}"
         return response
 
-    def _pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
-        self.paused = bool(request.data)
-        response.success, response.message = True, "paused" if self.paused else "processing scans"
+    def _pause(self, request: Pause.Request, response: Pause.Response) -> Pause.Response:
+        """Toggle taking new scans (slam_toolbox's Pause is a toggle)."""
+        self.paused = not self.paused
+        self.get_logger().info("pause_new_measurements: " + ("paused, new scans are ignored" if self.paused
+                                                              else "taking new scans"))
+        response.status = True
         return response
 
-    def _reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+    def _clear_queue(self, request: ClearQueue.Request, response: ClearQueue.Response) -> ClearQueue.Response:
+        """Drop the scans waiting to be matched."""
+        dropped = self.mapping.clear_queue()
+        self.get_logger().info(f"clear_queue: dropped {dropped} waiting scan(s)")
+        response.status = True
+        return response
+
+    def _reset(self, request: Reset.Request, response: Reset.Response) -> Reset.Response:
+        """Forget the map and the pose graph; pause new scans when asked (a set, not a toggle)."""
         self.mapping.replace(Mapper(self.params.mapper_settings()))
-        response.success, response.message = True, "the map and pose graph are cleared"
+        self.paused = bool(request.pause_new_measurements)
+        self.get_logger().info("reset: the map and pose graph are cleared" + (", new scans paused" if self.paused
+                                                                               else ""))
+        response.result = Reset.Response.RESULT_SUCCESS
         return response
 
     def destroy_node(self) -> None:
