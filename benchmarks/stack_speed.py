@@ -36,12 +36,13 @@ from pathlib import Path
 from typing import Any
 
 from pppbot_common.dds_isolation import isolate_dds
+from pppbot_nav.lifecycle import NAVIGATION_NODES
 
 ROOT = Path(__file__).resolve().parent.parent
 PPPBOT = str(ROOT / "pppbot")
 TICKS = os.sysconf("SC_CLK_TCK")
 #: The navigation nodes' processes: composed (launch_sim's default) or each its own.
-NAV_NODES = ("navigation", "planner_server", "controller_server", "bt_navigator", "lifecycle_manager_navigation")
+NAV_NODES = ("navigation", *NAVIGATION_NODES, "lifecycle_manager_navigation")
 TARGETS = {"mapping_rtf": 10.0, "navigation_rtf": 5.0, "nav_nodes_driving_1x_pct": 25.0,
            "nav_nodes_idle_1x_pct": 5.0, "bringup_idle_1x_pct": 30.0, "navigation_rss_mb": 600.0,
            "navigation_pss_mb": 600.0, "nav_nodes_idle_lockstep_1x_pct": 5.0, "bringup_idle_lockstep_1x_pct": 30.0,

@@ -27,8 +27,10 @@ from pppbot_viz.viewer import ViewerKind
 from pppbot_bringup.paths import config_directory, maps_directory
 from pppbot_bringup.robot import PPP_BOT, RobotFacts, adapt_parameters
 from pppbot_bringup.supervisor import NodeSpec, ReadyCheck
+from pppbot_common.errors import ParameterFileError
 from pppbot_common.launch_args import Argument, ArgumentError, parse_assignments
-from pppbot_nav.lifecycle import LOCALIZATION_NODES, NAVIGATION_NODES
+from pppbot_common.param_files import check_parameter_file
+from pppbot_nav.lifecycle import LOCALIZATION_NODES, command_remaps, navigation_nodes
 
 LOG_LEVELS = ("debug", "info", "warn", "error", "fatal")
 #: the simulator's largest ``wheel_slip`` (pppbot_sim.wheel_slip.MAX_SLIP_STDDEV)
@@ -57,17 +59,29 @@ def _arg(default: Any, description: str, choices: tuple[str, ...] = ()) -> Any:
 class LaunchArgs:
     """``launch_sim``'s arguments (``name:=value``), typed; :data:`ARGUMENTS` is made from them."""
 
-    world: str = _arg("cones", "world name (worlds/<name>.sdf) or path to an SDF or MJCF file")
+    world: str = _arg("cones", "world name (worlds/<name>.sdf) or path to an SDF or MJCF file (ppp_bot's name "
+                               "for it, world_name:=, works too)")
     localization: bool = _arg(False, "localize on a saved map (map_server + AMCL) instead of mapping (SLAM)")
     map: str = _arg("", "map YAML for localization; default maps/<world>.yaml")
     use_slam: bool = _arg(True, "with localization:=false, map with the SLAM node (false: drive on odometry only)")
-    navigation: NavigationMode = _arg(NavigationMode.AUTO, "planner_server, controller_server and navigator "
-                                                           "(auto: with localization:=true)",
+    navigation: NavigationMode = _arg(NavigationMode.AUTO, "Nav2's navigation servers: planner, controller, "
+                                                           "behaviours, bt_navigator, waypoints (auto: with "
+                                                           "localization:=true)",
                                       tuple(m.value for m in NavigationMode))
+    use_velocity_smoother: bool = _arg(True, "the velocity_smoother between the controller and twist_mux, as in "
+                                             "Nav2's bringup (false: leave it out)")
+    use_collision_monitor: bool = _arg(True, "the collision_monitor between the velocity_smoother and twist_mux: "
+                                             "stops the robot short of what the lidar sees in its way (false: "
+                                             "leave it out)")
     use_composition: bool = _arg(True, "map_server and amcl in one process (localization), the navigation nodes "
                                        "in another (navigation), as Nav2's bringup composes its servers "
                                        "(false: a process each)")
     slam_params_file: str = _arg("", "the slam node's parameters; default config/mapper_params_online_async.yaml")
+    params_file: str = _arg("", "Nav2's parameters for localization and navigation (Nav2's bringup argument); "
+                                "default config/nav2_params.yaml")
+    twist_mux_params: str = _arg("", "twist_mux's parameters; default config/twist_mux.yaml")
+    controllers_file: str = _arg("", "the ros2_control controllers the robot's gz_ros2_control plugin loads (its "
+                                     "xacro's controllers_file argument); default config/my_controllers.yaml")
     description: str = _arg("", "the robot: a .urdf or .xacro file, by path or package://pkg/path (default: "
                                 "ppp_bot's robot.urdf.xacro)")
     xacro_args: str = _arg("", "the description's xacro arguments, 'name:=value name:=value' (e.g. "
@@ -107,7 +121,7 @@ class LaunchArgs:
         Raises:
             ArgumentError: a malformed item, an unknown or repeated name, or a bad value.
         """
-        return cls.from_values(parse_assignments(argv, ARGUMENTS))
+        return cls.from_values(parse_assignments(with_aliases(argv), ARGUMENTS))
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> LaunchArgs:
@@ -147,6 +161,9 @@ class LaunchArgs:
                                     "are not set): leave it out, or run where a desktop is")
         if self.record and self.bag_path and Path(self.bag_path).exists():
             raise ArgumentError(f"bag_path:={self.bag_path}: exists already; a bag is never overwritten")
+        for name in PARAMETER_FILES:  # every file given, whether this launch reads it or not
+            if getattr(self, name):
+                parameter_file(getattr(self, name), Path(), name)
 
     def stop_timeouts(self) -> tuple[float, float]:
         """(seconds after SIGINT, seconds after SIGTERM) before the launch escalates.
@@ -182,6 +199,28 @@ class Probes(Protocol):
 
     def lifecycle_active(self, node: str) -> Callable[[], bool]:
         """True once lifecycle node ``node`` says it is active."""
+
+
+@dataclass(frozen=True)
+class Endpoints:
+    """What a navigation node has once it is up, as its own process: ``description`` says it."""
+
+    description: str
+    action_servers: tuple[str, ...] = ()
+    subscribes: tuple[str, ...] = ()
+
+
+def _serving(action: str) -> Endpoints:
+    return Endpoints(f"its {action} action server", action_servers=(f"/{action}",))
+
+
+#: Each node of lifecycle_manager_navigation's, and how its readiness shows.
+NAVIGATION_ENDPOINTS = {
+    "controller_server": _serving("follow_path"), "smoother_server": _serving("smooth_path"),
+    "planner_server": _serving("compute_path_to_pose"), "behavior_server": _serving("spin"),
+    "velocity_smoother": Endpoints("its /cmd_vel_nav subscription", subscribes=("/cmd_vel_nav",)),
+    "collision_monitor": Endpoints("its /cmd_vel_smoothed subscription", subscribes=("/cmd_vel_smoothed",)),
+    "bt_navigator": _serving("navigate_to_pose"), "waypoint_follower": _serving("follow_waypoints")}
 
 
 @dataclass(frozen=True)
@@ -277,10 +316,55 @@ def ros_args(log_level: str, params: dict[str, Any] | None = None, params_file: 
     return args
 
 
-def controllers_file() -> Path:
-    """ppp_bot's controller parameters: the robot's gz_ros2_control plugin points at them, and the
-    simulator runs those controllers in its process."""
-    return config_directory() / "my_controllers.yaml"
+def controllers_file(given: str = "") -> Path:
+    """The controller parameters the robot's gz_ros2_control plugin points at (the simulator runs
+    those controllers in its process): ``given`` (``controllers_file:=``), else ppp_bot's.
+
+    Raises:
+        ArgumentError: a given file that is missing or not a ROS 2 parameter file.
+    """
+    return parameter_file(given, config_directory() / "my_controllers.yaml", "controllers_file")
+
+
+def parameter_file(given: str, default: Path, argument: str) -> Path:
+    """The parameter file ``argument:=given`` names (``default`` when empty), checked before anything
+    starts: it exists and is a ROS 2 parameter file (:func:`pppbot_common.param_files.check_parameter_file`).
+
+    Raises:
+        ArgumentError: naming the argument, the file and, for bad YAML, the line and column.
+    """
+    path = Path(given) if given else default
+    if not path.is_file():
+        raise ArgumentError(f"{argument}:={path}: no such file")
+    try:
+        check_parameter_file(path)
+    except ParameterFileError as exc:
+        raise ArgumentError(f"{argument}:={exc}") from exc
+    return path
+
+
+#: The arguments that name ROS 2 parameter files.
+PARAMETER_FILES = ("params_file", "slam_params_file", "twist_mux_params", "controllers_file")
+
+#: ppp_bot's launch argument names that name one of launch_sim's (its launch_sim.launch.py's).
+ALIASES = {"world_name": "world"}
+
+
+def with_aliases(argv: Sequence[str]) -> list[str]:
+    """``argv`` with ppp_bot's argument names (:data:`ALIASES`) as launch_sim's.
+
+    Raises:
+        ArgumentError: an alias given together with the argument it names.
+    """
+    names = [item.partition(":=")[0] for item in argv]
+    out = []
+    for item, name in zip(argv, names, strict=True):
+        target = ALIASES.get(name)
+        if target is not None and target in names:
+            raise ArgumentError(f"{name}:= and {target}:= are the same argument (ppp_bot's name and "
+                                f"launch_sim's): give one")
+        out.append(item if target is None else f"{target}{item[len(name):]}")
+    return out
 
 
 def adapted_file(path: Path, robot: RobotFacts, directory: Path, files: dict[Path, str], info: list[str]) -> Path:
@@ -333,7 +417,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
         return ({"lockstep": True, "lockstep_name": name},
                 ReadyCheck(f"{description} (joined lockstep)", probes.joined(name), timeout_s=check.timeout_s))
 
-    mux_config = config / "twist_mux.yaml"
+    mux_config = parameter_file(args.twist_mux_params, config / "twist_mux.yaml", "twist_mux_params")
     mux_params, mux_ready = participant("twist_mux", "its inputs", ReadyCheck("its inputs", probes.endpoints(
         "twist_mux", publishes=(robot.command_topic,), subscribes=twist_mux_inputs(mux_config))))
     # A participant too: its wheel transforms are on /tf, which the data path counts.
@@ -370,7 +454,8 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
         if not map_file.is_file():
             raise ArgumentError(f"localization:=true needs a map; {map_file} does not exist "
                                 f"(save one while mapping, or give map:=path/to/map.yaml)")
-        nav2_params = adapted_file(config / "nav2_params.yaml", robot, urdf_file.parent, files, start_info)
+        nav2_params = adapted_file(parameter_file(args.params_file, config / "nav2_params.yaml", "params_file"),
+                                   robot, urdf_file.parent, files, start_info)
         # AMCL starts where the robot was spawned (the shipped maps' frame is the world's, the
         # spawn pose of a map made with the default spawn); RViz's 2D Pose Estimate moves it.
         # The launch's seed seeds AMCL's particles too: one seed makes the whole run repeatable.
@@ -404,9 +489,8 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
             nodes.append(manager_spec("lifecycle_manager_localization", LOCALIZATION_NODES, nav2_params, localized))
         start_info.append(f"localizing on {map_file}")
     elif args.use_slam:
-        slam_params = Path(args.slam_params_file or config / "mapper_params_online_async.yaml")
-        if not slam_params.is_file():
-            raise ArgumentError(f"slam_params_file: {slam_params} does not exist")
+        slam_params = parameter_file(args.slam_params_file, config / "mapper_params_online_async.yaml",
+                                     "slam_params_file")
         slam_params = adapted_file(slam_params, robot, urdf_file.parent, files, start_info)
         # Ready once it has mapped its first scan: the map frame is where the robot was then, so
         # nothing should drive it before (eval relies on map = spawn pose). In lockstep the first
@@ -422,31 +506,37 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
     if args.navigation.enabled(args.localization):
         if localizer is None:
             raise ArgumentError("navigation:=true needs a map frame: localization:=true or use_slam:=true")
-        nav2_params = adapted_file(config / "nav2_params.yaml", robot, urdf_file.parent, files, start_info)
-        servers = {"planner_server": "/compute_path_to_pose", "controller_server": "/follow_path",
-                   "behavior_server": "/spin", "bt_navigator": "/navigate_to_pose"}
-        # Up once lifecycle_manager_navigation has them all active (bt_navigator last), as
-        # BasicNavigator.waitUntilNav2Active() sees it; in lockstep, once joined as well.
-        active = ReadyCheck("bt_navigator active", probes.lifecycle_active("bt_navigator"))
+        nav2_params = adapted_file(parameter_file(args.params_file, config / "nav2_params.yaml", "params_file"),
+                                   robot, urdf_file.parent, files, start_info)
+        without = tuple(name for name, use in (("velocity_smoother", args.use_velocity_smoother),
+                                               ("collision_monitor", args.use_collision_monitor)) if not use)
+        managed = navigation_nodes(without)
+        remaps = command_remaps(without)
+        # Up once lifecycle_manager_navigation has them all active (the last one last), as
+        # BasicNavigator.waitUntilNav2Active() sees bt_navigator; in lockstep, once joined as well.
+        active = ReadyCheck(f"{managed[-1]} active", probes.lifecycle_active(managed[-1]))
         if args.use_composition:
             extra, check = participant("navigation", "navigation", active)
             lockstep_joined = check.probe
             check = ReadyCheck(check.description if lockstep else active.description,
                                lambda: active.probe() and lockstep_joined())
-            nodes.append(NodeSpec("navigation", [resolve("pppbot_nav", "navigation"), *ros_args(
-                level, extra, params_file=nav2_params)], after=(localizer,), required=True, pppbot_node=True,
-                ready=check))
+            leave_out = [arg for name in without for arg in ("--without", name)]
+            nodes.append(NodeSpec("navigation", [resolve("pppbot_nav", "navigation"), *leave_out, *ros_args(
+                level, extra, params_file=nav2_params, remaps=remaps)], after=(localizer,), required=True,
+                pppbot_node=True, ready=check))
         else:
             joins = []
-            for name, action in servers.items():
-                serving = ReadyCheck(f"its {action[1:]} action server",
-                                     probes.endpoints(name, action_servers=(action,)))
+            for name in managed:
+                endpoints = NAVIGATION_ENDPOINTS[name]
+                serving = ReadyCheck(endpoints.description, probes.endpoints(
+                    name, action_servers=endpoints.action_servers, subscribes=endpoints.subscribes))
                 extra, joined = participant(name, name, serving)
                 joins.append(joined.probe)
+                own = {old: new for old, new in remaps.items() if old.startswith(f"{name}:")}
                 nodes.append(NodeSpec(name, [resolve("pppbot_nav", name), *ros_args(
-                    level, extra, params_file=nav2_params)], after=(localizer,), required=True, pppbot_node=True,
-                    ready=serving))
-            nodes.append(manager_spec("lifecycle_manager_navigation", NAVIGATION_NODES, nav2_params, ReadyCheck(
+                    level, extra, params_file=nav2_params, remaps=own)], after=(localizer,), required=True,
+                    pppbot_node=True, ready=serving))
+            nodes.append(manager_spec("lifecycle_manager_navigation", managed, nav2_params, ReadyCheck(
                 active.description + (" (joined lockstep)" if lockstep else ""),
                 lambda: active.probe() and all(j() for j in joins))))
         start_info.append("navigating: send goals with RViz's 2D Goal Pose, ./pppbot nav goto X Y YAW, "

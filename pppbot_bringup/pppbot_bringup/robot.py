@@ -211,4 +211,10 @@ def adapt_parameters(document: object, robot: RobotFacts) -> list[str]:
         document.setdefault("bt_navigator", {}).setdefault("ros__parameters", {})["robot_base_frame"] = \
             robot.navigation_base_frame
         changes.append(f"navigator robot_base_frame → {robot.navigation_base_frame}")
+    monitor = document.get("collision_monitor") if isinstance(document, dict) else None
+    monitored = monitor.get("ros__parameters") if isinstance(monitor, dict) else None
+    if isinstance(monitored, dict) and monitored.get("base_frame_id") == "base_link" \
+            and robot.navigation_base_frame != "base_link":
+        monitored["base_frame_id"] = robot.navigation_base_frame  # its zones are around the navigation base
+        changes.append(f"collision_monitor base_frame_id: base_link → {robot.navigation_base_frame}")
     return sorted(set(changes))

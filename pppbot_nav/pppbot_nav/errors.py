@@ -48,3 +48,38 @@ class MapLoadError(MapFileError):
 class LifecycleError(PppbotError, ValueError):
     """A lifecycle manager cannot do what was asked (bad node_names, an unknown command); the
     message names the value and what is allowed."""
+
+
+class VelocitySmootherError(PppbotError, ValueError):
+    """The velocity smoother's limits are not usable (a vector not of three finite numbers, an
+    acceleration below zero, a deceleration above it, ...); the message names the value and what is
+    allowed, and ``parameter`` the setting at fault."""
+
+    def __init__(self, message: str, parameter: str | None = None) -> None:
+        super().__init__(message)
+        self.parameter = parameter
+
+
+class CollisionMonitorError(PppbotError, ValueError):
+    """A collision monitor zone or source cannot be built as asked (malformed points, an unknown
+    action or shape, a ratio out of range); the message names the value and what is allowed, and
+    ``parameter`` the setting at fault (relative to the zone: ``points``, ``action_type``)."""
+
+    def __init__(self, message: str, parameter: str | None = None) -> None:
+        super().__init__(message)
+        self.parameter = parameter
+
+
+class WaypointError(PppbotError, ValueError):
+    """A follow_waypoints request or a waypoint task executor cannot be carried out as asked (no
+    poses, a goal_index out of range, an unknown plugin type); the message names the value and
+    what is allowed."""
+
+
+class SmootherError(PppbotError, ValueError):
+    """A path cannot be smoothed as asked (an unknown smoother or plugin type, an empty or non-finite
+    path); the message names the value and what is allowed."""
+
+
+class SmootherTimedOut(PppbotError, RuntimeError):
+    """Smoothing took longer than the time it was given (Nav2's SmootherTimedOut)."""

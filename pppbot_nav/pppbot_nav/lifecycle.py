@@ -10,15 +10,49 @@ stops at the first node that fails.
 """
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 from enum import IntEnum
 
 from pppbot_nav.errors import LifecycleError
 
 #: The lifecycle nodes of Nav2's bringup, in start order: lifecycle_manager_localization's
-#: and lifecycle_manager_navigation's ``node_names``.
+#: and lifecycle_manager_navigation's ``node_names`` (Jazzy's, without docking_server).
 LOCALIZATION_NODES = ("map_server", "amcl")
-NAVIGATION_NODES = ("planner_server", "controller_server", "behavior_server", "bt_navigator")
+NAVIGATION_NODES = ("controller_server", "smoother_server", "planner_server", "behavior_server", "velocity_smoother",
+                    "collision_monitor", "bt_navigator", "waypoint_follower")
+#: The nodes between the controller and twist_mux, which a bringup may leave out.
+VELOCITY_CHAIN = ("velocity_smoother", "collision_monitor")
+
+
+def navigation_nodes(without: Collection[str] = ()) -> tuple[str, ...]:
+    """:data:`NAVIGATION_NODES` but ``without`` (nodes of :data:`VELOCITY_CHAIN`).
+
+    Raises:
+        LifecycleError: a name that is not one of :data:`VELOCITY_CHAIN`.
+    """
+    unknown = sorted(set(without) - set(VELOCITY_CHAIN))
+    if unknown:
+        raise LifecycleError(f"cannot leave out {', '.join(unknown)}: only {' and '.join(VELOCITY_CHAIN)} may be")
+    return tuple(name for name in NAVIGATION_NODES if name not in without)
+
+
+def command_remaps(without: Collection[str] = ()) -> dict[str, str]:
+    """Node-scoped remappings that chain the velocity commands as Jazzy's bringup does:
+    controller_server and behavior_server → ``cmd_vel_nav`` → velocity_smoother →
+    ``cmd_vel_smoothed`` → collision_monitor → ``cmd_vel`` (twist_mux's navigation input).
+    A node left out is bridged: what would have gone to it goes to the next."""
+    smoother, monitor = (name not in without for name in VELOCITY_CHAIN)
+    after_smoother = "cmd_vel_smoothed" if monitor else "cmd_vel"
+    source = "cmd_vel_nav" if smoother else after_smoother
+    remaps = {}
+    if source != "cmd_vel":
+        remaps = {"controller_server:cmd_vel": source, "behavior_server:cmd_vel": source}
+    if smoother:
+        remaps["velocity_smoother:cmd_vel"] = "cmd_vel_nav"
+        if not monitor:
+            remaps["velocity_smoother:cmd_vel_smoothed"] = "cmd_vel"
+    return remaps
 
 
 class Command(IntEnum):

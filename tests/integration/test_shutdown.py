@@ -18,6 +18,8 @@ from typing import Any
 
 import pytest
 
+from pppbot_nav.lifecycle import NAVIGATION_NODES
+
 ROOT = Path(__file__).resolve().parents[2]
 PPPBOT = str(ROOT / "pppbot")
 RUNS = 20
@@ -29,8 +31,8 @@ ESCALATION = ("sigterm_timeout:=20", "sigkill_timeout:=10")
 #: composed, and the navigation nodes (the default), or each its own (``use_composition:=false``,
 #: every fourth run).
 NODES = ("simulator", "robot_state_publisher", "twist_mux", "localization", "navigation")
-SEPARATE_NODES = (*NODES[:3], "map_server", "amcl", "lifecycle_manager_localization", "planner_server",
-                  "controller_server", "bt_navigator", "lifecycle_manager_navigation")
+SEPARATE_NODES = (*NODES[:3], "map_server", "amcl", "lifecycle_manager_localization", *NAVIGATION_NODES,
+                  "lifecycle_manager_navigation")
 
 
 def _stop_moment(run: int) -> str:

@@ -76,6 +76,10 @@ def test_show_args_lists_every_argument_with_its_default():
     (["localization:=true", "map:=/nowhere/map.yaml"],
      "localization:=true needs a map; /nowhere/map.yaml does not exist"),
     (["sigkill_timeout:=-1"], "sigkill_timeout:=-1: must be a positive number of seconds"),
+    (["world_name:=maze", "world:=room"], "world_name:= and world:= are the same argument"),
+    (["world_name:=mars"], "unknown world 'mars'"),
+    (["controllers_file:=/nowhere/controllers.yaml"], "controllers_file:=/nowhere/controllers.yaml: no such file"),
+    (["twist_mux_params:=/nowhere/twist_mux.yaml"], "twist_mux_params:=/nowhere/twist_mux.yaml: no such file"),
 ])
 def test_launch_refuses_bad_input_before_starting_anything(argv, message):
     result = subprocess.run([PPPBOT, "launch_sim", *argv], capture_output=True, text=True, timeout=60,
@@ -83,6 +87,30 @@ def test_launch_refuses_bad_input_before_starting_anything(argv, message):
     assert result.returncode == 2
     assert message in result.stderr
     assert "process started" not in result.stdout
+
+
+def test_a_parameter_file_that_is_not_valid_yaml_is_refused_with_its_line(tmp_path):
+    broken = tmp_path / "nav2_params.yaml"
+    broken.write_text("amcl:\n  ros__parameters:\n    alpha1: [0.2, 0.2\n    alpha2: 0.2\n")
+    for argument in ("params_file", "slam_params_file", "twist_mux_params", "controllers_file"):
+        result = subprocess.run([PPPBOT, "launch_sim", f"{argument}:={broken}", "localization:=true",
+                                 "world:=room"], capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
+        assert result.returncode == 2, argument
+        assert f"{argument}:={broken}: line " in result.stderr, result.stderr
+        assert "Traceback" not in result.stderr and "process started" not in result.stdout
+
+
+def test_ppp_bots_argument_names_and_files_are_taken(tmp_path):
+    assert values("world_name:=room").world == "room"
+    assert values("use_rviz:=False", "localization:=True").localization is True
+    nav2 = tmp_path / "my_nav2_params.yaml"
+    nav2.write_text((ROOT / "config" / "nav2_params.yaml").read_text())
+    mux = tmp_path / "my_twist_mux.yaml"
+    mux.write_text((ROOT / "config" / "twist_mux.yaml").read_text())
+    nodes = {n.name: " ".join(n.cmd) for n in fake_plan("localization:=true", f"params_file:={nav2}",
+                                                         f"twist_mux_params:={mux}")[0].nodes}
+    assert f"--params-file {nav2}" in nodes["localization"] and f"--params-file {nav2}" in nodes["navigation"]
+    assert f"--params-file {mux}" in nodes["twist_mux"]
 
 
 def test_stop_timeouts_are_ros2_launchs_and_default_to_5_s():
@@ -217,17 +245,25 @@ def test_localization_serves_the_worlds_map_and_starts_amcl_at_the_spawn_pose_in
     assert manager.ready.description == "a first /amcl_pose"
     assert by_name["planner_server"].after == ("lifecycle_manager_localization",)
     assert ("/amcl_pose", "geometry_msgs/msg/PoseWithCovarianceStamped", True) in probes
-    # Each navigation server up once it serves its action; navigation once bt_navigator is active.
+    # Each navigation server up once it serves its action, the velocity chain once it listens;
+    # navigation once the last node (waypoint_follower, after bt_navigator) is active.
     assert {name: asked["action_servers"] for name, asked in probes.endpoints_asked.items()
             if asked["action_servers"]} == {"planner_server": ("/compute_path_to_pose",),
                                             "controller_server": ("/follow_path",),
+                                            "smoother_server": ("/smooth_path",),
                                             "behavior_server": ("/spin",),
-                                            "bt_navigator": ("/navigate_to_pose",)}
+                                            "bt_navigator": ("/navigate_to_pose",),
+                                            "waypoint_follower": ("/follow_waypoints",)}
+    assert probes.endpoints_asked["collision_monitor"]["subscribes"] == ("/cmd_vel_smoothed",)
     assert by_name["bt_navigator"].ready.description == "its navigate_to_pose action server"
     nav_manager = by_name["lifecycle_manager_navigation"]
     assert f"node_names:={list(NAVIGATION_NODES)}" in nav_manager.cmd
     assert nav_manager.after == NAVIGATION_NODES
-    assert nav_manager.ready.description == "bt_navigator active" and probes.lifecycle_asked == ["bt_navigator"]
+    assert nav_manager.ready.description == "waypoint_follower active"
+    assert probes.lifecycle_asked == ["waypoint_follower"]
+    # The velocity chain of Jazzy's bringup, by node-scoped remappings.
+    assert "controller_server:cmd_vel:=cmd_vel_nav" in by_name["controller_server"].cmd
+    assert "velocity_smoother:cmd_vel:=cmd_vel_nav" in by_name["velocity_smoother"].cmd
     other = {n.name: n for n in fake_plan("localization:=true", f"map:={ROOT / 'maps' / 'room.yaml'}")[0].nodes}
     assert f"yaml_filename:={ROOT / 'maps' / 'room.yaml'}" in " ".join(other["localization"].cmd)
 
@@ -260,17 +296,43 @@ def test_navigation_is_one_composed_process_unless_use_composition_is_false():
     assert nav.cmd[0] == "/bin/pppbot_nav/navigation" and nav.after == ("localization",) and nav.required
     assert "lockstep_name:=navigation" in nav.cmd and "nav2_params.yaml" in " ".join(nav.cmd)
     assert not {"planner_server", "controller_server", "bt_navigator"} & composed.keys()
-    assert nav.ready.description == "navigation (joined lockstep)"  # and bt_navigator active
+    assert nav.ready.description == "navigation (joined lockstep)"  # and all active
     separate = {n.name: n for n in fake_plan("localization:=true", "lockstep:=true", "use_composition:=false")[0].nodes}
     assert "navigation" not in separate
     for name in NAVIGATION_NODES:
         assert separate[name].cmd[0] == f"/bin/pppbot_nav/{name}" and f"lockstep_name:={name}" in separate[name].cmd
     free_running = {n.name: n for n in fake_plan("localization:=true")[0].nodes}  # composed too, as Nav2's bringup
     assert not {"planner_server", "controller_server", "bt_navigator"} & free_running.keys()
-    assert free_running["navigation"].ready.description == "bt_navigator active"
+    assert free_running["navigation"].ready.description == "waypoint_follower active"
     assert not any("lockstep" in arg for arg in free_running["navigation"].cmd)
     apart = {n.name for n in fake_plan("localization:=true", "use_composition:=false")[0].nodes}
     assert "navigation" not in apart and {*NAVIGATION_NODES, "lifecycle_manager_navigation"} <= apart
+
+
+@pytest.mark.parametrize("switches, managed, remaps", [
+    ((), NAVIGATION_NODES, ["controller_server:cmd_vel:=cmd_vel_nav", "behavior_server:cmd_vel:=cmd_vel_nav",
+                            "velocity_smoother:cmd_vel:=cmd_vel_nav"]),
+    (("use_collision_monitor:=false",), tuple(n for n in NAVIGATION_NODES if n != "collision_monitor"),
+     ["controller_server:cmd_vel:=cmd_vel_nav", "behavior_server:cmd_vel:=cmd_vel_nav",
+      "velocity_smoother:cmd_vel:=cmd_vel_nav", "velocity_smoother:cmd_vel_smoothed:=cmd_vel"]),
+    (("use_velocity_smoother:=false",), tuple(n for n in NAVIGATION_NODES if n != "velocity_smoother"),
+     ["controller_server:cmd_vel:=cmd_vel_smoothed", "behavior_server:cmd_vel:=cmd_vel_smoothed"]),
+    (("use_velocity_smoother:=false", "use_collision_monitor:=false"),
+     tuple(n for n in NAVIGATION_NODES if n not in ("velocity_smoother", "collision_monitor")), []),
+], ids=["both", "no-monitor", "no-smoother", "neither"])
+def test_the_velocity_chain_is_on_by_default_and_each_part_can_be_left_out(switches, managed, remaps):
+    composed = {n.name: n for n in fake_plan("localization:=true", *switches)[0].nodes}["navigation"].cmd
+    rules = [composed[i + 1] for i, arg in enumerate(composed) if arg == "-r"]
+    assert rules == remaps
+    left_out = [composed[i + 1] for i, arg in enumerate(composed) if arg == "--without"]
+    assert left_out == [n for n in ("velocity_smoother", "collision_monitor") if n not in managed]
+    apart = {n.name: n for n in fake_plan("localization:=true", "use_composition:=false", *switches)[0].nodes}
+    assert f"node_names:={list(managed)}" in apart["lifecycle_manager_navigation"].cmd
+    assert {"velocity_smoother", "collision_monitor"} & apart.keys() == {"velocity_smoother", "collision_monitor"} & {
+        *managed}
+    for name in managed:
+        own = [apart[name].cmd[i + 1] for i, arg in enumerate(apart[name].cmd) if arg == "-r"]
+        assert own == [rule for rule in remaps if rule.startswith(f"{name}:")]
 
 
 def test_record_adds_a_recorder_right_after_the_simulator(tmp_path):
@@ -400,7 +462,7 @@ def test_slam_params_file_replaces_the_default_and_must_exist(tmp_path):
     p, _ = fake_plan(f"slam_params_file:={own}")
     slam = next(n for n in p.nodes if n.name == "slam_toolbox")
     assert str(own) in slam.cmd and "mapper_params_online_async.yaml" not in " ".join(slam.cmd)
-    with pytest.raises(ArgumentError, match=f"slam_params_file: {tmp_path / 'missing.yaml'} does not exist"):
+    with pytest.raises(ArgumentError, match=f"slam_params_file:={tmp_path / 'missing.yaml'}: no such file"):
         fake_plan(f"slam_params_file:={tmp_path / 'missing.yaml'}")
 
 

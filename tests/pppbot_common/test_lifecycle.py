@@ -6,14 +6,14 @@ from typing import Any
 
 import pytest
 from lifecycle_msgs.msg import State, Transition
-from lifecycle_msgs.srv import ChangeState, GetState
+from lifecycle_msgs.srv import GetState
 from nav2_msgs.action import NavigateToPose
 from rclpy.action import ActionClient, ActionServer
 from std_msgs.msg import String
 
 from pppbot_common.errors import PppbotError
 from pppbot_common.ros.lifecycle import ManagedNode
-from pppbot_common.ros.wait import send_goal, wait_until
+from pppbot_common.ros.wait import change_state, send_goal, wait_until
 
 pytestmark = pytest.mark.ros
 
@@ -57,10 +57,7 @@ def talker(spin_in_background: Callable[..., Any]) -> Talker:
 
 
 def change(node: Any, transition: int = 0, label: str = "") -> bool:
-    client = node.create_client(ChangeState, "lifecycle_talker/change_state")
-    assert client.wait_for_service(timeout_sec=10)
-    future = client.call_async(ChangeState.Request(transition=Transition(id=transition, label=label)))
-    return bool(wait_until(lambda: future.result() if future.done() else None, 10, "change_state", node=node).success)
+    return change_state(node, "lifecycle_talker", transition, label)
 
 
 def state_of(node: Any) -> str:

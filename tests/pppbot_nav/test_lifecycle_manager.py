@@ -15,7 +15,18 @@ from pppbot_common.params import ParameterError
 from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.wait import wait_until
 from pppbot_nav.errors import LifecycleError
-from pppbot_nav.lifecycle import Command, Step, Transition, command_of, plan, validate_node_names
+from pppbot_nav.lifecycle import (
+    NAVIGATION_NODES,
+    VELOCITY_CHAIN,
+    Command,
+    Step,
+    Transition,
+    command_of,
+    command_remaps,
+    navigation_nodes,
+    plan,
+    validate_node_names,
+)
 from pppbot_nav.ros.lifecycle_manager import LifecycleManager
 
 NODES = ["map_server", "amcl", "planner_server"]
@@ -44,6 +55,17 @@ def test_bad_commands_and_node_names_name_what_is_allowed():
         validate_node_names(["amcl", "map_server", "amcl"])
     with pytest.raises(LifecycleError, match="node_names is empty"):
         validate_node_names([])
+
+
+def test_only_the_velocity_chain_may_be_left_out_of_the_navigation_nodes():
+    assert navigation_nodes() == NAVIGATION_NODES
+    assert navigation_nodes(["collision_monitor"]) == tuple(n for n in NAVIGATION_NODES if n != "collision_monitor")
+    assert command_remaps() == {"controller_server:cmd_vel": "cmd_vel_nav", "behavior_server:cmd_vel": "cmd_vel_nav",
+                                "velocity_smoother:cmd_vel": "cmd_vel_nav"}
+    assert command_remaps(VELOCITY_CHAIN) == {}
+    with pytest.raises(LifecycleError, match="cannot leave out bt_navigator: only velocity_smoother and "
+                                             "collision_monitor may be"):
+        navigation_nodes(["bt_navigator"])
 
 
 # ------------------------------------------------------------ over DDS

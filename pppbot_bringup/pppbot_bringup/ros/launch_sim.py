@@ -20,7 +20,15 @@ from typing import Any
 
 from pppbot_viz.errors import VizError
 
-from pppbot_bringup.launch_sim import ARGUMENTS, LaunchArgs, VizPlan, controllers_file, plan, twist_mux_inputs
+from pppbot_bringup.launch_sim import (
+    ARGUMENTS,
+    LaunchArgs,
+    VizPlan,
+    controllers_file,
+    parameter_file,
+    plan,
+    twist_mux_inputs,
+)
 from pppbot_bringup.paths import checkout_root, config_directory, log_root
 from pppbot_bringup.robot import load_description, robot_facts
 from pppbot_bringup.ros.graph_probe import GraphProbe, domain_taken_message
@@ -64,8 +72,10 @@ def run(argv: Sequence[str]) -> int:
         sigint_timeout_s, sigterm_timeout_s = args.stop_timeouts()
         world_file = find_world(args.world)
         check_world(world_file)
-        urdf, urdf_source = load_description(args.description, args.xacro_args, controllers_file())
-        robot = robot_facts(urdf, urdf_source, twist_mux_inputs(config_directory() / "twist_mux.yaml"))
+        controllers = controllers_file(args.controllers_file)
+        urdf, urdf_source = load_description(args.description, args.xacro_args, controllers)
+        mux_params = parameter_file(args.twist_mux_params, config_directory() / "twist_mux.yaml", "twist_mux_params")
+        robot = robot_facts(urdf, urdf_source, twist_mux_inputs(mux_params))
         run_dir = log_root() / time.strftime("%Y-%m-%d-%H-%M-%S")
         urdf_file = run_dir / "robot.urdf"
         viz, viz_notes = viz_plan(args) if args.use_viz else (None, [])

@@ -168,3 +168,25 @@ def wait_for_future(future: Future, timeout_s: float, check: Callable[[], None] 
             break
         done.wait(min(check_every_s, remaining))
     return future.done()
+
+
+def change_state(node: Node, target: str, transition: int, label: str = "", timeout_s: float = 30.0) -> bool:
+    """Ask lifecycle node ``target`` for ``transition`` (a ``lifecycle_msgs/msg/Transition`` id) on
+    its ``change_state`` service, as a lifecycle manager or ``ros2 lifecycle set`` does, spinning
+    ``node``; whether it succeeded.
+
+    Raises:
+        TimeoutExpired: no service or no answer within ``timeout_s``.
+    """
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState
+
+    client = node.create_client(ChangeState, f"{target.rstrip('/')}/change_state")
+    try:
+        if not client.wait_for_service(timeout_sec=timeout_s):
+            raise TimeoutExpired(f"no {client.srv_name} service within {timeout_s:g} s")
+        future = client.call_async(ChangeState.Request(transition=Transition(id=transition, label=label)))
+        return bool(wait_until(lambda: future.result() if future.done() else None, timeout_s,
+                               f"{target}'s change_state", node=node).success)
+    finally:
+        node.destroy_client(client)
