@@ -3,13 +3,13 @@ heading. Exit code 0 when each succeeded."""
 import sys
 
 import rclpy
-from room import BasicNavigator, TaskResult, wait_for
+from room import LOCALIZED, BasicNavigator, TaskResult, wait_for
 
 
 def main() -> int:
     rclpy.init()
     navigator = BasicNavigator()
-    navigator.waitUntilNav2Active()
+    navigator.waitUntilNav2Active(localizer=LOCALIZED)
     results = []
     navigator.spin(spin_dist=1.57)
     results.append(wait_for(navigator, lambda f: f"turned {f.angular_distance_traveled:.2f} rad"))

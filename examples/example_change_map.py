@@ -5,14 +5,14 @@ import sys
 from pathlib import Path
 
 import rclpy
-from room import BasicNavigator
+from room import LOCALIZED, BasicNavigator
 
 
 def main() -> int:
     map_yaml = sys.argv[1] if len(sys.argv) > 1 else str(Path(__file__).resolve().parents[1] / "maps" / "room.yaml")
     rclpy.init()
     navigator = BasicNavigator()
-    navigator.waitUntilNav2Active()
+    navigator.waitUntilNav2Active(localizer=LOCALIZED)
     changed = navigator.changeMap(map_yaml)
     print(f"map {'changed to' if changed else 'not changed:'} {map_yaml}", flush=True)
     navigator.destroyNode()

@@ -3,13 +3,13 @@ Nav2's 0–254 costs), then clearAllCostmaps. Exit code 0 when both came back.""
 import sys
 
 import rclpy
-from room import BasicNavigator
+from room import LOCALIZED, BasicNavigator
 
 
 def main() -> int:
     rclpy.init()
     navigator = BasicNavigator()
-    navigator.waitUntilNav2Active()
+    navigator.waitUntilNav2Active(localizer=LOCALIZED)
     costmaps = {"global": navigator.getGlobalCostmap(), "local": navigator.getLocalCostmap()}
     for name, costmap in costmaps.items():
         meta = costmap.metadata

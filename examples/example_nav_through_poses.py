@@ -3,13 +3,13 @@ last. Exit code 0 when the last pose was reached."""
 import sys
 
 import rclpy
-from room import BasicNavigator, TaskResult, stamped, wait_for
+from room import LOCALIZED, BasicNavigator, TaskResult, stamped, wait_for
 
 
 def main() -> int:
     rclpy.init()
     navigator = BasicNavigator()
-    navigator.waitUntilNav2Active()
+    navigator.waitUntilNav2Active(localizer=LOCALIZED)
     poses = [stamped(navigator, 1.0, -0.8), stamped(navigator, -1.0, -0.5, 3.14)]
     navigator.goThroughPoses(poses)
     result = wait_for(navigator, lambda f: f"poses remaining: {f.number_of_poses_remaining}, "

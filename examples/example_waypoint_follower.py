@@ -3,13 +3,13 @@ navigate_to_pose goal with a pause at each. Exit code 0 when every waypoint was 
 import sys
 
 import rclpy
-from room import BasicNavigator, TaskResult, stamped, wait_for
+from room import LOCALIZED, BasicNavigator, TaskResult, stamped, wait_for
 
 
 def main() -> int:
     rclpy.init()
     navigator = BasicNavigator()
-    navigator.waitUntilNav2Active()
+    navigator.waitUntilNav2Active(localizer=LOCALIZED)
     waypoints = [stamped(navigator, 1.5, 0.5), stamped(navigator, 1.0, -1.0), stamped(navigator, 0.0, 0.0)]
     navigator.followWaypoints(waypoints)
     result = wait_for(navigator, lambda f: f"executing waypoint {f.current_waypoint + 1}/{len(waypoints)}")

@@ -18,10 +18,15 @@ try:
 except ImportError:  # no ROS 2 install: the same class, beside this file
     from robot_navigator import BasicNavigator, TaskResult
 
-__all__ = ["BasicNavigator", "TaskResult", "START", "stamped", "wait_for"]
+__all__ = ["LOCALIZED", "START", "BasicNavigator", "TaskResult", "stamped", "wait_for"]
 
 #: Where launch_sim's default spawn puts the robot in the room (x m, y m, yaw rad).
 START = (0.0, 0.0, 0.0)
+#: ``waitUntilNav2Active(localizer=LOCALIZED)``: wait for the map and the navigator, send no initial
+#: pose. With ``localizer="amcl"`` (its default) BasicNavigator publishes its ``initial_pose`` (the
+#: origin unless ``setInitialPose`` was called) until AMCL answers, which would move AMCL's estimate
+#: of a robot that has driven elsewhere; launch_sim's AMCL starts localized at the spawn pose.
+LOCALIZED = "map_server"
 
 
 def stamped(navigator: BasicNavigator, x: float, y: float, yaw: float = 0.0) -> PoseStamped:
