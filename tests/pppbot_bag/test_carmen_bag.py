@@ -124,7 +124,7 @@ def test_the_slam_node_maps_the_bag_as_the_core_maps_the_log(ros_node, spawn, tm
         # the node maps in threads: once every scan is a keyframe and the loops are in, it is done
         return node_map if node_map and len(node_map.keyframes) == len(core.keyframes) else None
 
-    node_map = wait_until(serialized, 60, "the node's pose graph with every scan", node=ros_node)
+    node_map = wait_until(serialized, 180, "the node's pose graph with every scan", node=ros_node)
     assert len(core.loop_closures) > 0  # the ring's second lap closed the loop
     core_poses = np.array([core.map_pose(i) for i in range(len(core.keyframes))])
     node_poses = np.array([node_map.map_pose(i) for i in range(len(node_map.keyframes))])
