@@ -22,6 +22,8 @@ setup(
             'diff_drive_controller = pppbot_control.ros.diff_drive_controller:main',
             'twist_mux = pppbot_control.ros.twist_mux:main',
             'teleop_keyboard = pppbot_control.ros.teleop_keyboard:main',
+            'joy_node = pppbot_control.ros.joy_node:main',
+            'teleop_node = pppbot_control.ros.teleop_joy:main',
         ],
     },
 )
