@@ -87,6 +87,9 @@ class LaunchArgs:
     xacro_args: str = _arg("", "the description's xacro arguments, 'name:=value name:=value' (e.g. "
                                "'use_ros2_control:=false' drives ppp_bot with Gazebo's DiffDrive plugin)")
     use_teleop: bool = _arg(True, "keyboard teleop in this terminal (other nodes' output goes to log files)")
+    use_joystick: bool = _arg(False, "joystick teleop: joy_node + teleop_twist_joy into twist_mux's teleop input "
+                                     "(cmd_vel_teleop), as ppp_bot's")
+    joy_params: str = _arg("", "joy_node's and teleop_node's parameters; default config/joystick.yaml")
     use_rviz: bool = _arg(True, "start rviz2 with config/ppp_bot.rviz when rviz2 is on PATH")
     use_viz: bool = _arg(True, "the live view (rerun): map, costmaps, scan, robot, plans, particles; "
                                "its web page sets goals and initial poses")
@@ -316,6 +319,19 @@ def ros_args(log_level: str, params: dict[str, Any] | None = None, params_file: 
     return args
 
 
+def joystick_nodes(joy_config: Path, resolve: Any, level: str) -> list[NodeSpec]:
+    """ppp_bot's joystick.launch.py: joy_node, and teleop_twist_joy named ``teleop_node`` (its section
+    of joystick.yaml) publishing into twist_mux's teleop input. Neither is required: a missing
+    joystick is said once and the rest runs."""
+    return [
+        NodeSpec("joy_node", [resolve("pppbot_control", "joy_node"), *ros_args(level, params_file=joy_config)],
+                 after=("simulator",), pppbot_node=True),
+        NodeSpec("teleop_node", [resolve("pppbot_control", "teleop_node"), *ros_args(
+            level, params_file=joy_config, remaps={"__node": "teleop_node", "cmd_vel": "/cmd_vel_teleop"})],
+            after=("twist_mux",), pppbot_node=True),
+    ]
+
+
 def controllers_file(given: str = "") -> Path:
     """The controller parameters the robot's gz_ros2_control plugin points at (the simulator runs
     those controllers in its process): ``given`` (``controllers_file:=``), else ppp_bot's.
@@ -344,7 +360,7 @@ def parameter_file(given: str, default: Path, argument: str) -> Path:
 
 
 #: The arguments that name ROS 2 parameter files.
-PARAMETER_FILES = ("params_file", "slam_params_file", "twist_mux_params", "controllers_file")
+PARAMETER_FILES = ("params_file", "slam_params_file", "twist_mux_params", "controllers_file", "joy_params")
 
 #: ppp_bot's launch argument names that name one of launch_sim's (its launch_sim.launch.py's).
 ALIASES = {"world_name": "world"}
@@ -568,6 +584,10 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
         viewer = "a native viewer window and " if viz.native else ""
         info.append(f"live view: {viewer}http://127.0.0.1:{viz.page_port}/ in a browser "
                     "(2D Goal Pose / 2D Pose Estimate: a button, then two clicks on the map)")
+    if args.use_joystick:
+        nodes += joystick_nodes(parameter_file(args.joy_params, config / "joystick.yaml", "joy_params"), resolve,
+                                level)
+        info.append("joystick: hold the enable button (6) and move the left stick; turbo: button 7")
     if args.use_teleop:
         if terminal:
             # Last, once the robot is up, so that its key help is what the terminal shows.

@@ -92,7 +92,7 @@ def test_launch_refuses_bad_input_before_starting_anything(argv, message):
 def test_a_parameter_file_that_is_not_valid_yaml_is_refused_with_its_line(tmp_path):
     broken = tmp_path / "nav2_params.yaml"
     broken.write_text("amcl:\n  ros__parameters:\n    alpha1: [0.2, 0.2\n    alpha2: 0.2\n")
-    for argument in ("params_file", "slam_params_file", "twist_mux_params", "controllers_file"):
+    for argument in ("params_file", "slam_params_file", "twist_mux_params", "controllers_file", "joy_params"):
         result = subprocess.run([PPPBOT, "launch_sim", f"{argument}:={broken}", "localization:=true",
                                  "world:=room"], capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
         assert result.returncode == 2, argument
@@ -111,6 +111,21 @@ def test_ppp_bots_argument_names_and_files_are_taken(tmp_path):
                                                          f"twist_mux_params:={mux}")[0].nodes}
     assert f"--params-file {nav2}" in nodes["localization"] and f"--params-file {nav2}" in nodes["navigation"]
     assert f"--params-file {mux}" in nodes["twist_mux"]
+
+
+def test_use_joystick_starts_joy_and_teleop_twist_joy_into_the_teleop_input(tmp_path):
+    assert "joy_node" not in {n.name for n in fake_plan()[0].nodes}  # off by default, as ppp_bot's
+    by_name = {n.name: n for n in fake_plan("use_joystick:=True")[0].nodes}
+    joy, teleop = " ".join(by_name["joy_node"].cmd), " ".join(by_name["teleop_node"].cmd)
+    assert joy.startswith("/bin/pppbot_control/joy_node ") and "config/joystick.yaml" in joy
+    assert teleop.startswith("/bin/pppbot_control/teleop_node ") and "config/joystick.yaml" in teleop
+    assert "-r __node:=teleop_node" in teleop and "-r cmd_vel:=/cmd_vel_teleop" in teleop
+    assert not by_name["joy_node"].required and not by_name["teleop_node"].required  # no joystick: the rest runs
+    mine = tmp_path / "my_joystick.yaml"
+    mine.write_text((ROOT / "config" / "joystick.yaml").read_text())
+    by_name = {n.name: n for n in fake_plan("use_joystick:=true", f"joy_params:={mine}")[0].nodes}
+    assert f"--params-file {mine}" in " ".join(by_name["joy_node"].cmd)
+    assert f"--params-file {mine}" in " ".join(by_name["teleop_node"].cmd)
 
 
 def test_stop_timeouts_are_ros2_launchs_and_default_to_5_s():
