@@ -42,6 +42,7 @@ class EvalConfig:
     timeout: float | None = None
     out: Path | None = None
     map: Path | None = None
+    params_file: Path | None = None
     map_pose: Triple = (0.0, 0.0, 0.0)
     initial_offset: Triple = (0.35, 0.35, 0.3)
     global_localization: bool = False
@@ -93,6 +94,8 @@ class EvalConfig:
         if self.map is not None and self.scenario not in MAP_SCENARIOS:
             raise ArgumentError(f"--map: only the map, localization and navigation scenarios take it, "
                                 f"not {self.scenario.value}")
+        if self.params_file is not None and not self.params_file.is_file():
+            raise ArgumentError(f"--params-file {self.params_file}: no such file")
         if self.goals < 1:
             raise ArgumentError(f"--goals {self.goals}: must be at least 1")
         if not (math.isfinite(self.goal_distance) and self.goal_distance >= 0):

@@ -18,6 +18,7 @@ class Reader(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("reader", **kwargs)
         self.declare_parameter("speed", 0.5)
+        self.parameter_notes: dict[str, str] = {}
 
 
 def test_the_overrides_a_node_does_not_declare_are_named(ros_node: Any) -> None:
@@ -51,3 +52,22 @@ def test_the_warning_lists_a_dozen_and_counts_the_rest(ros_node: Any, caplog: An
     assert messages[0].startswith(f"{LISTED + 3} parameters given to reader have no effect")
     assert "key00" in messages[0] and f"key{LISTED - 1:02d}" in messages[0] and "and 3 more" in messages[0]
     assert f"key{LISTED:02d}" not in messages[0]
+
+
+def test_keys_with_a_note_are_named_with_its_reason(ros_node: Any) -> None:
+    node = Reader(parameter_overrides=[Parameter("voxel_layer.scan.max_obstacle_height", value=2.0),
+                                       Parameter("always_send_full_costmap", value=True),
+                                       Parameter("use_sim_time", value=True), Parameter("mystery", value=1)])
+    node.parameter_notes = {"*.*.max_obstacle_height": "planar", "always_send_full_costmap": "always full",
+                            "use_sim_time": ""}
+    messages: list[str] = []
+    node.get_logger().warning = messages.append
+    try:
+        named = warn_unread_parameters(node)
+    finally:
+        node.destroy_node()
+    assert sorted(named) == ["always_send_full_costmap", "mystery", "voxel_layer.scan.max_obstacle_height"]
+    assert "voxel_layer.scan.max_obstacle_height (planar)" in messages[0]
+    assert "always_send_full_costmap (always full)" in messages[0]
+    assert "mystery (pppbot's reader does not implement them)" in messages[0]
+    assert "use_sim_time" not in messages[0]

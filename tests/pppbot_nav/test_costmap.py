@@ -15,7 +15,7 @@ from pppbot_nav.costmap.costs import (
     to_occupancy,
 )
 from pppbot_nav.costmap.grid import Costmap
-from pppbot_nav.costmap.layers import InflationLayer, LayeredCostmap, ObstacleLayer, StaticLayer
+from pppbot_nav.costmap.layers import InflationLayer, LayeredCostmap, ObservationSource, ObstacleLayer, StaticLayer
 from pppbot_nav.errors import CostmapError
 
 RES = 0.05
@@ -48,9 +48,10 @@ def test_static_layer_makes_occupied_lethal_and_keeps_unknown_when_tracking_it()
 
 def test_obstacle_layer_marks_hits_in_range_and_clears_along_beams():
     master = blank()
-    layer = ObstacleLayer(obstacle_max_range=1.5, raytrace_max_range=1.8)
+    layer = ObstacleLayer(track_unknown_space=True)
+    source = ObservationSource(clearing=True, inf_is_valid=True, obstacle_max_range=1.5, raytrace_max_range=1.8)
     bearings = np.array([0.0, math.pi / 2, math.pi, -math.pi / 2])
-    layer.observe(master, (0.0, 0.0), bearings, np.array([1.0, 1.7, np.inf, 0.5]))
+    layer.observe(master, (0.0, 0.0), bearings, np.array([1.0, 1.7, np.inf, 0.5]), source)
     layer.update(master)
     assert master.cost_at(1.0 + RES / 4, 0.0, 0)[()] == LETHAL_OBSTACLE  # hit within range: marked
     assert master.cost_at(0.5, 0.0, 0)[()] == FREE_SPACE  # cleared on the way
@@ -59,7 +60,7 @@ def test_obstacle_layer_marks_hits_in_range_and_clears_along_beams():
     assert master.cost_at(-1.7, 0.0, 0)[()] == FREE_SPACE  # no return: cleared to raytrace_max_range
     assert master.cost_at(-1.9, 0.0, 0)[()] == NO_INFORMATION  # and not beyond
     # The obstacle goes away: a later beam through its cell clears it.
-    layer.observe(master, (0.0, 0.0), np.array([0.0]), np.array([np.inf]))
+    layer.observe(master, (0.0, 0.0), np.array([0.0]), np.array([np.inf]), source)
     master.costs[:] = NO_INFORMATION
     layer.update(master)
     assert master.cost_at(1.0 + RES / 4, 0.0, 0)[()] == FREE_SPACE
@@ -124,7 +125,7 @@ def test_layered_costmap_combines_static_obstacle_and_inflation():
     data[:, 60] = 100  # a wall at x = 1.0
     static = StaticLayer()
     static.set_map(OccupancyGrid(data, RES, (-2.0, -2.0, 0.0)))
-    obstacles = ObstacleLayer(obstacle_max_range=2.5, raytrace_max_range=3.0)
+    obstacles = ObstacleLayer(track_unknown_space=True)
     costmap = LayeredCostmap(blank(), [static, obstacles, InflationLayer(0.55, 3.0, 0.3)])
     obstacles.observe(costmap.master, (0.0, 0.0), np.array([math.pi / 2]), np.array([1.0]))  # a box not in the map
     master = costmap.update()
@@ -154,7 +155,9 @@ def test_static_layer_follows_a_moved_window_and_a_new_map():
 
 
 @pytest.mark.parametrize("make, name", [
-    (lambda: ObstacleLayer(obstacle_max_range=-1.0), "obstacle_max_range"),
+    (lambda: ObservationSource(obstacle_max_range=-1.0).validate(), "obstacle_max_range"),
+    (lambda: ObstacleLayer(combination_method=3), "combination_method"),
+    (lambda: ObstacleLayer(mark_threshold=-1), "mark_threshold"),
     (lambda: InflationLayer(inflation_radius=math.nan), "inflation_radius"),
     (lambda: StaticLayer(lethal_cost_threshold=0), "lethal_cost_threshold"),
     (lambda: Costmap.filled(0.0, 1.0, RES, (0.0, 0.0), 0), "size"),
@@ -162,3 +165,82 @@ def test_static_layer_follows_a_moved_window_and_a_new_map():
 def test_bad_settings_are_refused_by_name(make, name):
     with pytest.raises(CostmapError, match=name):
         make()
+
+
+def beam_ahead(layer: ObstacleLayer, master: Costmap, range_m: float, source: ObservationSource) -> None:
+    layer.observe(master, (0.0, 0.0), np.array([0.0]), np.array([range_m]), source)
+
+
+def test_a_source_that_only_marks_never_clears_and_no_return_clears_only_when_inf_is_valid():
+    master = blank()
+    layer = ObstacleLayer(track_unknown_space=True)
+    beam_ahead(layer, master, 1.0, ObservationSource())  # Nav2's defaults: marking, not clearing
+    layer.update(master)
+    assert master.cost_at(1.0 + RES / 4, 0.0, 0)[()] == LETHAL_OBSTACLE
+    assert master.cost_at(0.5, 0.0, 0)[()] == NO_INFORMATION  # nothing cleared on the way
+    beam_ahead(layer, master, np.inf, ObservationSource(clearing=True))  # no return, inf_is_valid false
+    layer.update(master)
+    assert master.cost_at(1.0 + RES / 4, 0.0, 0)[()] == LETHAL_OBSTACLE  # Nav2 drops the beam
+    beam_ahead(layer, master, np.inf, ObservationSource(clearing=True, inf_is_valid=True))
+    master.costs[:] = NO_INFORMATION
+    layer.update(master)
+    assert master.cost_at(1.0 + RES / 4, 0.0, 0)[()] == FREE_SPACE
+    beam_ahead(layer, master, 1.0, ObservationSource(marking=False, clearing=True))
+    layer.update(master)
+    assert master.cost_at(1.0 + RES / 4, 0.0, 0)[()] == FREE_SPACE  # a clearing-only source marks nothing
+
+
+@pytest.mark.parametrize("threshold, marked", [(0, True), (1, False)])
+def test_a_voxel_layer_marks_a_planar_scans_column_only_under_a_zero_mark_threshold(threshold, marked):
+    master = blank()
+    layer = ObstacleLayer(track_unknown_space=True, mark_threshold=threshold)
+    beam_ahead(layer, master, 1.0, ObservationSource(clearing=True))
+    layer.update(master)
+    assert layer.plugin == "nav2_costmap_2d::VoxelLayer"
+    assert bool(master.cost_at(1.0 + RES / 4, 0.0, 0)[()] == LETHAL_OBSTACLE) is marked
+    assert master.cost_at(0.5, 0.0, 0)[()] == FREE_SPACE  # clearing either way
+
+
+@pytest.mark.parametrize("method, expected", [(0, [FREE_SPACE, LETHAL_OBSTACLE, 77]),
+                                              (1, [90, LETHAL_OBSTACLE, 77]),
+                                              (2, [90, LETHAL_OBSTACLE, 77])])
+def test_combination_methods_as_nav2s(method, expected):
+    """Layer cells (free, lethal, unknown) over master cells (90, unknown, 77)."""
+    layer = ObstacleLayer(track_unknown_space=True, combination_method=method)
+    master = Costmap(np.array([[90, NO_INFORMATION, 77]], dtype=np.uint8), RES, (0.0, 0.0))
+    layer.update(master)  # sizes the layer's own grid
+    assert layer.grid is not None
+    layer.grid.costs[:] = [[FREE_SPACE, LETHAL_OBSTACLE, NO_INFORMATION]]
+    layer.update(master)
+    if method == 2:
+        expected = [90, NO_INFORMATION, 77]  # an unknown master cell is never overwritten
+    assert master.costs.tolist() == [expected]
+
+
+def test_footprint_clearing_frees_the_cells_under_the_robot_only_when_enabled():
+    for enabled, left in ((True, FREE_SPACE), (False, LETHAL_OBSTACLE)):
+        master = blank()
+        layer = ObstacleLayer(track_unknown_space=True, footprint_clearing_enabled=enabled)
+        beam_ahead(layer, master, 0.2, ObservationSource())  # a "return" under the robot itself
+        beam_ahead(layer, master, 1.0, ObservationSource())
+        layer.clear_footprint((0.0, 0.0), 0.3)
+        layer.update(master)
+        assert master.cost_at(0.2 + RES / 4, 0.0, 0)[()] == left
+        assert master.cost_at(1.0 + RES / 4, 0.0, 0)[()] == LETHAL_OBSTACLE
+
+
+def test_a_disabled_layer_leaves_the_master_alone_and_unknown_can_be_inflated_around():
+    master = Costmap.filled(2.0, 2.0, RES, (-1.0, -1.0), FREE_SPACE)
+    master.costs[20, 20] = NO_INFORMATION
+    LayeredCostmap(master, [InflationLayer(0.55, 3.0, 0.3, enabled=False)], default_value=FREE_SPACE)
+    around = InflationLayer(0.55, 3.0, 0.3, inflate_around_unknown=True)
+    around.update(master)
+    assert master.costs[20, 24] == INSCRIBED_INFLATED_OBSTACLE  # 0.2 m from the unknown cell
+    plain = Costmap.filled(2.0, 2.0, RES, (-1.0, -1.0), FREE_SPACE)
+    plain.costs[20, 20] = NO_INFORMATION
+    off = LayeredCostmap(plain, [InflationLayer(0.55, 3.0, 0.3, inflate_around_unknown=True, enabled=False)],
+                         default_value=FREE_SPACE)
+    off.master.costs[20, 20] = NO_INFORMATION
+    assert off.layers[0].enabled is False
+    InflationLayer(0.55, 3.0, 0.3).update(plain)
+    assert plain.costs[20, 24] == FREE_SPACE  # without inflate_around_unknown nothing spreads

@@ -17,8 +17,7 @@ GOAL = (3.0, 0.0, 0.0)
 def follower(failure_tolerance_s: float = 0.3) -> Follower:
     controller = PurePursuit(PurePursuitSettings())
     controller.set_path(PATH)
-    return Follower(controller, SimpleGoalChecker(), SimpleProgressChecker(0.5, 10.0), failure_tolerance_s,
-                    0.5, 10.0)
+    return Follower(controller, SimpleGoalChecker(), SimpleProgressChecker(0.5, 10.0), failure_tolerance_s)
 
 
 def costmap(wall_at_x: float | None = None) -> Costmap:

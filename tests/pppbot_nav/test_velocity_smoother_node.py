@@ -90,6 +90,28 @@ def test_a_non_finite_command_is_dropped_and_the_node_goes_on():
         rclpy.shutdown()
 
 
+def test_commands_at_one_instant_give_one_output_the_newest_at_the_next_period():
+    """A wall-clock publisher in lockstep can send several commands within one sim instant: each
+    replaces the last (one output per instant, as downstream depth-1 subscriptions count on)."""
+    import rclpy
+
+    rclpy.init()
+    try:
+        smoother = VelocitySmoother(parameter_overrides=[Parameter("use_sim_time", value=True)])
+        assert smoother.trigger_configure() == TransitionCallbackReturn.SUCCESS
+        assert smoother.trigger_activate() == TransitionCallbackReturn.SUCCESS
+        sent: list[Any] = []
+        smoother.output.publish = sent.append
+        for x in (0.1, 0.3, 0.2):  # the sim clock stands still (no /clock)
+            smoother._on_command(forward(x))
+        assert len(sent) == 1
+        command = smoother.smoothing._command if smoother.smoothing is not None else None
+        assert command is not None and command[0] == pytest.approx(0.2)  # the newest
+        smoother.destroy_node()
+    finally:
+        rclpy.shutdown()
+
+
 @pytest.mark.parametrize("name, value", [
     ("max_decel", [2.5, 0.0, -3.2]), ("max_accel", [2.5, -1.0, 3.2]), ("max_velocity", [0.5, 2.0]),
     ("feedback", "CLOSED"), ("smoothing_frequency", 0.0), ("deadband_velocity", [0.0, 0.0, math.inf]),

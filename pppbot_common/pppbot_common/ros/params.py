@@ -1,7 +1,8 @@
 """Declare a node's parameters from its parameter dataclass, and keep it valid at run time."""
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Collection, Sequence
+from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -20,21 +21,84 @@ from pppbot_common.params import (
 T = TypeVar("T")
 
 
-def declare_parameters(node: Node, cls: type[T]) -> T:
+def declare_parameters(node: Node, cls: type[T], prefix: str = "") -> T:
     """Declare every field of ``cls`` on ``node`` and return the validated values.
 
+    ``prefix`` goes before each name: a plugin's parameters sit under its name (``FollowPath.``).
     Types are checked by ``cls`` (so ``20`` is accepted for a float), not by rclpy.
 
     Raises:
-        ParameterError: a value the dataclass rejects; the message names it.
+        ParameterError: a value the dataclass rejects; the message names it (with its prefix).
     """
     values = {}
     for field in parameter_fields(cls):
         default = field_default(field)
         name = ros_name(field)
         descriptor = ParameterDescriptor(description=field.metadata["description"], dynamic_typing=True)
-        values[name] = node.declare_parameter(name, default, descriptor).value
-    return from_values(cls, values)
+        values[name] = node.declare_parameter(prefix + name, default, descriptor).value
+    try:
+        return from_values(cls, values)
+    except ParameterError as exc:
+        if not prefix:
+            raise
+        raise ParameterError(prefix + exc.name, exc.value, exc.allowed) from exc
+
+
+@dataclass(frozen=True)
+class LiveParameters:
+    """A group of a node's parameters (one dataclass, declared under ``prefix``) for run-time sets:
+    ``live`` names those that may change while the node runs (None: all); ``apply`` takes the new,
+    validated dataclass and must keep the node's state."""
+
+    prefix: str
+    current: Callable[[], Any]
+    apply: Callable[[Any], None]
+    live: Collection[str] | None = None
+    why_not: str = "it is read once, at start-up (as in Nav2); restart the node to change it"
+
+
+def serve_live_parameters(node: Node, groups: Sequence[LiveParameters]) -> None:
+    """Validate run-time ``ros2 param set`` requests against ``groups``; apply each changed group.
+
+    A request is refused whole, with the reason (``SetParametersResult``), when one of its
+    parameters may not change at run time or its group rejects the new value; the running values
+    then stay as they were. Parameters of no group (``use_sim_time``) are left to rclpy.
+    """
+    def split(params: list[Parameter]) -> dict[int, dict[str, Any]]:
+        by_group: dict[int, dict[str, Any]] = {}
+        for p in params:
+            for i, group in enumerate(groups):
+                if not p.name.startswith(group.prefix):
+                    continue
+                name = p.name[len(group.prefix):]
+                if name in {ros_name(f) for f in parameter_fields(type(group.current()))}:
+                    by_group.setdefault(i, {})[name] = p.value
+                    break
+        return by_group
+
+    def validate(params: list[Parameter]) -> SetParametersResult:
+        for i, values in split(params).items():
+            group = groups[i]
+            fixed = sorted(set(values) - set(group.live)) if group.live is not None else []
+            if fixed:
+                return SetParametersResult(successful=False, reason=f"'{group.prefix}{fixed[0]}' cannot change "
+                                                                    f"while the node runs: {group.why_not}")
+            try:
+                updated(group.current(), values)
+            except ParameterError as exc:
+                return SetParametersResult(successful=False, reason=f"{group.prefix}{exc}" if group.prefix
+                                           else str(exc))
+        return SetParametersResult(successful=True)
+
+    def after_set(params: list[Parameter]) -> None:
+        for i, values in split(params).items():
+            group = groups[i]
+            if any(getattr(group.current(), f.name) != v for f in parameter_fields(type(group.current()))
+                   for name, v in values.items() if ros_name(f) == name):
+                group.apply(updated(group.current(), values))
+
+    node.add_on_set_parameters_callback(validate)
+    node.add_post_set_parameters_callback(after_set)
 
 
 def on_valid_update(node: Node, current: Callable[[], T], apply: Callable[[T], None]) -> None:
@@ -43,22 +107,4 @@ def on_valid_update(node: Node, current: Callable[[], T], apply: Callable[[T], N
     An invalid update is refused with the reason (``SetParametersResult``), and the
     running values stay as they were.
     """
-    names = {ros_name(f) for f in parameter_fields(type(current()))}
-
-    def ours(params: list[Parameter]) -> dict[str, Any]:
-        return {p.name: p.value for p in params if p.name in names}
-
-    def validate(params: list[Parameter]) -> SetParametersResult:
-        try:
-            updated(current(), ours(params))
-        except ParameterError as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
-        return SetParametersResult(successful=True)
-
-    def after_set(params: list[Parameter]) -> None:
-        values = ours(params)
-        if values:
-            apply(updated(current(), values))
-
-    node.add_on_set_parameters_callback(validate)
-    node.add_post_set_parameters_callback(after_set)
+    serve_live_parameters(node, [LiveParameters("", current, apply)])

@@ -19,6 +19,12 @@ LATCHED = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
+#: A map subscribed to without transient local (a costmap's ``map_subscribe_transient_local: false``).
+MAP_VOLATILE = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+)
+
 #: High-rate sensor streams (/scan, /imu) as their drivers usually publish them.
 SENSOR = qos_profile_sensor_data
 

@@ -5,11 +5,13 @@ that name does not implement (a DWB critic's scale, a behaviour-tree plugin list
 override nobody declares without a word; here each node that was given such keys says which,
 once, when its process has built it, so that nothing in a user's file is silently ignored.
 Nodes that declare every override they are given (``automatically_declare_parameters_from_overrides``,
-as twist_mux) have none.
+as twist_mux) have none. A node may say why some keys have no effect (``parameter_notes``: a
+pattern, ``*`` standing for any name, to its reason); the warning then groups them by reason.
 """
 from __future__ import annotations
 
-from collections.abc import Collection, Iterable
+import fnmatch
+from collections.abc import Collection, Iterable, Mapping
 
 from rclpy.node import Node
 
@@ -34,13 +36,29 @@ def declared_names(nodes: Iterable[Node]) -> set[str]:
     return {name for node in nodes for name in getattr(node, "_parameters", {})}
 
 
+def reasons(names: Iterable[str], notes: Mapping[str, str], default: str) -> dict[str, list[str]]:
+    """``names`` grouped by the reason of the first note whose pattern matches each (``default``
+    for the rest); an empty reason counts as no reason to warn (rclpy reads ``use_sim_time``)."""
+    grouped: dict[str, list[str]] = {}
+    for name in names:
+        reason = next((why for pattern, why in notes.items() if fnmatch.fnmatchcase(name, pattern)), default)
+        grouped.setdefault(reason, []).append(name)
+    grouped.pop("", None)
+    return grouped
+
+
 def warn_unread_parameters(node: Node, read_in_process: Collection[str] = ()) -> list[str]:
-    """Log one warning naming ``node``'s unread parameters (if any); returns them."""
-    names = unread_parameters(node, read_in_process)
+    """Log one warning naming ``node``'s unread parameters (if any), each with the reason it has no
+    effect; returns those named."""
+    default = f"pppbot's {node.get_name()} does not implement them"
+    grouped = reasons(unread_parameters(node, read_in_process), getattr(node, "parameter_notes", {}), default)
+    names = [name for group in grouped.values() for name in group]
     if names:
-        shown = ", ".join(names[:LISTED]) + (f" and {len(names) - LISTED} more" if len(names) > LISTED else "")
+        parts = []
+        for reason, group in grouped.items():
+            shown = ", ".join(group[:LISTED]) + (f" and {len(group) - LISTED} more" if len(group) > LISTED else "")
+            parts.append(f"{shown} ({reason})")
         node.get_logger().warning(f"{len(names)} parameter{'s' if len(names) > 1 else ''} given to "
-                                  f"{node.get_name()} {'have' if len(names) > 1 else 'has'} no effect: pppbot's "
-                                  f"{node.get_name()} does not implement {'them' if len(names) > 1 else 'it'}: "
-                                  f"{shown}")
+                                  f"{node.get_name()} {'have' if len(names) > 1 else 'has'} no effect: "
+                                  + "; ".join(parts))
     return names

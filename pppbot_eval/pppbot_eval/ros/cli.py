@@ -131,7 +131,7 @@ class Run:
             localization=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION),
             # The route scenarios drive themselves: no navigation nodes to share the CPU.
             navigation=NavigationMode.TRUE if navigates else NavigationMode.FALSE,
-            map=str(self.config.map or ""),
+            map=str(self.config.map or ""), params_file=str(self.config.params_file or ""),
             slam_params_file=str(self._slam_params()) if self.scenario is Scenario.SLAM else "")
 
     def _slam_params(self) -> Path:
@@ -416,6 +416,7 @@ def _result(run: Run, failure: str | None, metrics: dict[str, Any]) -> dict[str,
         "lockstep": run.config.lockstep,
         "seed": run.config.seed,
         "wheel_slip": run.config.wheel_slip,
+        "params_file": str(run.config.params_file) if run.config.params_file else None,
         **metrics,
         "out": str(run.out),
         "plots": sorted(p.name for p in run.out.glob("*.png")),
@@ -453,6 +454,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--map", type=Path, default=None,
                         help="map: the Nav2 map YAML to score; localization: the map to localize on "
                              "(default maps/<world>.yaml)")
+    parser.add_argument("--params-file", type=Path, default=None,
+                        help="localization, navigation: Nav2's parameters (launch_sim's params_file:=; default "
+                             "config/nav2_params.yaml), e.g. to compare planners and controllers")
     parser.add_argument("--map-pose", type=float, nargs=3, default=(0.0, 0.0, 0.0), metavar=("X", "Y", "YAW"),
                         help="map, localization: where the map's frame is in the world (default 0 0 0: the "
                              "world's own frame, which is the default spawn pose where mapping starts)")

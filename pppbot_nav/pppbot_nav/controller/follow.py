@@ -10,7 +10,7 @@ Each period, in this order:
    ``movement_time_allowance``: the goal fails (``FAILED_TO_MAKE_PROGRESS``).
 4. The controller's command. When it has none (a collision ahead, a bad input), the robot
    stops. The goal fails (``NO_VALID_CONTROL``) once that has lasted longer than
-   ``failure_tolerance``. A command clears the failure clock.
+   ``failure_tolerance`` (-1: never, as Nav2). A command clears the failure clock.
 """
 from __future__ import annotations
 
@@ -20,8 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pppbot_common.se2 import PoseLike
-from pppbot_nav.controller.checkers import SimpleGoalChecker, SimpleProgressChecker
-from pppbot_nav.controller.pure_pursuit import Command, PurePursuit
+from pppbot_nav.controller.checkers import GoalChecker, ProgressChecker
+from pppbot_nav.controller.pure_pursuit import Command, Controller
 from pppbot_nav.costmap.grid import Costmap
 from pppbot_nav.errors import CollisionAhead, ControllerError
 
@@ -52,15 +52,12 @@ class FollowStep:
 class Follower:
     """The per-period follow policy for one path; keeps the failure clock between periods."""
 
-    def __init__(self, controller: PurePursuit, goal_checker: SimpleGoalChecker,
-                 progress_checker: SimpleProgressChecker, failure_tolerance_s: float,
-                 required_movement_radius_m: float, movement_time_allowance_s: float) -> None:
+    def __init__(self, controller: Controller, goal_checker: GoalChecker,
+                 progress_checker: ProgressChecker, failure_tolerance_s: float) -> None:
         self.controller = controller
         self.goal_checker = goal_checker
         self.progress_checker = progress_checker
         self.failure_tolerance_s = failure_tolerance_s
-        self._progress_text = (f"the robot moved less than {required_movement_radius_m} m in "
-                               f"{movement_time_allowance_s} s")
         self.failing_since_s: float | None = None
 
     def _failing_for(self, now_s: float) -> float:
@@ -79,14 +76,14 @@ class Follower:
             if self._failing_for(now_s) > max(self.failure_tolerance_s, MIN_TF_TOLERANCE_S):
                 return FollowStep(end=FollowEnd.TF_ERROR, message=f"no transform for the path: {no_pose_reason}")
             return FollowStep(problem=f"no transform for the path: {no_pose_reason}")
-        if self.goal_checker.is_goal_reached(pose, goal):
+        if self.goal_checker.is_goal_reached(pose, goal, speed):
             return FollowStep(end=FollowEnd.SUCCEEDED)
-        if not self.progress_checker.check(np.asarray(pose, dtype=float)[:2], now_s):
-            return FollowStep(end=FollowEnd.FAILED_TO_MAKE_PROGRESS, message=self._progress_text)
+        if not self.progress_checker.check(np.asarray(pose, dtype=float), now_s):
+            return FollowStep(end=FollowEnd.FAILED_TO_MAKE_PROGRESS, message=self.progress_checker.failure())
         try:
             command = self.controller.compute(pose, speed, path3, costmap, period_s, costmap_pose=pose_in_costmap)
         except (CollisionAhead, ControllerError) as exc:
-            if self._failing_for(now_s) > self.failure_tolerance_s:
+            if self.failure_tolerance_s >= 0 and self._failing_for(now_s) > self.failure_tolerance_s:
                 return FollowStep(end=FollowEnd.NO_VALID_CONTROL, message=str(exc))
             return FollowStep(problem=f"no command this period: {exc}")
         self.failing_since_s = None

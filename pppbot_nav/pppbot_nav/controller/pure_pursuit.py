@@ -58,6 +58,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 from enum import Enum
+from typing import Protocol
 
 import numpy as np
 
@@ -171,6 +172,15 @@ class Command:
     local_plan: np.ndarray  # (M, 2) x, y of the pruned path portion used, for /local_plan
     mode: ControlMode
     lookahead_dist_m: float
+
+
+class Controller(Protocol):
+    """What the controller server asks of a controller plugin (RPP, DWB)."""
+
+    def set_path(self, path: np.ndarray) -> None: ...
+
+    def compute(self, pose: PoseLike, speed: PoseLike, path: np.ndarray, costmap: Costmap | None,
+                dt_s: float, costmap_pose: PoseLike | None = None) -> Command: ...
 
 
 class PurePursuit:

@@ -1,18 +1,26 @@
-"""``controller_server``: follows paths with regulated pure pursuit, in Nav2's ``controller_server`` place.
+"""``controller_server``: follows paths, in Nav2's ``controller_server`` place.
 
 Runs the ``local_costmap`` (:mod:`pppbot_nav.ros.costmap_node`, rolling in ``odom``) in the same
-process, as Nav2 does. Serves ``follow_path`` (nav2_msgs/action/FollowPath): at
-``controller_frequency`` (sim time) it places the path in the local costmap's frame (TF),
-computes the command (:mod:`pppbot_nav.controller.pure_pursuit`, parameters under
-``FollowPath.``), publishes it on ``cmd_vel`` (geometry_msgs/Twist: twist_mux's
-``navigation`` input) and the part of the path it follows on ``local_plan``, and gives
-feedback (distance to goal, speed). The goal checker (``general_goal_checker.*``) ends the
-goal with success; the progress checker (``progress_checker.*``) fails it with
-FAILED_TO_MAKE_PROGRESS; a collision ahead that lasts longer than ``failure_tolerance`` fails
-it with NO_VALID_CONTROL. These per-period decisions are
+process, as Nav2 does. Its plugins are Nav2's, by type (:mod:`pppbot_nav.controller.plugin_settings`):
+``controller_plugins`` (``dwb_core::DWBLocalPlanner``, Nav2's default for ``FollowPath``, or
+``nav2_regulated_pure_pursuit_controller::RegulatedPurePursuitController``),
+``goal_checker_plugins`` and ``progress_checker_plugins`` (or Humble's one
+``progress_checker_plugin``), each named plugin's parameters under its name. Serves
+``follow_path`` (nav2_msgs/action/FollowPath; its ``controller_id``, ``goal_checker_id`` and
+``progress_checker_id`` pick the plugins, empty the only one): at ``controller_frequency``
+(sim time) it places the path in the local costmap's frame (TF), computes the command, publishes
+it on ``cmd_vel`` (geometry_msgs/Twist) and the part of the path it follows on ``local_plan``,
+and gives feedback (distance to goal, speed). The goal checker ends the goal with success; the
+progress checker fails it with FAILED_TO_MAKE_PROGRESS; no command for longer than
+``failure_tolerance`` fails it with NO_VALID_CONTROL. These per-period decisions are
 :class:`pppbot_nav.controller.follow.Follower`'s (no ROS, unit-tested). A new path preempts the
 one being followed and keeps the progress checker's history, as Nav2's path updates do. The
-robot is stopped whenever a goal ends.
+robot is stopped whenever a goal ends (``publish_zero_velocity``).
+
+Live parameters: the server's thresholds, ``failure_tolerance`` and ``controller_frequency``,
+every parameter of RPP and of the checkers, DWB's kinematic limits; each applies to the running
+plugin (its path progress, the goal checker's latch and the progress baseline stay). The rest is
+refused with the reason.
 """
 from __future__ import annotations
 
@@ -33,72 +41,82 @@ from pppbot_common.ros.goals import GoalEnd, GoalServer, Stopped, check_running,
 from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.lockstep import create_timer, require_match
 from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
-from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.params import LiveParameters, declare_parameters, serve_live_parameters
 from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_common.transforms import TransformError, compose
-from pppbot_nav.controller.checkers import SimpleGoalChecker, SimpleProgressChecker
 from pppbot_nav.controller.follow import FollowEnd, Follower
-from pppbot_nav.controller.pure_pursuit import PurePursuit, PurePursuitSettings
+from pppbot_nav.controller.plugin_settings import (
+    CONTROLLER_TYPES,
+    DEFAULT_CHECKER_TYPES,
+    DEFAULT_CONTROLLER_TYPES,
+    DWB,
+    DWB_LIVE,
+    GOAL_CHECKER_TYPES,
+    PROGRESS_CHECKER_TYPES,
+    RPP,
+)
 from pppbot_nav.errors import ControllerError
 from pppbot_nav.ros.costmap_node import CostmapNode
 from pppbot_nav.ros.planner_server import path_message
+from pppbot_nav.ros.plugins import Plugin, live_plugin_parameters, load_plugin
 
 Result = FollowPath.Result
-CONTROLLER_ID = "FollowPath"
+
+#: What of each plugin type may change at run time (None: everything, as RPP's and the checkers'
+#: dynamic parameters; DWB's kinematic limits).
+LIVE_PLUGINS: dict[str, frozenset[str] | None] = {RPP: None, DWB: DWB_LIVE, **dict.fromkeys(GOAL_CHECKER_TYPES),
+                                                  **dict.fromkeys(PROGRESS_CHECKER_TYPES)}
+#: Nav2 keys that mean nothing here, with the reason (named in the start-up warning when given).
+NO_EFFECT = {
+    "*.debug_trajectory_details": "pppbot's DWB publishes no trajectory evaluation",
+    "*.transform_tolerance": "the controller follows with the newest transform",
+    "*.stateful": "DWB has no such parameter (the goal checker's 'stateful' is)",
+    "*.publish_cost_grid_pc": "pppbot's DWB publishes no cost grid",
+    "*.publish_evaluation": "pppbot's DWB publishes no trajectory evaluation",
+    "*.publish_trajectories": "pppbot's DWB publishes no trajectories",
+    "*.publish_local_plan": "the local plan is always published (local_plan)",
+    "*.publish_global_plan": "the global plan is the planner's (plan)",
+    "*.publish_transformed_plan": "the transformed plan is not published",
+    "speed_limit_topic": "no speed limits: Nav2's speed filter is not implemented",
+    "use_realtime_priority": "pppbot's nodes run at normal priority",
+    "costmap_update_timeout": "the controller uses the local costmap as it is",
+    "enable_stamped_cmd_vel": "the controller's commands are geometry_msgs/Twist (ppp_bot's, Nav2's default)",
+    "use_sim_time": "",
+}
+#: What the server itself may change at run time (Nav2's, and controller_frequency).
+LIVE_SERVER = {"controller_frequency", "failure_tolerance", "min_x_velocity_threshold",
+               "min_y_velocity_threshold", "min_theta_velocity_threshold"}
 
 
 @dataclass(frozen=True)
 class ControllerServerParameters:
     controller_frequency: float = param(20.0, "control periods per second (Hz, sim time)")
-    controller_plugins: list = param([CONTROLLER_ID], f"controller names (pppbot has one: {CONTROLLER_ID})")
+    controller_plugins: list = param(["FollowPath"], "controller names; each's type is its <name>.plugin")
+    goal_checker_plugins: list = param(["goal_checker"], "goal checker names; each's type is its <name>.plugin")
+    progress_checker_plugins: list = param(["progress_checker"], "progress checker names (Jazzy)")
+    progress_checker_plugin: str = param("", "one progress checker's name (Humble's key; wins when given)")
     odom_topic: str = param("odom", "odometry: the robot's current speed")
-    failure_tolerance: float = param(0.3, "how long the controller may fail before the goal does (s)")
-    required_movement_radius: float = param(0.5, "progress checker: move this far (m) ...",
-                                            "progress_checker.required_movement_radius")
-    movement_time_allowance: float = param(10.0, "... within this time (s)", "progress_checker.movement_time_allowance")
-    xy_goal_tolerance: float = param(0.25, "goal checker: distance (m)", "general_goal_checker.xy_goal_tolerance")
-    yaw_goal_tolerance: float = param(0.25, "goal checker: heading (rad)", "general_goal_checker.yaw_goal_tolerance")
-    stateful: bool = param(True, "goal checker: once within xy, only the heading is checked",
-                           "general_goal_checker.stateful")
+    failure_tolerance: float = param(0.3, "how long the controller may fail before the goal does (s; "
+                                          "ppp_bot's 0.3, Nav2's default 0)")
+    min_x_velocity_threshold: float = param(0.0001, "odometry speeds below this count as 0 (m/s)")
+    min_y_velocity_threshold: float = param(0.0001, "(a differential drive has no y speed)")
+    min_theta_velocity_threshold: float = param(0.0001, "odometry turn rates below this count as 0 (rad/s)")
+    publish_zero_velocity: bool = param(True, "send a zero command when a goal ends")
 
     def validate(self) -> None:
         check_finite_range("controller_frequency", self.controller_frequency, 0.0, 1000.0, low_open=True)
-        check_finite_range("failure_tolerance", self.failure_tolerance, 0.0, 3600.0)
-        if list(self.controller_plugins) != [CONTROLLER_ID]:
-            raise ParameterError("controller_plugins", self.controller_plugins, f"must be ['{CONTROLLER_ID}']")
-        try:
-            self.goal_checker()
-            self.progress_checker()
-        except ControllerError as exc:
-            raise ParameterError(exc.parameter or "general_goal_checker", "", str(exc)) from exc
+        check_finite_range("failure_tolerance", self.failure_tolerance, -1.0, 3600.0)
+        for name in ("min_x_velocity_threshold", "min_y_velocity_threshold", "min_theta_velocity_threshold"):
+            check_finite_range(name, getattr(self, name), 0.0, 100.0)
+        for name in ("controller_plugins", "goal_checker_plugins", "progress_checker_plugins"):
+            names = getattr(self, name)
+            if (not names and name != "progress_checker_plugins") or len(set(names)) != len(names):
+                raise ParameterError(name, names, "must name at least one plugin, each once")
+        if not self.progress_checkers():
+            raise ParameterError("progress_checker_plugins", self.progress_checker_plugins, "must name one at least")
 
-    def goal_checker(self) -> SimpleGoalChecker:
-        return SimpleGoalChecker(self.xy_goal_tolerance, self.yaw_goal_tolerance, self.stateful)
-
-    def progress_checker(self) -> SimpleProgressChecker:
-        return SimpleProgressChecker(self.required_movement_radius, self.movement_time_allowance)
-
-
-def _follow_path_parameters() -> type:
-    """``FollowPath.<name>`` parameters: every field of :class:`PurePursuitSettings`."""
-    fields = [(f.name, f.type, param(f.default, f"regulated pure pursuit: {f.name}", f"{CONTROLLER_ID}.{f.name}"))
-              for f in dataclasses.fields(PurePursuitSettings)]
-
-    def validate(self: Any) -> None:
-        try:
-            self.settings().validate()
-        except ControllerError as exc:
-            name = f"{CONTROLLER_ID}.{exc.parameter}" if exc.parameter else CONTROLLER_ID
-            raise ParameterError(name, getattr(self, exc.parameter or "", ""), str(exc)) from exc
-
-    def settings(self: Any) -> PurePursuitSettings:
-        return PurePursuitSettings(**{f.name: getattr(self, f.name) for f in dataclasses.fields(PurePursuitSettings)})
-
-    return dataclasses.make_dataclass("FollowPathParameters", fields, frozen=True,
-                                      namespace={"validate": validate, "settings": settings})
-
-
-FollowPathParameters = _follow_path_parameters()
+    def progress_checkers(self) -> list[str]:
+        return [self.progress_checker_plugin] if self.progress_checker_plugin else list(self.progress_checker_plugins)
 
 
 #: How each way a follow ends is answered (nav2_msgs/action/FollowPath result codes).
@@ -125,12 +143,13 @@ class ControllerServer(ManagedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("controller_server", **kwargs)
         self.params = p = declare_parameters(self, ControllerServerParameters)
-        self.rpp_settings: PurePursuitSettings = declare_parameters(self, FollowPathParameters).settings()
+        self.parameter_notes = NO_EFFECT
         self.costmap_node = CostmapNode("local_costmap")
         self.composed_nodes = [self.costmap_node]
-        self.controller = PurePursuit(self.rpp_settings)
-        self.goal_checker = p.goal_checker()
-        self.progress_checker = p.progress_checker()
+        self.plugins: dict[str, Plugin] = {}
+        self.controllers = self._load(p.controller_plugins, CONTROLLER_TYPES, DEFAULT_CONTROLLER_TYPES)
+        self.goal_checkers = self._load(p.goal_checker_plugins, GOAL_CHECKER_TYPES, DEFAULT_CHECKER_TYPES)
+        self.progress_checkers = self._load(p.progress_checkers(), PROGRESS_CHECKER_TYPES, DEFAULT_CHECKER_TYPES)
         self._warn = Warnings(self)
         self._speed = (0.0, 0.0)
         self._active: _Following | None = None
@@ -143,8 +162,49 @@ class ControllerServer(ManagedNode):
         # The control loop runs while a path is followed (an idle controller makes no sync times).
         self.timer = create_timer(self, 1.0 / p.controller_frequency, self._control)
         self.timer.cancel()
-        self.get_logger().info(f"controller '{CONTROLLER_ID}' (regulated pure pursuit) at "
-                               f"{p.controller_frequency} Hz on local_costmap")
+        serve_live_parameters(self, [LiveParameters("", lambda: self.params, self._set_params, LIVE_SERVER),
+                                     *live_plugin_parameters(self.plugins, self._set_plugin_params, LIVE_PLUGINS)])
+        kinds = ", ".join(f"'{name}' ({self.plugins[name].type_name})" for name in self.controllers)
+        self.get_logger().info(f"controllers {kinds} at {p.controller_frequency} Hz on local_costmap")
+
+    def _load(self, names: list[str], types: dict[str, type], defaults: dict[str, str]) -> dict[str, Any]:
+        """Each named plugin, made from its type's parameters (kept in ``plugins`` for live sets)."""
+        made = {}
+        for name in names:
+            plugin = self.plugins[name] = load_plugin(self, name, types, defaults.get(name))
+            made[name] = plugin.params.make(**self._from_costmap(plugin.type_name))
+        return made
+
+    def _from_costmap(self, type_name: str) -> dict[str, float]:
+        """What a plugin of ``type_name`` takes from the local costmap: DWB its footprint."""
+        if type_name != DWB:
+            return {}
+        return {"robot_radius": self.costmap_node.params.robot_radius, "footprint_padding": 0.01}  # Nav2's padding
+
+    # ----------------------------------------------------------- parameters
+    def _set_params(self, new: ControllerServerParameters) -> None:
+        old, self.params = self.params, new
+        if self._active is not None:
+            self._active.follower.failure_tolerance_s = new.failure_tolerance
+        if new.controller_frequency != old.controller_frequency:
+            running = not self.timer.is_canceled()
+            self.destroy_timer(self.timer)
+            self.timer = create_timer(self, 1.0 / new.controller_frequency, self._control)
+            if not running:
+                self.timer.cancel()
+
+    def _set_plugin_params(self, name: str, new: Any) -> None:
+        """A plugin's live parameters, set on the running plugin: a controller's path progress, a
+        goal checker's latch and a progress checker's baseline stay."""
+        old = self.plugins[name]
+        self.plugins[name] = Plugin(name, old.type_name, new)
+        if name in self.controllers:
+            self.controllers[name].settings = new.settings(**self._from_costmap(old.type_name))
+            return
+        fresh = new.make()
+        running = self.goal_checkers.get(name) or self.progress_checkers[name]
+        for field in dataclasses.fields(new):
+            setattr(running, field.name, getattr(fresh, field.name))
 
     def destroy_node(self) -> None:
         self.server.destroy()
@@ -152,14 +212,19 @@ class ControllerServer(ManagedNode):
         super().destroy_node()
 
     def _on_odom(self, msg: Odometry) -> None:
+        """The robot's speed, each below its threshold taken as 0 (Nav2's min_*_velocity_threshold)."""
         t = msg.twist.twist
-        self._speed = (t.linear.x, t.angular.z)
+        p = self.params
+        v = t.linear.x if abs(t.linear.x) >= p.min_x_velocity_threshold else 0.0
+        w = t.angular.z if abs(t.angular.z) >= p.min_theta_velocity_threshold else 0.0
+        self._speed = (v, w)
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
     def stop(self) -> None:
-        self.cmd_pub.publish(Twist())
+        if self.params.publish_zero_velocity:
+            self.cmd_pub.publish(Twist())
 
     # ------------------------------------------------------------------ goals
     def _on_goal(self, handle: ServerGoalHandle) -> None:
@@ -168,10 +233,7 @@ class ControllerServer(ManagedNode):
         previous = self._active
         if previous is not None:
             self._end(previous, Result.UNKNOWN, "preempted by a new path", stop=False)
-        else:
-            self.progress_checker.reset()
-        self.goal_checker.reset()
-        problem = self._start(handle)
+        problem = self._start(handle, previous)
         if problem is not None:
             code, message = problem
             self.server.finish(handle, GoalEnd.ABORTED, Result(error_code=code, error_msg=message))
@@ -184,10 +246,19 @@ class ControllerServer(ManagedNode):
         if previous is None:
             self._control()  # the first command now, not a period later
 
-    def _start(self, handle: ServerGoalHandle) -> tuple[int, str] | None:
+    def _start(self, handle: ServerGoalHandle, previous: _Following | None) -> tuple[int, str] | None:
         request = handle.request
-        if request.controller_id not in ("", CONTROLLER_ID):
-            return Result.INVALID_CONTROLLER, f"unknown controller_id '{request.controller_id}'"
+        picked = [_pick(self.controllers, request.controller_id, "controller"),
+                  _pick(self.goal_checkers, request.goal_checker_id, "goal checker"),
+                  _pick(self.progress_checkers, request.progress_checker_id, "progress checker")]
+        problem = next((found for found in picked if isinstance(found, str)), None)
+        if problem is not None:
+            code = Result.INVALID_CONTROLLER if problem.startswith("controller") else Result.UNKNOWN
+            return code, problem
+        controller, goal_checker, progress_checker = picked
+        if previous is None or previous.follower.progress_checker is not progress_checker:
+            progress_checker.reset()
+        goal_checker.reset()
         path_msg: Path = request.path
         if not path_msg.poses:
             return Result.INVALID_PATH, "the path is empty"
@@ -199,12 +270,10 @@ class ControllerServer(ManagedNode):
         goal = (float(path[-1, 0]), float(path[-1, 1]), yaw_from_quaternion(o.x, o.y, o.z, o.w))
         path3 = np.column_stack([path, np.full(len(path), goal[2])])
         try:
-            self.controller.set_path(path3)
+            controller.set_path(path3)
         except ControllerError as exc:
             return Result.INVALID_PATH, str(exc)
-        p = self.params
-        follower = Follower(self.controller, self.goal_checker, self.progress_checker, p.failure_tolerance,
-                            p.required_movement_radius, p.movement_time_allowance)
+        follower = Follower(controller, goal_checker, progress_checker, self.params.failure_tolerance)
         self._active = _Following(handle, path3, path_frame, goal, follower)
         return None
 
@@ -276,6 +345,15 @@ class ControllerServer(ManagedNode):
         feedback.speed = float(abs(self._speed[0]))
         following.handle.publish_feedback(feedback)
         return None
+
+def _pick(plugins: dict[str, Any], name: str, what: str) -> Any:
+    """The plugin a goal names; with one, an empty name names it (as Nav2). A string says why not."""
+    if name in plugins:
+        return plugins[name]
+    if not name and len(plugins) == 1:
+        return next(iter(plugins.values()))
+    return f"{what} '{name}' is not one of this server's: {', '.join(plugins)}"
+
 
 def main(args: list[str] | None = None) -> int:
     return run_nodes([ControllerServer], "controller_server", args)

@@ -6,13 +6,21 @@ ros__parameters:`` in ``config/nav2_params.yaml`` and it publishes ``/global_cos
 (nav_msgs/OccupancyGrid, Nav2's cost translation, transient local) and serves
 ``/global_costmap/clear_entirely_global_costmap`` (nav2_msgs/ClearEntireCostmap).
 
-Layers (``plugins``, applied in order) are chosen by name: ``static_layer`` (the map on
-``static_layer.map_topic``; the costmap takes the map's size and origin unless it rolls),
-``obstacle_layer`` (also accepted as ``voxel_layer``, as ppp_bot's local costmap names it: marks
-and clears from the LaserScan on ``obstacle_layer.scan.topic``) and ``inflation_layer``. A
-rolling window (``rolling_window``) is ``width`` × ``height`` m centred on the robot
-(``global_frame`` → ``robot_base_frame`` from TF). The master is rebuilt at
-``update_frequency`` and published at ``publish_frequency``.
+Layers (``plugins``, applied in order) are Nav2's plugin types, each chosen by its
+``<name>.plugin`` (:mod:`pppbot_nav.costmap.layer_settings`: ``nav2_costmap_2d::StaticLayer``,
+``ObstacleLayer``, ``VoxelLayer`` projected to 2D, ``InflationLayer``; ``static_layer``,
+``obstacle_layer``, ``voxel_layer`` and ``inflation_layer`` without one get those types). A
+static layer takes the map on its ``map_topic`` (or the costmap's); the costmap takes the map's
+size and origin unless it rolls. An obstacle or voxel layer marks and clears from each of its
+``observation_sources`` (LaserScan topics, each with its ranges and marking/clearing). A rolling
+window (``rolling_window``) is ``width`` × ``height`` m centred on the robot (``global_frame`` →
+``robot_base_frame`` from TF). The master is rebuilt at ``update_frequency`` and published at
+``publish_frequency``.
+
+Live parameters (``ros2 param set``), as Nav2's: ``robot_radius``, ``publish_frequency`` and
+``update_frequency``, each layer's ``enabled``, the obstacle layers' ``footprint_clearing_enabled``
+and ``combination_method``, and the inflation layer's radius, scaling and unknown handling apply
+at once, keeping what the layers have seen; everything else is refused with the reason.
 
 As Nav2's observation buffer, scans are kept (with the sensor's pose at their stamp) and
 applied when the layers update, not as they come: with ``observation_persistence`` 0 (Nav2's
@@ -23,7 +31,8 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -37,20 +46,28 @@ from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.ros.lockstep import at_step, create_timer, require, require_match
 from pppbot_common.ros.maps import grid_from_message, grid_message
 from pppbot_common.ros.node_main import Warnings, guarded
-from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.params import LiveParameters, declare_parameters, serve_live_parameters
 from pppbot_common.ros.planar import stamp_seconds
-from pppbot_common.ros.qos import LATCHED, SENSOR
+from pppbot_common.ros.qos import LATCHED, MAP_VOLATILE, SENSOR
 from pppbot_common.ros.tf_listener import TfListener
 from pppbot_common.transforms import TransformError
 from pppbot_nav.costmap.costs import NO_INFORMATION
 from pppbot_nav.costmap.grid import Costmap
+from pppbot_nav.costmap.layer_settings import (
+    DEFAULT_TYPES,
+    INFLATION,
+    LAYER_TYPES,
+    LIVE,
+    NO_EFFECT,
+    STATIC,
+    SourceParameters,
+)
 from pppbot_nav.costmap.layers import InflationLayer, Layer, LayeredCostmap, ObstacleLayer, StaticLayer
-from pppbot_nav.errors import CostmapError
+from pppbot_nav.ros.plugins import Plugin, live_plugin_parameters, load_plugin
 
 #: Scans that may wait for their transform: two seconds of a 10 Hz lidar (AMCL stamps map → odom
 #: ahead by its transform_tolerance, but a busy machine can still hold it back).
 SCAN_QUEUE = 20
-LAYER_NAMES = ("static_layer", "obstacle_layer", "voxel_layer", "inflation_layer")
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,6 +76,18 @@ class _Observation:
     stamp_s: float
     scan: LaserScan
     sensor: tuple[float, float, float]
+
+
+@dataclass(eq=False)
+class _Source:
+    """One observation source of an obstacle layer, with the scans waiting for their transform
+    and those kept (Nav2's ObservationBuffer)."""
+    name: str  # <layer>.<source>
+    layer: ObstacleLayer
+    params: SourceParameters
+    topic: str
+    pending: deque[LaserScan] = field(default_factory=deque)
+    observations: deque[_Observation] = field(default_factory=deque)
 
 
 @dataclass(frozen=True)
@@ -71,65 +100,30 @@ class CostmapParameters:
     width: int = param(5, "rolling window width (m)")
     height: int = param(5, "rolling window height (m)")
     resolution: float = param(0.05, "cell size (m); a static map's own resolution wins")
-    robot_radius: float = param(0.3, "the robot's radius (m): the inscribed zone")
-    track_unknown_space: bool = param(True, "unknown cells stay unknown (else free)")
+    robot_radius: float = param(0.3, "the robot's radius (m): the inscribed zone (ppp_bot's; Nav2's default 0.1)")
+    track_unknown_space: bool = param(False, "unknown cells stay unknown (else free)")
     lethal_cost_threshold: int = param(100, "map values at or above this are lethal")
+    map_topic: str = param("/map", "the static layers' map topic when they name none")
     plugins: list = param(["static_layer", "obstacle_layer", "inflation_layer"],
-                          "layers in order, of: " + ", ".join(LAYER_NAMES))
-    map_topic: str = param("/map", "static layer: the map topic (transient local)",
-                           ros_name="static_layer.map_topic")
-    scan_topic: str = param("/scan", "obstacle layer: the LaserScan topic", ros_name="obstacle_layer.scan.topic")
-    obstacle_max_range: float = param(2.5, "obstacle layer: mark returns up to this range (m)",
-                                      ros_name="obstacle_layer.scan.obstacle_max_range")
-    obstacle_min_range: float = param(0.0, "obstacle layer: mark returns from this range (m)",
-                                      ros_name="obstacle_layer.scan.obstacle_min_range")
-    raytrace_max_range: float = param(3.0, "obstacle layer: clear along beams up to this range (m)",
-                                      ros_name="obstacle_layer.scan.raytrace_max_range")
-    raytrace_min_range: float = param(0.0, "obstacle layer: clear from this range (m)",
-                                      ros_name="obstacle_layer.scan.raytrace_min_range")
-    observation_persistence: float = param(0.0, "obstacle layer: how long a scan is applied (s); 0: the newest only",
-                                           ros_name="obstacle_layer.scan.observation_persistence")
-    inflation_radius: float = param(0.55, "inflation layer: radius (m)", ros_name="inflation_layer.inflation_radius")
-    cost_scaling_factor: float = param(3.0, "inflation layer: exponential decay (1/m)",
-                                       ros_name="inflation_layer.cost_scaling_factor")
-    inflate_unknown: bool = param(False, "inflation layer: inflate into unknown cells",
-                                  ros_name="inflation_layer.inflate_unknown")
+                          "layers in order; each's type is its <name>.plugin")
 
     def validate(self) -> None:
         for name in ("update_frequency", "publish_frequency", "resolution"):
             check_finite_range(name, getattr(self, name), 0.0, 1000.0, low_open=True)
         check_finite_range("robot_radius", self.robot_radius, 0.0, 100.0)
-        check_finite_range("obstacle_layer.scan.observation_persistence", self.observation_persistence, 0.0, 3600.0)
         if self.rolling_window and not (self.width > 0 and self.height > 0):
             raise ParameterError("width", f"{self.width} × {self.height}", "a rolling window needs a positive size")
         if not 1 <= self.lethal_cost_threshold <= 100:
             raise ParameterError("lethal_cost_threshold", self.lethal_cost_threshold, "must be in [1, 100]")
-        unknown = [p for p in self.plugins if p not in LAYER_NAMES]
-        if unknown or not self.plugins:
-            raise ParameterError("plugins", self.plugins, f"must be a list of: {', '.join(LAYER_NAMES)}")
-        if self.rolling_window is False and "static_layer" not in self.plugins:
-            raise ParameterError("plugins", self.plugins, "a costmap that does not roll needs static_layer "
-                                                          "(it takes the map's size)")
+        if not self.plugins or len(set(self.plugins)) != len(self.plugins):
+            raise ParameterError("plugins", self.plugins, "must name at least one layer, each once")
         for name in ("global_frame", "robot_base_frame"):
             if not getattr(self, name):
                 raise ParameterError(name, getattr(self, name), "must not be empty")
-        try:
-            self.layers()
-        except CostmapError as exc:
-            raise ParameterError("plugins", self.plugins, str(exc)) from exc
 
-    def layers(self) -> list[Layer]:
-        made: list[Layer] = []
-        for name in self.plugins:
-            if name == "static_layer":
-                made.append(StaticLayer(self.track_unknown_space, self.lethal_cost_threshold))
-            elif name in ("obstacle_layer", "voxel_layer"):
-                made.append(ObstacleLayer(self.obstacle_max_range, self.obstacle_min_range, self.raytrace_max_range,
-                                          self.raytrace_min_range, self.track_unknown_space))
-            else:
-                made.append(InflationLayer(self.inflation_radius, self.cost_scaling_factor, self.robot_radius,
-                                           self.inflate_unknown))
-        return made
+
+#: What a costmap may change while it runs; the rest is refused (Nav2 reads it once).
+LIVE_COSTMAP = {"robot_radius", "publish_frequency", "update_frequency"}
 
 
 def costmap_message(costmap: Costmap, stamp: Any) -> Nav2Costmap:
@@ -153,12 +147,21 @@ class CostmapNode(Node):
         super().__init__(name, namespace=name, **kwargs)
         self.costmap_name = name
         self.params = p = declare_parameters(self, CostmapParameters)
+        overrides = getattr(self, "_parameter_overrides", {}) or {}
+        elsewhere = {name.split(".")[0] for name in overrides if "." in name} - set(p.plugins)
+        self.parameter_notes = {**NO_EFFECT, **{f"{layer}.*": f"'{layer}' is not one of this costmap's plugins"
+                                                for layer in sorted(elsewhere)}}
         self._warn = Warnings(self, settling=("robot pose", "scan transform"))
-        self._pending: deque[LaserScan] = deque()  # scans waiting for their transform
-        self._observations: deque[_Observation] = deque()  # scans with their sensor pose, oldest first
         self._applied: tuple[tuple[_Observation, ...], tuple[float, float]] | None = None  # and where
         self.tf = TfListener(self, self._warn, on_tf=self._drain).buffer
-        self.layers = p.layers()
+        self.plugins: dict[str, Plugin] = {layer: load_plugin(self, layer, LAYER_TYPES, DEFAULT_TYPES.get(layer))
+                                           for layer in p.plugins}
+        self.sources: list[_Source] = []
+        self.layer_by_name: dict[str, Layer] = {name: self._make_layer(pl) for name, pl in self.plugins.items()}
+        self.layers: list[Layer] = list(self.layer_by_name.values())
+        if p.rolling_window is False and not any(isinstance(la, StaticLayer) for la in self.layers):
+            raise ParameterError("plugins", p.plugins, "a costmap that does not roll needs a static layer "
+                                                       "(it takes the map's size)")
         self.static = next((la for la in self.layers if isinstance(la, StaticLayer)), None)
         self.obstacles = [la for la in self.layers if isinstance(la, ObstacleLayer)]
         self.layered: LayeredCostmap | None = None
@@ -171,21 +174,73 @@ class CostmapNode(Node):
         #: The message of the costmap last published: an unchanged costmap is sent again restamped.
         self._message: tuple[Costmap, OccupancyGridMsg] | None = None
         self.pub = self.create_publisher(OccupancyGridMsg, "costmap", LATCHED)
-        self._map_arrived = require(self, f"a map on '{p.map_topic}'") if self.static is not None else None
-        if self.static is not None:
-            self.create_subscription(OccupancyGridMsg, p.map_topic, guarded(self, self._on_map, "OccupancyGrid"),
-                                     LATCHED)
-        if self.obstacles:
-            on_scan = guarded(self, at_step(self, self._on_scan), "LaserScan")
-            require_match(self, self.create_subscription(LaserScan, p.scan_topic, on_scan, SENSOR))
+        self._map_arrived: Any = None
+        for plugin in self.plugins.values():
+            if plugin.type_name == STATIC:
+                topic = plugin.params.map_topic or p.map_topic
+                self._map_arrived = require(self, f"a map on '{topic}'")
+                qos = LATCHED if plugin.params.map_subscribe_transient_local else MAP_VOLATILE
+                self.create_subscription(OccupancyGridMsg, topic, guarded(self, self._on_map, "OccupancyGrid"), qos)
+        for source in self.sources:
+            on_scan = guarded(self, at_step(self, partial(self._on_scan, source)), "LaserScan")
+            require_match(self, self.create_subscription(LaserScan, source.topic, on_scan, SENSOR))
         self.create_service(ClearEntireCostmap, f"clear_entirely_{name}", self._clear)
         self.create_service(GetCostmap, "get_costmap", self._get_costmap)
         self.create_service(ClearCostmapAroundRobot, f"clear_around_{name}", self._clear_around)
         self.create_service(ClearCostmapExceptRegion, f"clear_except_{name}", self._clear_except)
-        create_timer(self, 1.0 / p.update_frequency, self.update)
-        create_timer(self, 1.0 / p.publish_frequency, self.publish)
-        self.get_logger().info(f"{name}: {', '.join(p.plugins)} in '{p.global_frame}'"
+        self._update_timer = create_timer(self, 1.0 / p.update_frequency, self.update)
+        self._publish_timer = create_timer(self, 1.0 / p.publish_frequency, self.publish)
+        sources = {source.name: Plugin(source.name, "source", source.params) for source in self.sources}
+        serve_live_parameters(self, [LiveParameters("", lambda: self.params, self._set_params, LIVE_COSTMAP),
+                                     *live_plugin_parameters(self.plugins, self._set_layer_params, LIVE),
+                                     *live_plugin_parameters(sources, self._set_layer_params, {})])
+        kinds = ", ".join(f"{pl.name} ({pl.type_name.split('::')[-1]})" for pl in self.plugins.values())
+        self.get_logger().info(f"{name}: {kinds} in '{p.global_frame}'"
                                + (f", rolling {p.width} × {p.height} m" if p.rolling_window else ""))
+
+    def _make_layer(self, plugin: Plugin) -> Layer:
+        """The layer of a loaded plugin; an obstacle or voxel layer's sources are declared too."""
+        p = self.params
+        if plugin.type_name == STATIC:
+            return plugin.params.make(p.track_unknown_space, p.lethal_cost_threshold)
+        if plugin.type_name == INFLATION:
+            return plugin.params.make(p.robot_radius)
+        layer = plugin.params.make(p.track_unknown_space)
+        for source_name in plugin.params.sources():
+            prefix = f"{plugin.name}.{source_name}"
+            settings = declare_parameters(self, SourceParameters, prefix=f"{prefix}.")
+            self.sources.append(_Source(prefix, layer, settings, settings.topic or source_name))
+        return layer
+
+    # ----------------------------------------------------------- parameters
+    def _set_params(self, new: CostmapParameters) -> None:
+        old, self.params = self.params, new
+        if new.robot_radius != old.robot_radius:
+            for layer in self.layers:
+                if isinstance(layer, InflationLayer):
+                    layer.inscribed_radius = new.robot_radius
+                    layer.forget()
+        for timer, rate, callback in ((self._update_timer, "update_frequency", self.update),
+                                      (self._publish_timer, "publish_frequency", self.publish)):
+            if getattr(new, rate) != getattr(old, rate):
+                self.destroy_timer(timer)
+                made = create_timer(self, 1.0 / getattr(new, rate), callback)
+                if rate == "update_frequency":
+                    self._update_timer = made
+                else:
+                    self._publish_timer = made
+        self.update()
+
+    def _set_layer_params(self, name: str, new: Any) -> None:
+        """A layer's live parameters, set on the running layer (what it has seen stays)."""
+        plugin = self.plugins[name]
+        self.plugins[name] = Plugin(plugin.name, plugin.type_name, new)
+        layer = self.layer_by_name[name]
+        for key in LIVE[plugin.type_name]:
+            setattr(layer, key, getattr(new, key))
+        if isinstance(layer, InflationLayer):
+            layer.forget()
+        self.update()
 
     # ------------------------------------------------------------------ inputs
     def _on_map(self, msg: OccupancyGridMsg) -> None:
@@ -213,15 +268,15 @@ class CostmapNode(Node):
         self._warn.settled("robot pose")
         return pose
 
-    def _on_scan(self, msg: LaserScan) -> None:
+    def _on_scan(self, source: _Source, msg: LaserScan) -> None:
         """As tf2's message filter: a scan is marked with the sensor's pose at its stamp, waiting
         for that transform if it is not there yet (up to :data:`SCAN_QUEUE` scans); never with an
         older pose, which smears walls across free space while the robot turns."""
         if self.layered is None:
             return
-        self._pending.append(msg)
-        if len(self._pending) > SCAN_QUEUE:
-            old = self._pending.popleft()
+        source.pending.append(msg)
+        if len(source.pending) > SCAN_QUEUE:
+            old = source.pending.popleft()
             self._warn("scan transform", f"dropping a scan of '{old.header.frame_id}' at "
                                          f"{stamp_seconds(old.header.stamp):.3f} s: its transform to "
                                          f"'{self.params.global_frame}' did not arrive in time")
@@ -229,9 +284,13 @@ class CostmapNode(Node):
 
     def _drain(self) -> None:
         """Mark the waiting scans whose transform has arrived, oldest first."""
-        while self._pending and self.layered is not None:
-            msg = self._pending[0]
-            frame = msg.header.frame_id.lstrip("/")
+        for source in self.sources:
+            self._drain_source(source)
+
+    def _drain_source(self, source: _Source) -> None:
+        while source.pending and self.layered is not None:
+            msg = source.pending[0]
+            frame = source.params.sensor_frame or msg.header.frame_id.lstrip("/")
             stamp = stamp_seconds(msg.header.stamp)
             try:
                 sensor = self.tf.lookup(self.params.global_frame, frame, stamp)
@@ -242,37 +301,42 @@ class CostmapNode(Node):
                     newest = None
                 if newest is None or stamp > newest:
                     return  # the transform may still come
-                self._pending.popleft()
+                source.pending.popleft()
                 self._warn("scan transform", f"dropping a scan: {exc}")
                 continue
-            self._pending.popleft()
+            source.pending.popleft()
             self._warn.settled("scan transform")
-            self._buffer(_Observation(stamp, msg, sensor))
+            self._buffer(source, _Observation(stamp, msg, sensor))
 
-    def _buffer(self, observation: _Observation) -> None:
+    @staticmethod
+    def _buffer(source: _Source, observation: _Observation) -> None:
         """Keep ``observation``, and of the older ones those within ``observation_persistence`` of it
         (Nav2's ObservationBuffer: with 0, the newest only)."""
-        self._observations.append(observation)
-        keep_s = self.params.observation_persistence
-        while len(self._observations) > 1 and (
-                keep_s == 0.0 or self._observations[0].stamp_s < observation.stamp_s - keep_s):
-            self._observations.popleft()
+        kept = source.observations
+        kept.append(observation)
+        keep_s = source.params.observation_persistence
+        while len(kept) > 1 and (keep_s == 0.0 or kept[0].stamp_s < observation.stamp_s - keep_s):
+            kept.popleft()
 
-    def _mark(self, layered: LayeredCostmap) -> None:
+    def _mark(self, layered: LayeredCostmap, robot: tuple[float, float] | None) -> None:
         """Apply the kept scans, oldest first; not again when neither they nor the grid moved
-        (clearing then marking the same scans gives the same cells)."""
-        observations = tuple(self._observations)
+        (clearing then marking the same scans gives the same cells). Then free the footprint."""
+        observations = tuple(obs for source in self.sources for obs in source.observations)
         applied = (observations, layered.master.origin)  # scans compare by identity
         if not observations or applied == self._applied:
             return
-        for obs in observations:
-            msg, sensor = obs.scan, obs.sensor
-            ranges = np.asarray(msg.ranges, dtype=float)
-            bearings = sensor[2] + msg.angle_min + msg.angle_increment * np.arange(len(ranges))
-            valid = ~(ranges < msg.range_min)  # NaN stays: no return
-            ranges = np.where(np.isfinite(ranges) & (ranges < msg.range_max), ranges, np.inf)
+        for source in self.sources:
+            for obs in source.observations:
+                msg, sensor = obs.scan, obs.sensor
+                ranges = np.asarray(msg.ranges, dtype=float)
+                bearings = sensor[2] + msg.angle_min + msg.angle_increment * np.arange(len(ranges))
+                valid = ~(ranges < msg.range_min)  # NaN stays: no return
+                ranges = np.where(np.isfinite(ranges) & (ranges < msg.range_max), ranges, np.inf)
+                source.layer.observe(layered.master, (sensor[0], sensor[1]), bearings[valid], ranges[valid],
+                                     source.params.source())
+        if robot is not None:
             for layer in self.obstacles:
-                layer.observe(layered.master, (sensor[0], sensor[1]), bearings[valid], ranges[valid])
+                layer.clear_footprint(robot, self.params.robot_radius)
         self._applied = applied
 
     # ---------------------------------------------------------------- outputs
@@ -281,16 +345,17 @@ class CostmapNode(Node):
         if self.layered is None:
             return None
         robot = None
-        if self.params.rolling_window:
+        if self.params.rolling_window or self.obstacles:
             pose = self.robot_pose()
-            if pose is None:
+            if pose is None and self.params.rolling_window:
                 return None
-            robot = (pose[0], pose[1])
+            robot = None if pose is None else (pose[0], pose[1])
+        if self.params.rolling_window and robot is not None:
             # Before marking, so the scans land in the window the layers are rebuilt in (the
             # layered update's own recentre then finds nothing to move).
             self.layered.master.recentre(robot[0], robot[1], self.layered.default_value)
-        self._mark(self.layered)
-        master = self.layered.update(robot)
+        self._mark(self.layered, robot)
+        master = self.layered.update(robot if self.params.rolling_window else None)
         last = self.costmap
         if (last is None or last.origin != master.origin or last.resolution != master.resolution
                 or not np.array_equal(last.costs, master.costs)):
@@ -310,7 +375,8 @@ class CostmapNode(Node):
     def clear(self) -> None:
         for layer in self.obstacles:
             layer.clear()
-        self._observations.clear()
+        for source in self.sources:
+            source.observations.clear()
         self._applied = None
         self.update()
 

@@ -4,10 +4,18 @@ Runs the ``global_costmap`` (:mod:`pppbot_nav.ros.costmap_node`) in the same pro
 does. Serves ``compute_path_to_pose`` (nav2_msgs/action/ComputePathToPose: from the robot's
 pose, or ``start`` with ``use_start``) and ``compute_path_through_poses`` (through each of
 ``goals`` in turn, one plan per leg), and publishes each path on ``plan`` (nav_msgs/Path, in
-the costmap's frame; each pose faces along the path, the last one the goal's heading). The
-planner is :mod:`pppbot_nav.planner.grid_astar` under the plugin name ``GridBased``; its
-failures come back as the action's error codes (START_OCCUPIED, GOAL_OCCUPIED, NO_VALID_PATH,
-TIMEOUT, START/GOAL_OUTSIDE_MAP, TF_ERROR) with a message.
+the costmap's frame; each pose faces along the path, the last one the goal's heading, or the
+last step's with the plugin's ``use_final_approach_orientation``).
+
+Planners are Nav2's plugins by type (:mod:`pppbot_nav.planner.plugin_settings`): each name of
+``planner_plugins`` is loaded as its ``<name>.plugin`` says (``GridBased`` without one: NavFn,
+Nav2's default), its parameters under ``<name>.``; a request's ``planner_id`` picks one (empty:
+the only one), an unknown id fails with INVALID_PLANNER. Failures come back as the action's
+error codes (START_OCCUPIED, GOAL_OCCUPIED, NO_VALID_PATH, TIMEOUT, START/GOAL_OUTSIDE_MAP,
+TF_ERROR) with a message. A plan slower than ``1 / expected_planner_frequency`` is warned of.
+Live parameters (``ros2 param set``) are each plugin's dynamic ones in Nav2 (NavFn's tolerance,
+use_astar, allow_unknown; Smac's search limits and costs; all of pppbot's A*), applied to the
+next plan; the rest are refused with the reason.
 """
 from __future__ import annotations
 
@@ -25,16 +33,16 @@ from rclpy.action import ActionServer
 from rclpy.action.server import ServerGoalHandle
 from rclpy.duration import Duration
 
-from pppbot_common.params import ParameterError, param
+from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.node_main import run_nodes
-from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.params import LiveParameters, declare_parameters, serve_live_parameters
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
 from pppbot_common.transforms import TransformError, compose
 from pppbot_nav.planner import errors
-from pppbot_nav.planner.grid_astar import GridPlanner, PlannerSettings
-from pppbot_nav.planner.smoother import SmootherSettings
+from pppbot_nav.planner.plugin_settings import DEFAULT_PLANNER_TYPES, LIVE_PLANNER, PLANNER_TYPES
 from pppbot_nav.ros.costmap_node import CostmapNode
+from pppbot_nav.ros.plugins import Plugin, live_plugin_parameters, load_plugin
 
 #: Each planning failure's error code, by its name in both actions' results (Nav2's 2xx for
 #: compute_path_to_pose, 3xx for compute_path_through_poses).
@@ -50,34 +58,21 @@ ERROR_NAMES: dict[type[errors.PlannerError], str] = {
 
 class NoViapoints(errors.PlannerError):
     """compute_path_through_poses without goals (Nav2's NO_VIAPOINTS_GIVEN)."""
-PLANNER_ID = "GridBased"
+
+
+class InvalidPlanner(errors.PlannerError):
+    """A planner_id the server does not have (Nav2's INVALID_PLANNER)."""
 
 
 @dataclass(frozen=True)
 class PlannerServerParameters:
-    planner_plugins: list = param([PLANNER_ID], f"planner names (pppbot has one: {PLANNER_ID})")
-    tolerance: float = param(0.5, "how far the goal may move to a reachable cell (m)", "GridBased.tolerance")
-    allow_unknown: bool = param(True, "plan through unknown space", "GridBased.allow_unknown")
-    cost_travel_multiplier: float = param(2.0, "travel cost of a cell: 1 + this · cost / 252",
-                                          "GridBased.cost_travel_multiplier")
-    max_planning_time: float = param(2.0, "a plan taking longer fails with TIMEOUT (s)", "GridBased.max_planning_time")
-    near_obstacle_cost: int = param(180, "cells of this cost or more (below inscribed) weigh near_obstacle_penalty "
-                                    "times more", "GridBased.near_obstacle_cost")
-    near_obstacle_penalty: float = param(10.0, "weight factor of the near-obstacle band (1: no band)",
-                                         "GridBased.near_obstacle_penalty")
-    smooth_path: bool = param(True, "straighten and smooth the cell path", "GridBased.smooth_path")
-    w_data: float = param(0.2, "smoother: pull toward the original path", "GridBased.smoother.w_data")
-    w_smooth: float = param(0.3, "smoother: pull toward the neighbours", "GridBased.smoother.w_smooth")
+    planner_plugins: list = param(["GridBased"], "planner names; each's type is its <name>.plugin")
+    expected_planner_frequency: float = param(1.0, "a plan slower than 1 / this is warned of (Hz; 0: never)")
 
     def validate(self) -> None:
-        if list(self.planner_plugins) != [PLANNER_ID]:
-            raise ParameterError("planner_plugins", self.planner_plugins, f"must be ['{PLANNER_ID}']")
-        self.settings().validate()
-
-    def settings(self) -> PlannerSettings:
-        return PlannerSettings(self.tolerance, self.allow_unknown, self.cost_travel_multiplier,
-                               self.max_planning_time, self.near_obstacle_cost, self.near_obstacle_penalty,
-                               self.smooth_path, SmootherSettings(w_data=self.w_data, w_smooth=self.w_smooth))
+        if not self.planner_plugins or len(set(self.planner_plugins)) != len(self.planner_plugins):
+            raise ParameterError("planner_plugins", self.planner_plugins, "must name at least one planner, each once")
+        check_finite_range("expected_planner_frequency", self.expected_planner_frequency, 0.0, 1000.0)
 
 
 def path_message(points_xy: np.ndarray, goal_yaw: float, frame: str, stamp: Any) -> Path:
@@ -109,10 +104,12 @@ class PlannerServer(ManagedNode):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("planner_server", **kwargs)
-        self.params = declare_parameters(self, PlannerServerParameters)
+        self.params = p = declare_parameters(self, PlannerServerParameters)
+        self.plugins = {name: load_plugin(self, name, PLANNER_TYPES, DEFAULT_PLANNER_TYPES.get(name))
+                        for name in p.planner_plugins}
+        self.planners = {name: plugin.params.make() for name, plugin in self.plugins.items()}
         self.costmap_node = CostmapNode("global_costmap")
         self.composed_nodes = [self.costmap_node]
-        self.planner = GridPlanner(self.params.settings())
         self.plan_pub = self.create_publisher(Path, "plan", 1)
         self.server = ActionServer(self, ComputePathToPose, "compute_path_to_pose",
                                    lambda handle: self._execute(handle, ComputePathToPose, self.compute),
@@ -121,7 +118,20 @@ class PlannerServer(ManagedNode):
                                            lambda handle: self._execute(handle, ComputePathThroughPoses,
                                                                         self.compute_through),
                                            goal_callback=self.gated())
-        self.get_logger().info(f"planner '{PLANNER_ID}' ready on global_costmap")
+        serve_live_parameters(self, [LiveParameters("", lambda: self.params, self._set_params,
+                                                    {"expected_planner_frequency"}),
+                                     *live_plugin_parameters(self.plugins, self._set_planner_params, LIVE_PLANNER)])
+        kinds = ", ".join(f"'{name}' ({plugin.type_name})" for name, plugin in self.plugins.items())
+        self.get_logger().info(f"planners {kinds} ready on global_costmap")
+
+    def _set_params(self, new: PlannerServerParameters) -> None:
+        self.params = new
+
+    def _set_planner_params(self, name: str, new: Any) -> None:
+        """A planner's new settings; the next plan uses them (a planner keeps no state between plans)."""
+        old = self.plugins[name]
+        self.plugins[name] = Plugin(name, old.type_name, new)
+        self.planners[name] = new.make()
 
     def destroy_node(self) -> None:
         self.server.destroy()
@@ -147,6 +157,8 @@ class PlannerServer(ManagedNode):
             result.error_code = result.NONE
         except NoViapoints as exc:
             result.error_code, result.error_msg = result.NO_VIAPOINTS_GIVEN, str(exc)
+        except InvalidPlanner as exc:
+            result.error_code, result.error_msg = result.INVALID_PLANNER, str(exc)
         except errors.PlannerError as exc:
             result.error_code = getattr(result, ERROR_NAMES.get(type(exc), "UNKNOWN"))
             result.error_msg = str(exc)
@@ -154,13 +166,33 @@ class PlannerServer(ManagedNode):
             result.error_code, result.error_msg = result.TF_ERROR, str(exc)
         except RuntimeError as exc:  # no costmap yet
             result.error_code, result.error_msg = result.UNKNOWN, str(exc)
-        result.planning_time = Duration(seconds=time.perf_counter() - t0).to_msg()
+        took_s = time.perf_counter() - t0
+        result.planning_time = Duration(seconds=took_s).to_msg()
+        rate = self.params.expected_planner_frequency
+        if rate > 0 and took_s > 1.0 / rate:
+            self.get_logger().warning(f"planning took {took_s:.3f} s, longer than 1 / expected_planner_frequency "
+                                      f"({1.0 / rate:.3f} s)")
         if result.error_code == result.NONE:
             goal_handle.succeed()
         else:
             self.get_logger().warning(f"planning failed: {result.error_msg}")
             goal_handle.abort()
         return result
+
+    def _planner_name(self, planner_id: str) -> str:
+        return planner_id or next(iter(self.planners))
+
+    def planner_for(self, planner_id: str) -> Any:
+        """The planner a request names; with one planner, an empty id names it (as Nav2).
+
+        Raises:
+            InvalidPlanner: an id the server does not have.
+        """
+        if planner_id in self.planners:
+            return self.planners[planner_id]
+        if not planner_id and len(self.planners) == 1:
+            return next(iter(self.planners.values()))
+        raise InvalidPlanner(f"planner_id '{planner_id}' is not one of this server's: {', '.join(self.planners)}")
 
     def compute(self, request: ComputePathToPose.Goal) -> tuple[Path, str]:
         """The path for a request and a note ('' or where the goal moved to).
@@ -179,12 +211,13 @@ class PlannerServer(ManagedNode):
         return self._plan_through(request, list(request.goals))
 
     def _plan_through(self, request: Any, goals: list[PoseStamped]) -> tuple[Path, str]:
-        if request.planner_id not in ("", PLANNER_ID):
-            raise errors.PlannerError(f"unknown planner_id '{request.planner_id}' (pppbot has '{PLANNER_ID}')")
+        planner = self.planner_for(request.planner_id)
+        final_approach = getattr(self.plugins[self._planner_name(request.planner_id)].params,
+                                 "use_final_approach_orientation", False)
         costmap = self.costmap_node.update()
         if costmap is None:
             raise RuntimeError("the global costmap has no map yet")
-        self.planner.set_costmap(costmap)
+        planner.set_costmap(costmap)
         if request.use_start:
             start = self._in_costmap_frame(request.start)
         else:
@@ -197,7 +230,10 @@ class PlannerServer(ManagedNode):
         here = (start[0], start[1])
         for i, goal_msg in enumerate(goals):
             goal = self._in_costmap_frame(goal_msg)
-            plan = self.planner.plan(here, (goal[0], goal[1]))
+            plan = planner.plan(here, (goal[0], goal[1]))
+            if final_approach and len(plan.points_xy) > 1:
+                step = plan.points_xy[-1] - plan.points_xy[-2]
+                goal = (goal[0], goal[1], math.atan2(step[1], step[0]))
             legs.append(plan.points_xy if not legs else plan.points_xy[1:])
             moved = math.hypot(plan.goal_xy[0] - goal[0], plan.goal_xy[1] - goal[1])
             if moved > 1e-6:

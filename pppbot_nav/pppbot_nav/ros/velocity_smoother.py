@@ -186,7 +186,11 @@ class VelocitySmoother(ManagedNode):
         except VelocitySmootherError as exc:
             self._warn("command", f"dropping a command: {exc}")
             return
-        self._output(now_s)  # a command is smoothed as it comes; the timer covers the gaps
+        # A command is smoothed as it comes, the timer covering the gaps; at most one output per
+        # instant: commands arriving faster than sim time moves (a wall-clock publisher in lockstep)
+        # each replace the last, and the newest goes out at the next period, as with Nav2's timer.
+        if now_s > self._output_s:
+            self._output(now_s)
 
     def _on_odom(self, msg: Odometry) -> None:
         if self.odometry is not None:

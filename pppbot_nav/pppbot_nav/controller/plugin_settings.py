@@ -1,0 +1,158 @@
+"""The controller server's plugins by Nav2's type name: their parameters (Nav2's names and
+defaults, under the plugin's name) and what may change while the server runs.
+
+* controllers: ``nav2_regulated_pure_pursuit_controller::RegulatedPurePursuitController``
+  (:mod:`pppbot_nav.controller.pure_pursuit`) and ``dwb_core::DWBLocalPlanner``
+  (:mod:`pppbot_nav.controller.dwb`);
+* goal checkers: ``nav2_controller::SimpleGoalChecker``, ``StoppedGoalChecker``,
+  ``PositionGoalChecker``; progress checkers: ``nav2_controller::SimpleProgressChecker``,
+  ``PoseProgressChecker`` (:mod:`pppbot_nav.controller.checkers`).
+
+A parameter set applies to the running plugin (its attributes), so a goal checker keeps its latch
+and a progress checker its baseline.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from pppbot_common.params import ParameterError, param
+from pppbot_nav.controller.checkers import (
+    PoseProgressChecker,
+    PositionGoalChecker,
+    SimpleGoalChecker,
+    SimpleProgressChecker,
+    StoppedGoalChecker,
+)
+from pppbot_nav.controller.dwb import DWBLocalPlanner, DWBSettings
+from pppbot_nav.controller.pure_pursuit import PurePursuit, PurePursuitSettings
+from pppbot_nav.errors import ControllerError
+
+RPP = "nav2_regulated_pure_pursuit_controller::RegulatedPurePursuitController"
+DWB = "dwb_core::DWBLocalPlanner"
+SIMPLE_GOAL = "nav2_controller::SimpleGoalChecker"
+STOPPED_GOAL = "nav2_controller::StoppedGoalChecker"
+POSITION_GOAL = "nav2_controller::PositionGoalChecker"
+SIMPLE_PROGRESS = "nav2_controller::SimpleProgressChecker"
+POSE_PROGRESS = "nav2_controller::PoseProgressChecker"
+
+
+def _checked(make: Any) -> Any:
+    """``make()``, a ControllerError turned into the ParameterError naming its parameter."""
+    try:
+        return make()
+    except ControllerError as exc:
+        raise ParameterError(exc.parameter or "", "", str(exc)) from exc
+
+
+def settings_parameters(settings: type, name: str, description: str, make: Any,
+                        exclude: frozenset[str] = frozenset()) -> type:
+    """A parameter dataclass with the fields of the frozen ``settings`` dataclass but ``exclude`` (same
+    names and defaults; ROS names relative to the plugin: a field's ``ros`` metadata, else its
+    name), whose ``validate()`` builds the settings (``settings()``) and the plugin (``make()``, as
+    ``make(settings)``). ``settings(**given)`` and ``make(**given)`` take the excluded fields
+    (what the plugin reads from elsewhere, the costmap's robot radius)."""
+    fields = []
+    for f in dataclasses.fields(settings):
+        if f.name in exclude:
+            continue
+        factory: Any = f.default_factory
+        default = f.default if f.default is not dataclasses.MISSING else factory()
+        if isinstance(default, tuple):
+            default = list(default)
+        fields.append((f.name, f.type, param(default, f"{description}: {f.name}", f.metadata.get("ros"))))
+
+    def to_settings(self: Any, **given: Any) -> Any:
+        values = {f.name: getattr(self, f.name) for f in dataclasses.fields(settings) if f.name not in exclude}
+        values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+        return settings(**values, **given)
+
+    def validate(self: Any) -> None:
+        _checked(lambda: make(to_settings(self)))
+
+    return dataclasses.make_dataclass(name, fields, frozen=True, namespace={
+        "validate": validate, "settings": to_settings,
+        "make": lambda self, **given: make(to_settings(self, **given))})
+
+
+RegulatedPurePursuitParameters = settings_parameters(PurePursuitSettings, "RegulatedPurePursuitParameters",
+                                                     "regulated pure pursuit", PurePursuit)
+#: DWB's footprint is the local costmap's (its robot_radius and footprint_padding), as in Nav2.
+DWB_FROM_COSTMAP = frozenset({"robot_radius", "footprint_padding"})
+DWBParameters = settings_parameters(DWBSettings, "DWBParameters", "DWB", DWBLocalPlanner, DWB_FROM_COSTMAP)
+
+#: The controller types pppbot implements, by Nav2's type name.
+CONTROLLER_TYPES: dict[str, type] = {DWB: DWBParameters, RPP: RegulatedPurePursuitParameters}
+#: DWB's kinematic limits may change at run time (Nav2's KinematicsHandler); RPP's every parameter.
+DWB_LIVE = frozenset({"min_vel_x", "min_vel_y", "max_vel_x", "max_vel_y", "max_vel_theta", "min_speed_xy",
+                      "max_speed_xy", "min_speed_theta", "acc_lim_x", "acc_lim_y", "acc_lim_theta", "decel_lim_x",
+                      "decel_lim_y", "decel_lim_theta"})
+#: Nav2's default controller, for ``FollowPath`` without a ``plugin``.
+DEFAULT_CONTROLLER_TYPES = {"FollowPath": DWB}
+
+
+@dataclass(frozen=True)
+class SimpleGoalCheckerParameters:
+    xy_goal_tolerance: float = param(0.25, "distance to the goal (m)")
+    yaw_goal_tolerance: float = param(0.25, "heading to the goal's (rad)")
+    stateful: bool = param(True, "once within xy, only the heading is checked")
+
+    def validate(self) -> None:
+        _checked(self.make)
+
+    def make(self) -> Any:
+        return SimpleGoalChecker(self.xy_goal_tolerance, self.yaw_goal_tolerance, self.stateful)
+
+
+@dataclass(frozen=True)
+class StoppedGoalCheckerParameters(SimpleGoalCheckerParameters):
+    trans_stopped_velocity: float = param(0.25, "the robot counts as stopped below this speed (m/s)")
+    rot_stopped_velocity: float = param(0.25, "… and below this turn rate (rad/s)")
+
+    def make(self) -> Any:
+        return StoppedGoalChecker(self.xy_goal_tolerance, self.yaw_goal_tolerance, self.stateful,
+                                  self.trans_stopped_velocity, self.rot_stopped_velocity)
+
+
+@dataclass(frozen=True)
+class PositionGoalCheckerParameters:
+    xy_goal_tolerance: float = param(0.25, "distance to the goal (m)")
+    stateful: bool = param(True, "once within xy, the goal stays reached")
+
+    def validate(self) -> None:
+        _checked(self.make)
+
+    def make(self) -> Any:
+        return PositionGoalChecker(self.xy_goal_tolerance, self.stateful)
+
+
+@dataclass(frozen=True)
+class SimpleProgressCheckerParameters:
+    required_movement_radius: float = param(0.5, "move this far (m) ...")
+    movement_time_allowance: float = param(10.0, "... within this time (s)")
+
+    def validate(self) -> None:
+        _checked(self.make)
+
+    def make(self) -> Any:
+        return SimpleProgressChecker(self.required_movement_radius, self.movement_time_allowance)
+
+
+@dataclass(frozen=True)
+class PoseProgressCheckerParameters(SimpleProgressCheckerParameters):
+    required_movement_angle: float = param(0.5, "or turn this far (rad)")
+
+    def make(self) -> Any:
+        return PoseProgressChecker(self.required_movement_radius, self.movement_time_allowance,
+                                   self.required_movement_angle)
+
+
+GOAL_CHECKER_TYPES: dict[str, type] = {SIMPLE_GOAL: SimpleGoalCheckerParameters,
+                                       STOPPED_GOAL: StoppedGoalCheckerParameters,
+                                       POSITION_GOAL: PositionGoalCheckerParameters}
+PROGRESS_CHECKER_TYPES: dict[str, type] = {SIMPLE_PROGRESS: SimpleProgressCheckerParameters,
+                                           POSE_PROGRESS: PoseProgressCheckerParameters}
+#: Nav2's default checker names (and ppp_bot's) and their types when no ``plugin`` is given.
+DEFAULT_CHECKER_TYPES = {"goal_checker": SIMPLE_GOAL, "general_goal_checker": SIMPLE_GOAL,
+                         "precise_goal_checker": SIMPLE_GOAL, "progress_checker": SIMPLE_PROGRESS}

@@ -1,0 +1,206 @@
+"""The planner and controller servers load Nav2's plugins by type name, as Nav2 does: ppp_bot's
+own nav2_params.yaml (DWB and NavFn, Humble's checker keys, a voxel layer) unchanged, an unknown
+type refused with the known ones, and live parameter sets applied, refused or kept as Nav2's."""
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import rclpy
+from rclpy.parameter import Parameter
+
+from pppbot_common.params import ParameterError
+from pppbot_common.ros.unread_parameters import declared_names, reasons, unread_parameters
+from pppbot_nav.controller.checkers import SimpleGoalChecker, SimpleProgressChecker, StoppedGoalChecker
+from pppbot_nav.controller.dwb import DWBLocalPlanner
+from pppbot_nav.controller.pure_pursuit import PurePursuit
+from pppbot_nav.costmap.layers import InflationLayer, ObstacleLayer
+from pppbot_nav.planner.navfn import NavfnPlanner
+from pppbot_nav.planner.plugin_settings import SmoothedSmac2D
+from pppbot_nav.ros.controller_server import ControllerServer
+from pppbot_nav.ros.planner_server import InvalidPlanner, PlannerServer
+
+pytestmark = pytest.mark.ros
+
+ROOT = Path(__file__).resolve().parents[2]
+PPP_BOT = ROOT / "tests" / "data" / "ppp_bot" / "nav2_params.yaml"
+OURS = ROOT / "config" / "nav2_params.yaml"
+GENERIC = "not implemented"
+
+
+@pytest.fixture
+def params_file(request: Any) -> Iterator[Path]:
+    """rclpy initialised with ``--params-file`` the test's parameter (a path)."""
+    path = request.param
+    rclpy.init(args=["--ros-args", "--params-file", str(path)])
+    try:
+        yield path
+    finally:
+        rclpy.shutdown()
+
+
+@pytest.fixture
+def context() -> Iterator[None]:
+    rclpy.init()
+    try:
+        yield
+    finally:
+        rclpy.shutdown()
+
+
+def unexplained(node: Any) -> dict[str, list[str]]:
+    """The keys given to ``node`` and its composed costmap that no node reads, by reason."""
+    nodes = [node, *node.composed_nodes]
+    read = declared_names(nodes)
+    found: dict[str, list[str]] = {}
+    for n in nodes:
+        for reason, names in reasons(unread_parameters(n, read), getattr(n, "parameter_notes", {}), GENERIC).items():
+            found.setdefault(reason, []).extend(names)
+    return found
+
+
+@pytest.mark.parametrize("params_file", [PPP_BOT], indirect=True)
+def test_ppp_bots_controller_file_runs_dwb_with_its_critics_and_checkers(params_file: Path) -> None:
+    server = ControllerServer()
+    try:
+        dwb = server.controllers["FollowPath"]
+        assert isinstance(dwb, DWBLocalPlanner)
+        s = dwb.settings
+        assert (s.max_vel_x, s.max_vel_theta, s.acc_lim_x, s.acc_lim_theta, s.decel_lim_x, s.sim_time) == \
+            (1.5, 2.0, 2.5, 3.2, -2.5, 1.7)
+        assert list(s.critics) == ["RotateToGoal", "Oscillation", "BaseObstacle", "GoalAlign", "PathAlign",
+                                   "PathDist", "GoalDist"]
+        assert (s.base_obstacle_scale, s.path_align_scale, s.goal_align_scale, s.path_dist_scale) == \
+            (0.02, 32.0, 24.0, 32.0)
+        assert s.robot_radius == 0.3  # the local costmap's footprint, as Nav2's
+        # Humble's progress_checker_plugin (one name) and ppp_bot's general_goal_checker.
+        assert isinstance(server.progress_checkers["progress_checker"], SimpleProgressChecker)
+        assert isinstance(server.goal_checkers["general_goal_checker"], SimpleGoalChecker)
+        voxel, inflation = server.costmap_node.layers
+        assert isinstance(voxel, ObstacleLayer) and voxel.plugin == "nav2_costmap_2d::VoxelLayer"
+        assert isinstance(inflation, InflationLayer) and inflation.inflation_radius == 0.9
+        (source,) = server.costmap_node.sources
+        assert (source.topic, source.params.obstacle_max_range, source.params.raytrace_max_range) == ("/scan", 4.5, 5.0)
+        assert server.costmap_node.params.track_unknown_space is False  # Nav2's default: the file sets none
+        assert GENERIC not in unexplained(server)  # every key is read, or named with its reason
+    finally:
+        server.destroy_node()
+
+
+@pytest.mark.parametrize("params_file", [PPP_BOT], indirect=True)
+def test_ppp_bots_planner_file_runs_navfn(params_file: Path) -> None:
+    server = PlannerServer()
+    try:
+        planner = server.planner_for("")
+        assert isinstance(planner, NavfnPlanner) and planner.settings.tolerance == 0.5
+        assert server.planner_for("GridBased") is planner
+        with pytest.raises(InvalidPlanner, match="'Smac' is not one of this server's: GridBased"):
+            server.planner_for("Smac")
+        assert server.costmap_node.params.track_unknown_space is True
+        assert GENERIC not in unexplained(server)
+    finally:
+        server.destroy_node()
+
+
+@pytest.mark.parametrize("params_file", [OURS], indirect=True)
+def test_pppbots_own_file_has_no_key_without_effect(params_file: Path) -> None:
+    for server_type in (ControllerServer, PlannerServer):
+        server = server_type()
+        try:
+            assert unexplained(server) == {}
+        finally:
+            server.destroy_node()
+
+
+def test_several_planners_and_controllers_by_type_and_an_unknown_type_refused(context: None) -> None:
+    planner = PlannerServer(parameter_overrides=[
+        Parameter("planner_plugins", value=["GridBased", "Smac"]),
+        Parameter("Smac.plugin", value="nav2_smac_planner/SmacPlanner2D"), Parameter("Smac.tolerance", value=0.25)])
+    try:
+        assert isinstance(planner.planner_for("GridBased"), NavfnPlanner)  # Nav2's default type for GridBased
+        smac = planner.planner_for("Smac")
+        assert isinstance(smac, SmoothedSmac2D) and smac.planner.settings.tolerance == 0.25
+        with pytest.raises(InvalidPlanner):
+            planner.planner_for("")  # two planners: a request must name one
+    finally:
+        planner.destroy_node()
+    with pytest.raises(ParameterError, match=r"'GridBased.plugin' = 'nav2_theta_star_planner/ThetaStarPlanner'.*"
+                                             r"known: .*NavfnPlanner.*SmacPlanner2D"):
+        PlannerServer(parameter_overrides=[Parameter("GridBased.plugin",
+                                                     value="nav2_theta_star_planner/ThetaStarPlanner")])
+    controller = ControllerServer(parameter_overrides=[
+        Parameter("controller_plugins", value=["FollowPath", "RPP"]),
+        Parameter("RPP.plugin", value="nav2_regulated_pure_pursuit_controller::RegulatedPurePursuitController"),
+        Parameter("RPP.desired_linear_vel", value=0.3),
+        Parameter("goal_checker_plugins", value=["stopped"]),
+        Parameter("stopped.plugin", value="nav2_controller::StoppedGoalChecker")])
+    try:
+        assert isinstance(controller.controllers["FollowPath"], DWBLocalPlanner)  # Nav2's default type
+        assert isinstance(controller.controllers["RPP"], PurePursuit)
+        assert controller.controllers["RPP"].settings.desired_linear_vel == 0.3
+        assert isinstance(controller.goal_checkers["stopped"], StoppedGoalChecker)
+    finally:
+        controller.destroy_node()
+    with pytest.raises(ParameterError, match=r"'FollowPath.plugin' = 'nav2_mppi_controller::MPPIController'.*"
+                                             r"known: dwb_core::DWBLocalPlanner, nav2_regulated_pure_pursuit"):
+        ControllerServer(parameter_overrides=[Parameter("FollowPath.plugin",
+                                                        value="nav2_mppi_controller::MPPIController")])
+    with pytest.raises(ParameterError, match="'FollowPath.critics'.*PathDist"):
+        ControllerServer(parameter_overrides=[Parameter("FollowPath.critics", value=["PathDist", "Wobble"])])
+
+
+def set_one(node: Any, name: str, value: Any) -> Any:
+    return node.set_parameters([Parameter(name, value=value)])[0]
+
+
+def test_live_controller_parameters_apply_refuse_and_keep_state(context: None) -> None:
+    server = ControllerServer(parameter_overrides=[
+        Parameter("FollowPath.plugin", value="nav2_regulated_pure_pursuit_controller::RegulatedPurePursuitController"),
+        Parameter("goal_checker_plugins", value=["general_goal_checker"])])
+    try:
+        rpp = server.controllers["FollowPath"]
+        checker = server.goal_checkers["general_goal_checker"]
+        assert checker.is_goal_reached((0.1, 0.0, 1.0), (0.0, 0.0, 0.0)) is False  # within xy: latched (stateful)
+        assert set_one(server, "FollowPath.desired_linear_vel", 0.8).successful
+        assert server.controllers["FollowPath"] is rpp and rpp.settings.desired_linear_vel == 0.8
+        bad = set_one(server, "FollowPath.desired_linear_vel", -1.0)
+        assert not bad.successful and "desired_linear_vel" in bad.reason and rpp.settings.desired_linear_vel == 0.8
+        assert set_one(server, "general_goal_checker.yaw_goal_tolerance", 1.2).successful
+        assert server.goal_checkers["general_goal_checker"] is checker and checker.yaw_goal_tolerance == 1.2
+        # The latch survived the set: 1.0 rad off is now within the new tolerance, wherever the robot is.
+        assert checker.is_goal_reached((5.0, 5.0, 1.0), (0.0, 0.0, 0.0)) is True
+        assert set_one(server, "controller_frequency", 10.0).successful
+        assert server.timer.timer_period_ns == 100_000_000 and server.timer.is_canceled()
+        refused = set_one(server, "odom_topic", "/other_odom")
+        assert not refused.successful and "'odom_topic' cannot change while the node runs" in refused.reason
+        assert set_one(server, "failure_tolerance", -1.0).successful  # Nav2: -1 never fails
+    finally:
+        server.destroy_node()
+
+
+def test_live_dwb_limits_apply_and_its_critics_are_refused(context: None) -> None:
+    server = ControllerServer()
+    try:
+        dwb = server.controllers["FollowPath"]
+        assert set_one(server, "FollowPath.max_vel_x", 0.7).successful
+        assert server.controllers["FollowPath"] is dwb and dwb.settings.max_vel_x == 0.7
+        assert dwb.settings.robot_radius == server.costmap_node.params.robot_radius  # kept from the costmap
+        refused = set_one(server, "FollowPath.PathDist.scale", 1.0)
+        assert not refused.successful and "cannot change while the node runs" in refused.reason
+    finally:
+        server.destroy_node()
+
+
+def test_live_planner_parameters(context: None) -> None:
+    server = PlannerServer()
+    try:
+        assert set_one(server, "GridBased.tolerance", 1.0).successful
+        assert server.planner_for("").settings.tolerance == 1.0
+        refused = set_one(server, "GridBased.max_planning_time", 5.0)  # NavFn's own, not dynamic in Nav2
+        assert not refused.successful and "GridBased.max_planning_time" in refused.reason
+        assert set_one(server, "expected_planner_frequency", 2.0).successful
+        assert not set_one(server, "planner_plugins", ["X"]).successful
+    finally:
+        server.destroy_node()
