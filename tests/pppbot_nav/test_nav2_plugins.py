@@ -204,3 +204,35 @@ def test_live_planner_parameters(context: None) -> None:
         assert not set_one(server, "planner_plugins", ["X"]).successful
     finally:
         server.destroy_node()
+
+
+@pytest.mark.parametrize("make, name, value", [
+    ("pppbot_nav.ros.map_server:MapServer", "frame_id", "other"),
+    ("pppbot_nav.ros.navigator:Navigator", "replanning_frequency", 2.0),
+    ("pppbot_nav.ros.behavior_server:BehaviorServer", "cycle_frequency", 5.0),
+    ("pppbot_nav.ros.smoother_server:SmootherServer", "simple_smoother.max_its", 10),
+    ("pppbot_nav.ros.waypoint_follower:WaypointFollower", "loop_rate", 5),
+])
+def test_nodes_without_dynamic_parameters_refuse_a_set_with_the_reason(context: None, make: str, name: str,
+                                                                        value: Any) -> None:
+    import importlib
+
+    module, cls = make.split(":")
+    node = getattr(importlib.import_module(module), cls)()
+    try:
+        before = node.get_parameter(name).value
+        result = set_one(node, name, value)
+        assert not result.successful and f"'{name}' cannot change while the node runs" in result.reason
+        assert node.get_parameter(name).value == before
+    finally:
+        node.destroy_node()
+
+
+def test_the_waypoint_followers_stop_on_failure_is_live(context: None) -> None:
+    from pppbot_nav.ros.waypoint_follower import WaypointFollower
+
+    node = WaypointFollower()
+    try:
+        assert set_one(node, "stop_on_failure", False).successful and node.params.stop_on_failure is False
+    finally:
+        node.destroy_node()

@@ -127,3 +127,29 @@ def test_bad_parameters_fail_configure_naming_them(name: str, value: Any):
         smoother.destroy_node()
     finally:
         rclpy.shutdown()
+
+
+def test_live_limits_apply_to_the_running_smoother_and_the_rest_waits_for_configure():
+    import rclpy
+
+    rclpy.init()
+    try:
+        smoother = VelocitySmoother()
+        assert smoother.trigger_configure() == TransitionCallbackReturn.SUCCESS
+        assert smoother.trigger_activate() == TransitionCallbackReturn.SUCCESS
+        smoothing = smoother.smoothing
+        assert smoothing is not None
+        smoother._on_command(forward(0.4))
+        assert smoother.set_parameters([Parameter("max_velocity", value=[0.2, 0.0, 1.0])])[0].successful
+        assert smoother.smoothing is smoothing and smoothing.limits.max_velocity[0] == pytest.approx(0.2)
+        assert not smoothing.idle  # the command given before the set is still there
+        refused = smoother.set_parameters([Parameter("smoothing_frequency", value=10.0)])[0]
+        assert not refused.successful and "read at configure" in refused.reason
+        assert smoother.trigger_deactivate() == TransitionCallbackReturn.SUCCESS
+        assert smoother.trigger_cleanup() == TransitionCallbackReturn.SUCCESS
+        assert smoother.set_parameters([Parameter("smoothing_frequency", value=10.0)])[0].successful
+        assert smoother.trigger_configure() == TransitionCallbackReturn.SUCCESS
+        assert smoother.smoothing is not None and smoother.smoothing.limits.frequency_hz == pytest.approx(10.0)
+        smoother.destroy_node()
+    finally:
+        rclpy.shutdown()

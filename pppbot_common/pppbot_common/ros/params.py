@@ -55,6 +55,8 @@ class LiveParameters:
     apply: Callable[[Any], None]
     live: Collection[str] | None = None
     why_not: str = "it is read once, at start-up (as in Nav2); restart the node to change it"
+    #: The others are refused only while this says so (a lifecycle node that reads them at configure).
+    fixed_while: Callable[[], bool] | None = None
 
 
 def serve_live_parameters(node: Node, groups: Sequence[LiveParameters]) -> None:
@@ -80,7 +82,7 @@ def serve_live_parameters(node: Node, groups: Sequence[LiveParameters]) -> None:
         for i, values in split(params).items():
             group = groups[i]
             fixed = sorted(set(values) - set(group.live)) if group.live is not None else []
-            if fixed:
+            if fixed and (group.fixed_while is None or group.fixed_while()):
                 return SetParametersResult(successful=False, reason=f"'{group.prefix}{fixed[0]}' cannot change "
                                                                     f"while the node runs: {group.why_not}")
             try:
@@ -99,6 +101,13 @@ def serve_live_parameters(node: Node, groups: Sequence[LiveParameters]) -> None:
 
     node.add_on_set_parameters_callback(validate)
     node.add_post_set_parameters_callback(after_set)
+
+
+def fixed_parameters(node: Node, current: Callable[[], Any], live: Collection[str] = (),
+                     apply: Callable[[Any], None] | None = None) -> None:
+    """Refuse run-time sets of a node's parameters (its dataclass ``current()``) but ``live`` ones,
+    which ``apply`` takes (default: nothing to do, the node reads them from ``current()``)."""
+    serve_live_parameters(node, [LiveParameters("", current, apply or (lambda _: None), live)])
 
 
 def on_valid_update(node: Node, current: Callable[[], T], apply: Callable[[T], None]) -> None:

@@ -44,7 +44,7 @@ from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.lockstep import count_deliveries, create_timer, require_match
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
-from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.tf_listener import TfListener
 from pppbot_common.transforms import TransformError
@@ -120,6 +120,7 @@ class BehaviorServer(ManagedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("behavior_server", **kwargs)
         self.params = p = declare_parameters(self, BehaviorServerParameters)
+        fixed_parameters(self, lambda: self.params)  # Nav2's has no dynamic parameters
         self._warn = Warnings(self)
         self.tf = TfListener(self, self._warn).buffer
         self.cmd_pub = self.create_publisher(Twist, "cmd_vel", 1)

@@ -35,7 +35,7 @@ from pppbot_common.resources import maps_directory
 from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.maps import grid_message
 from pppbot_common.ros.node_main import run_node
-from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_common.ros.qos import LATCHED
 from pppbot_nav.errors import MapLoadError
 
@@ -98,6 +98,7 @@ class MapServer(ManagedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("map_server", **kwargs)
         self.params = p = declare_parameters(self, MapServerParameters)
+        fixed_parameters(self, lambda: self.params)  # Nav2's has no dynamic parameters
         self.map_pub = self.create_publisher(OccupancyGridMsg, p.topic_name, LATCHED)
         self.current: OccupancyGridMsg | None = None
         self.create_service(GetMap, "~/map", self._on_get_map)

@@ -56,7 +56,7 @@ from pppbot_common.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stop
 from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.lockstep import Participant, create_timer
 from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
-from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_common.ros.tf_listener import TfListener
 from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_common.transforms import TransformError
@@ -125,6 +125,7 @@ class Navigator(ManagedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("bt_navigator", **kwargs)
         self.params = declare_parameters(self, NavigatorParameters)
+        fixed_parameters(self, lambda: self.params)  # Nav2's has no dynamic parameters
         self._warn = Warnings(self)
         self.tf = TfListener(self, self._warn).buffer
         self.planner = ActionClient(self, ComputePathToPose, "compute_path_to_pose")

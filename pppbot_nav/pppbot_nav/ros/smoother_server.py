@@ -43,7 +43,7 @@ from pppbot_common.params import ParameterError, param
 from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.node_main import guarded, run_nodes
-from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
 from pppbot_nav.errors import SmootherError, SmootherTimedOut
@@ -148,6 +148,7 @@ class SmootherServer(ManagedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("smoother_server", **kwargs)
         self.params = declare_parameters(self, SmootherServerParameters)
+        fixed_parameters(self, lambda: self.params)  # Nav2's has no dynamic parameters
         self.smoother: Smoother | None = None
         self.costmap: OccupancyGrid | None = None
         self.plan_pub = self.create_publisher(Path, "plan_smoothed", 1)

@@ -30,7 +30,7 @@ from pppbot_common.params import ParameterError, from_values, param, parameter_f
 from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.lockstep import at_step, count_deliveries, create_timer, destroy_timer, require_match
 from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
-from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.params import LiveParameters, declare_parameters, serve_live_parameters
 from pppbot_common.ros.planar import stamp_seconds
 from pppbot_nav.errors import VelocitySmootherError
 from pppbot_nav.velocity_smoothing import (
@@ -90,6 +90,11 @@ def _twist(msg: Any) -> Velocity3:
     return float(t.linear.x), float(t.linear.y), float(t.angular.z)
 
 
+#: What may change while the smoother runs (Nav2's dynamic parameters); the rest is read at configure.
+LIVE = {"max_velocity", "min_velocity", "max_accel", "max_decel", "deadband_velocity", "velocity_timeout",
+        "scale_velocities", "odom_duration"}
+
+
 class VelocitySmoother(ManagedNode):
     """A lifecycle node, as Nav2's: smooths and publishes only while active."""
 
@@ -111,6 +116,9 @@ class VelocitySmoother(ManagedNode):
             return  # declared all the same: configure reads them again and fails naming the bad one
         # Made now, not at configure, so that lockstep sees them from the start (see lifecycle).
         self._make_endpoints(params)
+        serve_live_parameters(self, [LiveParameters(
+            "", lambda: self.params, self._set_limits, LIVE, fixed_while=lambda: self.state != "unconfigured",
+            why_not="it is read at configure: deactivate and clean up the node, set it, then configure it")])
 
     # ------------------------------------------------------------- lifecycle
     def _read_parameters(self) -> VelocitySmootherParameters:
@@ -128,6 +136,16 @@ class VelocitySmoother(ManagedNode):
         self.odometry = OdomAverage(p.odom_duration) if p.closed_loop() else None
         self.get_logger().info(f"smoothing {self._input.topic_name} → {self.output.topic_name} at "
                                f"{p.smoothing_frequency:g} Hz, {p.feedback.lower().replace('_', ' ')}")
+
+    def _set_limits(self, new: VelocitySmootherParameters) -> None:
+        """Live limits (Nav2's dynamic parameters): the running smoothing takes them, its last
+        output and command kept."""
+        self.params = new
+        if self.smoothing is not None:
+            self.smoothing.limits = new.limits()
+            self.smoothing.timeout_s = new.velocity_timeout
+        if self.odometry is not None:
+            self.odometry.window_s = new.odom_duration
 
     def activate(self) -> None:
         if self.smoothing is not None:

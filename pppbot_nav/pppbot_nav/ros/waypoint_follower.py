@@ -38,7 +38,7 @@ from pppbot_common.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stop
 from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.lockstep import Participant, create_timer
 from pppbot_common.ros.node_main import run_nodes
-from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_nav.waypoints import (
     WAIT_AT_WAYPOINT,
     Decision,
@@ -104,6 +104,8 @@ class WaypointFollower(ManagedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("waypoint_follower", **kwargs)
         self.params = declare_parameters(self, WaypointFollowerParameters)
+        # stop_on_failure is read for each goal: it may change (as Jazzy's dynamic parameter).
+        fixed_parameters(self, lambda: self.params, {"stop_on_failure"}, self._set_params)
         self.task: TaskExecutor | None = None
         self.navigator = ActionClient(self, NavigateToPose, "navigate_to_pose")
         participant = Participant.current()
@@ -115,6 +117,9 @@ class WaypointFollower(ManagedNode):
         self.timer = create_timer(self, 1.0 / self.params.loop_rate, self._tick)
         self.timer.cancel()
         self.get_logger().info(f"follow_waypoints once active ({TASK_EXECUTOR_NAME} at each waypoint)")
+
+    def _set_params(self, new: WaypointFollowerParameters) -> None:
+        self.params = new
 
     def destroy_node(self) -> None:
         self.server.destroy()
