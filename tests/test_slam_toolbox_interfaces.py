@@ -13,6 +13,7 @@ INTERFACES = Path(__file__).resolve().parent.parent / "interfaces" / "slam_toolb
 #: RIHS01 hashes of the services as a real build generates them (rosidl's idl__description.c).
 JAZZY_HASHES = {
     "AddSubmap": "18ce16d68eaff848",
+    "ClearQueue": "5ae7286887351a43cd6265cbd3ec3fdf0074fa6e9f39c17057351b6ab4415477",
     "DeserializePoseGraph": "ec7e27ad873d1c3961583c3288d7fe516bb0035fc9769078657f0377bd55547a",
     "MergeMaps": "711e883fdb23ecf0",
     "Pause": "70971da2d6da308b62b9ef6e4615202d9b3c6e945fcfce5ffded1b45423a236d",

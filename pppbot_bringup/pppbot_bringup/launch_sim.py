@@ -359,6 +359,30 @@ def parameter_file(given: str, default: Path, argument: str) -> Path:
     return path
 
 
+def check_slam_localization(path: Path) -> None:
+    """A slam file with ``mode: localization`` (slam_toolbox's localization node) must name the pose
+    graph it localizes in, which must exist: else the node would wait for a deserialize_map call
+    and the launch for a /map that never comes.
+
+    Raises:
+        ArgumentError: naming the file, the key and what is missing.
+    """
+    document = yaml.safe_load(path.read_text()) or {}
+    sections = [v.get("ros__parameters", {}) for k, v in document.items()
+                if isinstance(v, dict) and k.lstrip("/") in ("slam_toolbox", "**")]
+    params = {k: v for section in sections if isinstance(section, dict) for k, v in section.items()}
+    if params.get("mode") != "localization":
+        return
+    graph = str(params.get("map_file_name") or "")
+    if not graph:
+        raise ArgumentError(f"slam_params_file:={path}: mode: localization needs map_file_name, the pose graph to "
+                            "localize in (serialize one with /slam_toolbox/serialize_map while mapping)")
+    stem = Path(graph).expanduser()
+    if not stem.with_name(stem.name + ".posegraph").is_file() and not stem.is_file():
+        raise ArgumentError(f"slam_params_file:={path}: map_file_name: {graph}: no pose graph "
+                            f"{stem.name}.posegraph there")
+
+
 #: The arguments that name ROS 2 parameter files.
 PARAMETER_FILES = ("params_file", "slam_params_file", "twist_mux_params", "controllers_file", "joy_params")
 
@@ -507,6 +531,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
     elif args.use_slam:
         slam_params = parameter_file(args.slam_params_file, config / "mapper_params_online_async.yaml",
                                      "slam_params_file")
+        check_slam_localization(slam_params)
         slam_params = adapted_file(slam_params, robot, urdf_file.parent, files, start_info)
         # Ready once it has mapped its first scan: the map frame is where the robot was then, so
         # nothing should drive it before (eval relies on map = spawn pose). In lockstep the first

@@ -144,13 +144,13 @@ class AsyncMapper:
         """End the threads (work still queued is dropped, its holds released); idempotent."""
         self._stopping.set()
         self._map_wake.set()
-        _put_dropping_oldest(self._scans, None)
-        _put_dropping_oldest(self._loops, None)
+        put_dropping_oldest(self._scans, None)
+        put_dropping_oldest(self._loops, None)
         for thread in self._threads:
             if thread.is_alive():
                 thread.join(timeout=JOIN_TIMEOUT_S)
         for work in (self._scans, self._loops):
-            _drain(work)
+            release_queued(work)
         with self._map_lock:
             releases, self._map_holds = self._map_holds, []
         for release in releases:
@@ -178,26 +178,13 @@ class AsyncMapper:
     # --------------------------------------------------------------- scans
     def add_scan(self, scan: ScanInput) -> None:
         """Queue a scan for the processing thread."""
-        if _put_dropping_oldest(self._scans, (self.hold(), scan)):
+        if put_dropping_oldest(self._scans, (self.hold(), scan)):
             self.events.warn("behind", f"scan processing is {MAX_QUEUED} scans behind: dropping the oldest")
 
     def clear_queue(self) -> int:
         """Drop the scans waiting for the processing thread (slam_toolbox's ``clear_queue``);
         their holds are released. Returns how many went."""
-        dropped, stop = 0, False
-        while True:
-            try:
-                item = self._scans.get_nowait()
-            except queue.Empty:
-                break
-            if item is None:
-                stop = True
-                continue
-            item[0]()
-            dropped += 1
-        if stop:
-            _put_dropping_oldest(self._scans, None)
-        return dropped
+        return clear_queued(self._scans)
 
     def process(self, scan: ScanInput) -> KeyframeAdded | None:
         """Match one scan (the processing thread does this for each queued scan)."""
@@ -218,7 +205,7 @@ class AsyncMapper:
         self.events.keyframe(added)
         if added.index == 0:
             self.request_map()  # a first map at once
-        if mapper.settings.do_loop_closing and _put_dropping_oldest(self._loops,
+        if mapper.settings.do_loop_closing and put_dropping_oldest(self._loops,
                                                                     (self.hold(), mapper, added.index)):
             self.events.warn("loops behind", f"loop closing is {MAX_LOOP_QUEUED} keyframes behind: the oldest "
                                              "keyframe's search is skipped")
@@ -306,7 +293,7 @@ class AsyncMapper:
                 release()
 
 
-def _put_dropping_oldest(work: queue.Queue[Any], item: Any) -> bool:
+def put_dropping_oldest(work: queue.Queue[Any], item: Any) -> bool:
     """Put ``item``, first dropping the oldest entries while ``work`` is full (releasing the hold
     each carries); whether any went."""
     dropped = False
@@ -324,7 +311,26 @@ def _put_dropping_oldest(work: queue.Queue[Any], item: Any) -> bool:
                 pass
 
 
-def _drain(work: queue.Queue[Any]) -> None:
+def clear_queued(work: queue.Queue[Any]) -> int:
+    """Drop the items waiting in ``work`` (each a tuple whose first element releases its hold), keeping
+    a stop sign (None) if one is there; returns how many went."""
+    dropped, stop = 0, False
+    while True:
+        try:
+            item = work.get_nowait()
+        except queue.Empty:
+            break
+        if item is None:
+            stop = True
+            continue
+        item[0]()
+        dropped += 1
+    if stop:
+        put_dropping_oldest(work, None)
+    return dropped
+
+
+def release_queued(work: queue.Queue[Any]) -> None:
     """Release the holds of whatever is left in ``work``."""
     while True:
         try:

@@ -26,3 +26,7 @@ class MatcherError(PppbotError, ValueError):
 
 class SessionStartError(PppbotError, ValueError):
     """A pose graph cannot be continued as asked (match type, start pose); the message names it."""
+
+
+class LocalizerError(PppbotError, ValueError):
+    """Localization cannot start as asked (an empty pose graph, a bad start pose); the message names it."""

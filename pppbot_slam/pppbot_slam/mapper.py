@@ -73,6 +73,12 @@ ODOMETRY_STD_PER_M = 0.05
 #: pose of a window over scans of clutter can reach the running threshold by chance (a ring
 #: of random hits matched a pillar 0.4 m away at 0.10).
 LOST_KEYFRAMES = 5
+
+
+def required_response(settings: MapperSettings, lost: bool) -> float:
+    """The response a running match needs to be taken: the loop closure's when lost (see
+    :data:`LOST_KEYFRAMES`), else the link's."""
+    return settings.loop_match_minimum_response_fine if lost else settings.link_match_minimum_response_fine
 #: Keyframes whose match responses the health report averages.
 HEALTH_WINDOW = 20
 #: Hits this close to the range limit are not matched (see :meth:`Mapper.within_reach`).
@@ -211,9 +217,7 @@ class Mapper:
 
     @property
     def required_response(self) -> float:
-        """The response a running match needs to be taken (see :data:`LOST_KEYFRAMES`)."""
-        s = self.settings
-        return s.loop_match_minimum_response_fine if self.lost else s.link_match_minimum_response_fine
+        return required_response(self.settings, self.lost)
 
     def health(self) -> dict[str, float | int | bool]:
         """How mapping goes: match responses, closures accepted, rejected and undone, the largest
@@ -266,10 +270,7 @@ class Mapper:
 
     def hit_points(self, rays: ScanRays) -> tuple[np.ndarray, np.ndarray]:
         """The scan's hits within max_laser_range and their surface normals, in the base frame."""
-        classes = rays.classify(self.settings.max_laser_range)
-        sensor_xy = rays.directions[classes.hit] * rays.ranges_m[classes.hit, None]
-        normals = rotate(scan_normals(sensor_xy), float(self.sensor_offset[2]))
-        return np.asarray(se2_apply(self.sensor_offset, sensor_xy)), normals
+        return scan_hits(rays, self.sensor_offset, self.settings.max_laser_range)
 
     def within_reach(self, points: np.ndarray, rays: ScanRays) -> np.ndarray:
         """Which hits (base frame) are at least :data:`MATCH_RANGE_MARGIN_M` short of the range
@@ -278,8 +279,7 @@ class Mapper:
         it was), where the likelihood field falls off; matched, such points pull the scan
         back along the walls, on both sides of a corridor at different distances, and turn
         it: a steady heading drift down long corridors."""
-        limit = min(rays.range_max_m, self.settings.max_laser_range) - MATCH_RANGE_MARGIN_M
-        return np.asarray(np.hypot(*(points - self.sensor_offset[:2]).T) < limit)
+        return within_reach(points, rays, self.sensor_offset, self.settings.max_laser_range)
 
     # -------------------------------------------------------------- keyframes
     def needs_keyframe(self, odom_pose: PoseLike) -> bool:
@@ -536,6 +536,22 @@ class Mapper:
 
     def grid(self, frame_id: str = "map") -> OccupancyGrid:
         return self.occupancy().to_occupancy_grid(frame_id)
+
+
+def scan_hits(rays: ScanRays, sensor_offset: np.ndarray, max_laser_range: float) -> tuple[np.ndarray, np.ndarray]:
+    """A scan's hits within ``max_laser_range`` (m) and their unit surface normals, (K, 2) each, in
+    the base frame of a lidar mounted at ``sensor_offset`` (x, y, yaw)."""
+    classes = rays.classify(max_laser_range)
+    sensor_xy = rays.directions[classes.hit] * rays.ranges_m[classes.hit, None]
+    normals = rotate(scan_normals(sensor_xy), float(sensor_offset[2]))
+    return np.asarray(se2_apply(sensor_offset, sensor_xy)), normals
+
+
+def within_reach(points: np.ndarray, rays: ScanRays, sensor_offset: np.ndarray, max_laser_range: float) -> np.ndarray:
+    """Which hits (base frame, (K, 2)) are at least :data:`MATCH_RANGE_MARGIN_M` short of the range
+    limit (see :meth:`Mapper.within_reach`); a (K,) boolean mask."""
+    limit = min(rays.range_max_m, max_laser_range) - MATCH_RANGE_MARGIN_M
+    return np.asarray(np.hypot(*(points - sensor_offset[:2]).T) < limit)
 
 
 def observable_only(pose: np.ndarray, covariance: np.ndarray, predicted: np.ndarray, travel_m: float

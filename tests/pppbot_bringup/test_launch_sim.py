@@ -604,3 +604,18 @@ def test_a_bad_value_or_world_stops_the_launch_before_any_process(tmp_path):
                                 timeout=60)
         assert result.returncode == 2 and message in result.stderr, result.stderr
         assert "process started" not in result.stdout
+
+
+def test_slam_localization_mode_needs_an_existing_pose_graph(tmp_path):
+    base = (ROOT / "config" / "mapper_params_online_async.yaml").read_text()
+    without = tmp_path / "no_graph.yaml"
+    without.write_text(base.replace("mode: mapping", "mode: localization"))
+    with pytest.raises(ArgumentError, match="mode: localization needs map_file_name"):
+        fake_plan(f"slam_params_file:={without}")
+    missing = tmp_path / "missing_graph.yaml"
+    missing.write_text(base.replace("mode: mapping", f"mode: localization\n    map_file_name: {tmp_path}/maze"))
+    with pytest.raises(ArgumentError, match=r"map_file_name: .*/maze: no pose graph maze.posegraph"):
+        fake_plan(f"slam_params_file:={missing}")
+    (tmp_path / "maze.posegraph").write_bytes(b"graph")
+    nodes = {n.name: " ".join(n.cmd) for n in fake_plan(f"slam_params_file:={missing}")[0].nodes}
+    assert "slam_toolbox" in nodes  # the slam node localizes in it (tests/pppbot_slam)

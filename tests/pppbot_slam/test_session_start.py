@@ -5,7 +5,12 @@ import numpy as np
 import pytest
 
 from pppbot_slam.errors import SessionStartError
-from pppbot_slam.session_start import MatchType, start_from_parameters, start_from_request
+from pppbot_slam.session_start import (
+    MatchType,
+    localization_start_from_request,
+    start_from_parameters,
+    start_from_request,
+)
 
 
 @pytest.mark.parametrize("at_dock", [True, False])
@@ -34,3 +39,17 @@ def test_the_request_starts_at_the_first_node_or_the_given_pose():
 def test_unset_localize_and_unknown_match_types_are_refused(match_type: int, named: str):
     with pytest.raises(SessionStartError, match=named):
         start_from_request(match_type, (0.0, 0.0, 0.0))
+
+
+def test_localization_takes_localize_at_pose_only():
+    np.testing.assert_array_equal(localization_start_from_request(MatchType.LOCALIZE_AT_POSE, (0.5, -0.25, 0.1)),
+                                  [0.5, -0.25, 0.1])
+    with pytest.raises(SessionStartError, match="initial_pose"):
+        localization_start_from_request(MatchType.LOCALIZE_AT_POSE, (0.5, float("inf"), 0.1))
+
+
+@pytest.mark.parametrize(("match_type", "named"), [(0, "UNSET"), (1, "START_AT_FIRST_NODE"),
+                                                   (2, "START_AT_GIVEN_POSE"), (9, "match_type = 9")])
+def test_localization_refuses_the_other_match_types_by_name(match_type: int, named: str):
+    with pytest.raises(SessionStartError, match=f"{named}.*takes LOCALIZE_AT_POSE"):
+        localization_start_from_request(match_type, (0.0, 0.0, 0.0))

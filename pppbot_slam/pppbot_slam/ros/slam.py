@@ -1,5 +1,9 @@
 """``slam``: online asynchronous grid SLAM, in slam_toolbox's place (``localization:=false``).
 
+``mode: mapping`` (the default) maps, as described here; ``mode: localization`` localizes in a
+saved pose graph instead, as slam_toolbox's ``localization_slam_toolbox_node`` does
+(:mod:`pppbot_slam.ros.localization`).
+
 Subscribes ``scan`` and TF (``odom_frame → base_frame`` at each scan's stamp, and the
 lidar's mounting); publishes ``/map`` and ``/map_metadata`` (transient local, rebuilt
 every ``map_update_interval`` in a thread of its own, so mapping never blocks scans),
@@ -35,36 +39,38 @@ from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point, PoseWithCovarianceStamped
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rclpy.duration import Duration
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 from slam_toolbox.srv import ClearQueue, DeserializePoseGraph, Pause, Reset, SaveMap, SerializePoseGraph
-from std_msgs.msg import ColorRGBA, Header
+from std_msgs.msg import Header
 from tf2_msgs.msg import TFMessage
-from visualization_msgs.msg import Marker, MarkerArray
+from visualization_msgs.msg import MarkerArray
 
 from pppbot_common.maps import MapFileError, OccupancyGrid, save_map
-from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.params import ParameterError, check_finite_range, param, parameter_fields, ros_name
 from pppbot_common.resources import maps_directory
 from pppbot_common.ros.lockstep import at_step, create_timer, hold, require_match
 from pppbot_common.ros.maps import grid_message, map_metadata
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
-from pppbot_common.ros.params import declare_parameters, on_valid_update
+from pppbot_common.ros.params import LiveParameters, declare_parameters, serve_live_parameters
 from pppbot_common.ros.planar import transform_message
 from pppbot_common.ros.qos import LATCHED, SENSOR
 from pppbot_common.ros.scan_odometry import ScanOdometry
 from pppbot_common.se2 import quaternion_from_yaw
-from pppbot_slam.async_mapper import AsyncMapper, AsyncMapperEvents, KeyframeAdded, LoopsMerged, ScanInput
-from pppbot_slam.errors import SessionStartError
+from pppbot_slam.async_mapper import AsyncMapper, AsyncMapperEvents, KeyframeAdded, LoopsMerged
+from pppbot_slam.errors import LocalizerError, SessionStartError
 from pppbot_slam.mapper import LOST_KEYFRAMES, Mapper, MapperError, MapperSettings
 from pppbot_slam.matcher import MatcherError, MatcherSettings
-from pppbot_slam.occupancy import OccupancyError, ScanRays
-from pppbot_slam.pose_graph import Edge
+from pppbot_slam.occupancy import OccupancyError
+from pppbot_slam.ros.localization import SlamLocalization
+from pppbot_slam.ros.markers import graph_markers
+from pppbot_slam.ros.scan_input import scan_input
 from pppbot_slam.serialization import PoseGraphFileError, load_posegraph, posegraph_path, save_posegraph
-from pppbot_slam.session_start import check_start_pose, start_from_parameters, start_from_request
+from pppbot_slam.session_start import SlamMode, check_start_pose, start_from_parameters, start_from_request
 
 WARN_PERIOD_S = 5.0
 
@@ -75,13 +81,16 @@ class SlamParameters:
     map_frame: str = param("map", "map frame")
     base_frame: str = param("base_footprint", "robot base frame")
     scan_topic: str = param("/scan", "laser scan topic")
-    mode: str = param("mapping", "mapping (localization with a map is AMCL's job here)")
-    map_file_name: str = param("", "a pose graph (.posegraph) to map on from, loaded at startup and by "
-                                   "~/deserialize_map")
+    mode: str = param("mapping", "mapping (online async SLAM) or localization (in the pose graph of map_file_name, "
+                                 "as slam_toolbox's localization_slam_toolbox_node)")
+    map_file_name: str = param("", "a pose graph (.posegraph) loaded at startup and by ~/deserialize_map: mapped on "
+                                   "from (mapping) or localized in (localization)")
     map_start_pose: list[float] = param([], "where the robot starts in the pose graph loaded at startup "
                                             "[x, y, yaw]; when given it wins over map_start_at_dock")
     map_start_at_dock: bool = param(True, "without map_start_pose: start at the loaded pose graph's first "
                                           "keyframe (false: at the map origin)")
+    position_covariance_scale: float = param(1.0, "scales the position covariance of localization's pose")
+    yaw_covariance_scale: float = param(1.0, "scales the yaw covariance of localization's pose")
     map_save_name: str = param("", "where ~/save_map and ~/serialize_map write when the request names no file "
                                    "(no extension); default maps/map")
     resolution: float = param(0.05, "map cell size (m)")
@@ -133,8 +142,9 @@ class SlamParameters:
     minimum_distance_penalty: float = param(0.5, "floor of the distance penalty")
 
     def validate(self) -> None:
-        if self.mode != "mapping":
-            raise ParameterError("mode", self.mode, "must be 'mapping' (use amcl to localize on a saved map)")
+        self.slam_mode()
+        for name in ("position_covariance_scale", "yaw_covariance_scale"):
+            check_finite_range(name, getattr(self, name), 0.0)
         for name in ("map_update_interval", "transform_publish_period", "tf_buffer_duration"):
             check_finite_range(name, getattr(self, name), 0.0, 3600.0, low_open=True)
         check_finite_range("transform_timeout", self.transform_timeout, 0.0, 60.0)
@@ -150,6 +160,17 @@ class SlamParameters:
             self.mapper_settings()
         except (MapperError, MatcherError, OccupancyError) as exc:
             raise ParameterError("mapper", "", str(exc)) from exc
+
+    def slam_mode(self) -> SlamMode:
+        """``mode`` as :class:`SlamMode`.
+
+        Raises:
+            ParameterError: neither ``mapping`` nor ``localization``.
+        """
+        try:
+            return SlamMode(self.mode)
+        except ValueError:
+            raise ParameterError("mode", self.mode, "must be 'mapping' or 'localization'") from None
 
     def start_pose(self) -> np.ndarray | None:
         """Where the pose graph loaded at startup has the robot start (None: at its first keyframe)."""
@@ -199,26 +220,38 @@ class SlamParameters:
 
 class Slam(Node):
     """The ROS side of :class:`~pppbot_slam.async_mapper.AsyncMapper`: scans and TF in, the map,
-    pose, transform, graph and health out, and the services."""
+    pose, transform, graph and health out, and the services. In ``mode: localization`` the work is
+    :class:`~pppbot_slam.ros.localization.SlamLocalization`'s (the same publishers)."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("slam_toolbox", **kwargs)
         self.params = p = declare_parameters(self, SlamParameters)
-        on_valid_update(self, lambda: self.params, self._set_params)
+        live = {ros_name(f) for f in parameter_fields(SlamParameters)} - {"mode"}
+        serve_live_parameters(self, [LiveParameters("", lambda: self.params, self._set_params, live,
+                                                    "the mode is chosen at start-up (slam_toolbox's by its "
+                                                    "executable); restart the node to change it")])
         self._diagnostics_lock = threading.Lock()  # one health reading published at a time
         self.paused = False
         self._warn = Warnings(self, WARN_PERIOD_S, settling=("transform",))
-        events = AsyncMapperEvents(keyframe=self._on_keyframe, loops=self._on_loops, map_built=self._on_map,
-                                   warn=self._warn)
-        first = self._load(p.map_file_name, p.start_pose()) if p.map_file_name else Mapper(p.mapper_settings())
-        self.mapping = AsyncMapper(first, events, hold=hold, map_frame=p.map_frame)
-        self.scans = ScanOdometry(self, p.odom_frame, p.base_frame, self._queue, self._warn, p.tf_buffer_duration)
         self.map_pub = self.create_publisher(OccupancyGridMsg, "/map", LATCHED)
         self.meta_pub = self.create_publisher(MapMetaData, "/map_metadata", LATCHED)
         self.graph_pub = self.create_publisher(MarkerArray, "~/graph_visualization", 1)
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "pose", 10)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.localization: SlamLocalization | None = None
+        if p.slam_mode() is SlamMode.LOCALIZATION:
+            self.localization = SlamLocalization(self, self._warn)
+        else:
+            self._start_mapping()
+
+    def _start_mapping(self) -> None:
+        p = self.params
+        events = AsyncMapperEvents(keyframe=self._on_keyframe, loops=self._on_loops, map_built=self._on_map,
+                                   warn=self._warn)
+        first = self._load(p.map_file_name, p.start_pose()) if p.map_file_name else Mapper(p.mapper_settings())
+        self.mapping = AsyncMapper(first, events, hold=hold, map_frame=p.map_frame)
+        self.scans = ScanOdometry(self, p.odom_frame, p.base_frame, self._queue, self._warn, p.tf_buffer_duration)
         on_scan = guarded(self, at_step(self, self.on_scan), "LaserScan")
         require_match(self, self.create_subscription(LaserScan, p.scan_topic, on_scan, SENSOR))
         self.create_service(SaveMap, "~/save_map", self._save_map)
@@ -236,7 +269,8 @@ class Slam(Node):
 
     def _set_params(self, params: SlamParameters) -> None:
         self.params = params
-        self.scans.odom_frame, self.scans.base_frame = params.odom_frame, params.base_frame
+        scans = self.localization.scans if self.localization is not None else self.scans
+        scans.odom_frame, scans.base_frame = params.odom_frame, params.base_frame
 
     def _load(self, name: str, start_pose: np.ndarray | None) -> Mapper:
         """A saved pose graph to map on from, the robot starting at ``start_pose`` (None: at its
@@ -260,13 +294,9 @@ class Slam(Node):
         self.scans.add(msg)
 
     def _queue(self, msg: LaserScan, stamp: float, frame: str, odom_pose: np.ndarray, sensor: np.ndarray) -> None:
-        try:
-            rays = ScanRays.from_laser(msg.angle_min, msg.angle_increment, np.asarray(msg.ranges, dtype=float),
-                                       msg.range_min, msg.range_max)
-        except OccupancyError as exc:
-            self._warn("scan", f"dropping a malformed scan: {exc}")
-            return
-        self.mapping.add_scan(ScanInput(stamp, frame, odom_pose, sensor, rays, tag=msg.header.stamp))
+        scan = scan_input(msg, stamp, frame, odom_pose, sensor, self._warn)
+        if scan is not None:
+            self.mapping.add_scan(scan)
 
     def _on_keyframe(self, added: KeyframeAdded) -> None:
         pose = added.pose
@@ -436,31 +466,15 @@ class Slam(Node):
         return response
 
     def destroy_node(self) -> None:
-        self.mapping.stop()
+        if self.localization is not None:
+            self.localization.stop()
+        else:
+            self.mapping.stop()
         super().destroy_node()
 
 
-def graph_markers(poses: np.ndarray, edges: list[Edge], frame: str, stamp: Any) -> MarkerArray:
-    """The pose graph for RViz: keyframes (blue spheres), matching edges (thin blue lines) and
-    loop closures (red lines); one marker each, replaced on every update."""
-    points = [Point(x=float(x), y=float(y)) for x, y, _ in poses]
-    markers = []
-    for ident, (kind, width, rgba, segments) in enumerate([
-            (Marker.SPHERE_LIST, 0.1, (0.1, 0.3, 1.0, 1.0), None),
-            (Marker.LINE_LIST, 0.02, (0.1, 0.3, 1.0, 0.6), [e for e in edges if not e.loop]),
-            (Marker.LINE_LIST, 0.03, (1.0, 0.1, 0.1, 1.0), [e for e in edges if e.loop])]):
-        marker = Marker(type=kind, action=Marker.ADD, id=ident, ns="slam_toolbox")
-        marker.header.frame_id, marker.header.stamp = frame, stamp
-        marker.pose.orientation.w = 1.0
-        marker.scale.x = marker.scale.y = marker.scale.z = width
-        marker.color = ColorRGBA(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
-        marker.points = points if segments is None else [points[i] for e in segments for i in (e.source, e.target)]
-        markers.append(marker)
-    return MarkerArray(markers=markers)
-
-
 def main(args: list[str] | None = None) -> int:
-    return run_node(Slam, "slam", args, fatal=(ParameterError, PoseGraphFileError))
+    return run_node(Slam, "slam", args, fatal=(ParameterError, PoseGraphFileError, LocalizerError))
 
 
 if __name__ == "__main__":
