@@ -27,8 +27,9 @@ from pppbot_viz.viewer import ViewerKind
 from pppbot_bringup.paths import config_directory, maps_directory
 from pppbot_bringup.robot import PPP_BOT, RobotFacts, adapt_parameters
 from pppbot_bringup.supervisor import NodeSpec, ReadyCheck
-from pppbot_common.errors import ParameterFileError
+from pppbot_common.errors import MapFileError, ParameterFileError
 from pppbot_common.launch_args import Argument, ArgumentError, parse_assignments
+from pppbot_common.maps import check_map_file
 from pppbot_common.param_files import check_parameter_file
 from pppbot_nav.lifecycle import LOCALIZATION_NODES, command_remaps, navigation_nodes
 
@@ -494,6 +495,10 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
         if not map_file.is_file():
             raise ArgumentError(f"localization:=true needs a map; {map_file} does not exist "
                                 f"(save one while mapping, or give map:=path/to/map.yaml)")
+        try:
+            check_map_file(map_file)  # before anything starts, not when map_server fails on it
+        except MapFileError as exc:
+            raise ArgumentError(f"map:={exc}") from exc
         nav2_params = adapted_file(parameter_file(args.params_file, config / "nav2_params.yaml", "params_file"),
                                    robot, urdf_file.parent, files, start_info)
         # AMCL starts where the robot was spawned (the shipped maps' frame is the world's, the

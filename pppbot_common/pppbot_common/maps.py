@@ -232,6 +232,22 @@ def load_map(path: str | Path) -> tuple[OccupancyGrid, MapMetadata]:
     return load_map_image(path, meta), meta
 
 
+def check_map_file(path: str | Path) -> MapMetadata:
+    """Check a Nav2 map without loading its image: the YAML, and the image's header and size.
+
+    Raises:
+        MapFileError: as :func:`load_map` would, naming the file.
+    """
+    path = Path(path)
+    meta = read_map_metadata(path)
+    image_path = Path(meta.image) if Path(meta.image).is_absolute() else path.parent / meta.image
+    if not image_path.is_file():
+        raise MapFileError(f"{path}: image '{meta.image}' not found at {image_path}")
+    with open_map_image(image_path):
+        pass
+    return meta
+
+
 def load_map_image(path: str | Path, meta: MapMetadata) -> OccupancyGrid:
     """The grid of the map file ``path`` whose YAML says ``meta`` (its image, read by Nav2's rule).
 

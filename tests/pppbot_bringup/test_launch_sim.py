@@ -619,3 +619,16 @@ def test_slam_localization_mode_needs_an_existing_pose_graph(tmp_path):
     (tmp_path / "maze.posegraph").write_bytes(b"graph")
     nodes = {n.name: " ".join(n.cmd) for n in fake_plan(f"slam_params_file:={missing}")[0].nodes}
     assert "slam_toolbox" in nodes  # the slam node localizes in it (tests/pppbot_slam)
+
+
+def test_a_malformed_map_is_refused_before_anything_starts(tmp_path):
+    bad_yaml = tmp_path / "bad.yaml"
+    bad_yaml.write_text("image: bad.pgm\nresolution: [0.05\n")
+    with pytest.raises(ArgumentError, match=r"map:=.*bad.yaml"):
+        fake_plan("localization:=true", f"map:={bad_yaml}")
+    header = tmp_path / "header.yaml"
+    header.write_text("image: header.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\n"
+                      "occupied_thresh: 0.65\nfree_thresh: 0.25\n")
+    (tmp_path / "header.pgm").write_bytes(b"P5\nforty 40\n255\n" + bytes(1600))
+    with pytest.raises(ArgumentError, match=r"map:=.*header.pgm"):
+        fake_plan("localization:=true", f"map:={header}")

@@ -189,6 +189,10 @@ def test_live_dwb_limits_apply_and_its_critics_are_refused(context: None) -> Non
         assert dwb.settings.robot_radius == server.costmap_node.params.robot_radius  # kept from the costmap
         refused = set_one(server, "FollowPath.PathDist.scale", 1.0)
         assert not refused.successful and "cannot change while the node runs" in refused.reason
+        critics = list(dwb.critics)
+        assert set_one(server.costmap_node, "robot_radius", 0.4).successful  # the costmap's footprint...
+        assert server.controllers["FollowPath"] is dwb and dwb.settings.robot_radius == 0.4  # ...is DWB's
+        assert dwb.critics == critics  # the critics kept (none of ObstacleFootprint here)
     finally:
         server.destroy_node()
 
@@ -236,3 +240,52 @@ def test_the_waypoint_followers_stop_on_failure_is_live(context: None) -> None:
         assert set_one(node, "stop_on_failure", False).successful and node.params.stop_on_failure is False
     finally:
         node.destroy_node()
+
+
+@pytest.mark.parametrize("make, name, value", [
+    ("pppbot_slam.ros.slam:Slam", "resolution", 0.1),
+    ("pppbot_slam.ros.slam:Slam", "scan_topic", "/other"),
+    ("pppbot_nav.ros.amcl:Amcl", "scan_topic", "/other"),
+    ("pppbot_control.ros.diff_drive_controller:DiffDriveController", "use_stamped_vel", False),
+])
+def test_what_is_built_at_start_up_is_refused_not_silently_kept(context: None, make: str, name: str,
+                                                               value: Any) -> None:
+    import importlib
+
+    module, cls = make.split(":")
+    node = getattr(importlib.import_module(module), cls)()
+    try:
+        result = set_one(node, name, value)
+        assert not result.successful and f"'{name}' cannot change while the node runs" in result.reason
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize("params_file", [PPP_BOT], indirect=True)
+def test_ppp_bots_file_leaves_the_other_nav2_nodes_no_key_without_its_reason(params_file: Path) -> None:
+    import importlib
+
+    for spec in ("pppbot_nav.ros.navigator:Navigator", "pppbot_nav.ros.behavior_server:BehaviorServer",
+                 "pppbot_nav.ros.smoother_server:SmootherServer", "pppbot_nav.ros.waypoint_follower:WaypointFollower",
+                 "pppbot_nav.ros.velocity_smoother:VelocitySmoother", "pppbot_nav.ros.amcl:Amcl"):
+        module, cls = spec.split(":")
+        node = getattr(importlib.import_module(module), cls)()
+        try:
+            assert GENERIC not in reasons(unread_parameters(node), getattr(node, "parameter_notes", {}), GENERIC), spec
+        finally:
+            node.destroy_node()
+
+
+def test_behaviours_are_nav2s_plugin_types_under_any_name(context: None) -> None:
+    from pppbot_nav.ros.behavior_server import BehaviorServer
+
+    server = BehaviorServer(parameter_overrides=[
+        Parameter("behavior_plugins", value=["turn", "backup"]),
+        Parameter("turn.plugin", value="nav2_behaviors/Spin")])  # Humble's spelling, a name of one's own
+    try:
+        assert server.kinds == {"turn": "spin", "backup": "backup"}
+        assert set(server.servers) == {"turn", "backup"}  # the actions are named as the behaviours
+    finally:
+        server.destroy_node()
+    with pytest.raises(ParameterError, match=r"'spin.plugin' = 'nav2_behaviors::Dock'.*known: nav2_behaviors::Spin"):
+        BehaviorServer(parameter_overrides=[Parameter("spin.plugin", value="nav2_behaviors::Dock")])

@@ -226,6 +226,15 @@ def test_deserialize_at_a_given_pose_starts_the_new_session_there(room: Room, tm
     room.slam.wait_for_output(r"deserialize_map: not loaded.*LOCALIZE_AT_POSE", 20)
 
 
+def test_the_interactive_mode_services_answer_and_say_there_is_none(room: Room):
+    from slam_toolbox.srv import Clear, LoopClosure, ToggleInteractive
+
+    for srv_type, name in ((Clear, "clear_changes"), (LoopClosure, "manual_loop_closure"),
+                           (ToggleInteractive, "toggle_interactive_mode")):
+        assert call(room.node, srv_type, f"/slam_toolbox/{name}", srv_type.Request()) is not None
+    room.slam.wait_for_output(r"interactive mode is not implemented", 20)
+
+
 def drive(room: Room, t0: float, xs: list[float]) -> None:
     """Scans of the room from x (m, odometry), one every 0.2 s of sim time from ``t0``."""
     for k, x in enumerate(xs):

@@ -38,10 +38,10 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
-from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.params import ParameterError, check_finite_range, param, parameter_fields, ros_name
 from pppbot_common.ros.lockstep import count_deliveries, create_timer, destroy_timer
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
-from pppbot_common.ros.params import declare_parameters, on_valid_update
+from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_control.kinematics import DiffDriveGeometry, Odometry
@@ -197,7 +197,9 @@ class DiffDriveController(Node):
         self._wheels_stamp_ns = 0  # when the wheels were measured (the joint states' stamp)
         self._odom_stamp_ns = -1  # the stamp of the odometry last published
         self.timer = None if hosted else create_timer(self, 1.0 / self.params.update_rate, self.update)
-        on_valid_update(self, lambda: self.params, self._apply)
+        # The command topic's type is chosen once (ros2_control reads use_stamped_vel at configure).
+        live = {ros_name(f) for f in parameter_fields(DiffDriveParameters)} - {"use_stamped_vel"}
+        fixed_parameters(self, lambda: self.params, live, self._apply)
         feedback = "positions" if self.params.position_feedback else "velocities"
         self.get_logger().info(
             f"wheels {self.params.left_wheel_names} / {self.params.right_wheel_names}, separation "
@@ -244,8 +246,6 @@ class DiffDriveController(Node):
 
     def _apply(self, params: DiffDriveParameters) -> None:
         rate_changed = params.update_rate != self.params.update_rate
-        if params.use_stamped_vel != self.params.use_stamped_vel:
-            self.get_logger().warning("use_stamped_vel applies at the next start of the controller")
         self.params = params
         self._configure(params)
         if rate_changed and self.timer is not None:

@@ -52,7 +52,7 @@ from __future__ import annotations
 import math
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
@@ -61,6 +61,7 @@ from pppbot_common.se2 import PoseLike
 from pppbot_nav.controller.dwb_critics import (
     KNOWN_CRITICS,
     Context,
+    ObstacleFootprint,
     RotateToGoal,
     Trajectories,
     build_critics,
@@ -342,6 +343,15 @@ class DWBLocalPlanner:
         self._progress = 0  # index in the path of the transformed plan's first point
         self._clock_s = 0.0
         self._best = np.empty((0, 3))
+
+    def set_footprint(self, robot_radius: float, footprint_padding: float) -> None:
+        """The local costmap's footprint changed: the footprint critics take it; every other critic
+        keeps its state (Oscillation's), and the path its progress."""
+        self.settings = replace(self.settings, robot_radius=robot_radius, footprint_padding=footprint_padding)
+        self.settings.validate()
+        fresh = build_critics(self.settings)
+        self.critics = [new if isinstance(new, ObstacleFootprint) else old for old, new in zip(self.critics, fresh,
+                                                                                            strict=True)]
 
     def set_path(self, path: np.ndarray) -> None:
         """Follow ``path`` ((N, 2) x, y or (N, 3) x, y, yaw; m, rad): critics are reset, as Nav2's

@@ -40,9 +40,9 @@ NO_EFFECT = {
     "*.*.expected_update_rate": "pppbot's costmaps are never marked out of date",
     "*.transform_tolerance": "pppbot waits for each scan's own transform (up to 20 scans) instead",
     "*.restore_cleared_footprint": "the static layer never clears the footprint here",
+    "*.footprint_clearing_enabled": "only obstacle layers clear the footprint here (a static layer's map stays)",
     "*.subscribe_to_updates": "map_server and slam publish whole maps, no map updates",
     "always_send_full_costmap": "pppbot always publishes the whole costmap",
-    "footprint_padding": "the footprint is a circle of robot_radius",
     "footprint": "the footprint is a circle of robot_radius",
     "transform_tolerance": "pppbot waits for each scan's own transform (up to 20 scans) instead",
     "initial_transform_timeout": "the costmap starts without waiting for a transform",
@@ -60,7 +60,6 @@ class StaticLayerParameters:
     enabled: bool = param(True, "a disabled layer leaves the master as it is")
     map_topic: str = param("", "the map topic (transient local); empty: the costmap's map_topic")
     map_subscribe_transient_local: bool = param(True, "subscribe to the map latched (transient local)")
-    footprint_clearing_enabled: bool = param(False, "no effect on a static map (Nav2's default)")
 
     def validate(self) -> None:
         pass

@@ -40,12 +40,12 @@ from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Empty
 from tf2_msgs.msg import TFMessage
 
-from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_common.params import ParameterError, check_finite_range, param, parameter_fields, ros_name
 from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.lockstep import at_step, require, require_match
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.node_main import Warnings, guarded, run_node
-from pppbot_common.ros.params import declare_parameters, on_valid_update
+from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_common.ros.planar import transform_message
 from pppbot_common.ros.qos import LATCHED, SENSOR
 from pppbot_common.ros.scan_odometry import ScanOdometry
@@ -169,6 +169,10 @@ class AmclParameters:
         return np.array([self.initial_pose_x, self.initial_pose_y, self.initial_pose_yaw])
 
 
+#: Everything but the topics may change while AMCL runs.
+LIVE = frozenset(ros_name(f) for f in parameter_fields(AmclParameters)) - {"scan_topic", "map_topic"}
+
+
 class Amcl(ManagedNode):
     """A lifecycle node, as Nav2's: it takes the map and initial poses at any time, and uses scans
     (and publishes) only while active."""
@@ -176,7 +180,13 @@ class Amcl(ManagedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("amcl", **kwargs)
         self.params = p = declare_parameters(self, AmclParameters)
-        on_valid_update(self, lambda: self.params, self._set_params)
+        self.parameter_notes = {
+            "*beam_skip*": "beam skipping is not implemented (Nav2's default, do_beamskip false)",
+            "do_beamskip": "beam skipping is not implemented (Nav2's default, do_beamskip false)",
+            "save_pose_rate": "the pose is not saved to parameters: the launch gives the initial pose",
+            "use_sim_time": ""}
+        # Topics are subscribed once (as Nav2's AMCL, whose dynamic parameters leave them out).
+        fixed_parameters(self, lambda: self.params, LIVE, self._set_params)
         self.rng = np.random.default_rng(None if p.seed < 0 else p.seed)
         self.localizer: Localizer | None = None
         self._pose: tuple[np.ndarray, np.ndarray] | None = None  # the last initial pose asked for (mean, cov)

@@ -50,15 +50,23 @@ from pppbot_common.ros.tf_listener import TfListener
 from pppbot_common.transforms import TransformError
 from pppbot_nav import behaviors
 from pppbot_nav.behaviors import Behavior, Outcome
+from pppbot_nav.ros.plugins import plugin_type
 
 #: Nav2's behaviour plugins, by the names its bringup gives them, and their action types.
 BEHAVIORS: dict[str, Any] = {"spin": Spin, "backup": BackUp, "drive_on_heading": DriveOnHeading,
                              "assisted_teleop": AssistedTeleop, "wait": Wait}
+#: Nav2's behaviour plugin types and the behaviour each is; a behaviour named as one of
+#: BEHAVIORS without a ``plugin`` is that one (Nav2's default ids).
+BEHAVIOR_TYPES = {"nav2_behaviors::Spin": "spin", "nav2_behaviors::BackUp": "backup",
+                  "nav2_behaviors::DriveOnHeading": "drive_on_heading",
+                  "nav2_behaviors::AssistedTeleop": "assisted_teleop", "nav2_behaviors::Wait": "wait"}
+DEFAULT_BEHAVIOR_TYPES = {kind: type_name for type_name, kind in BEHAVIOR_TYPES.items()}
 
 
 @dataclass(frozen=True)
 class BehaviorServerParameters:
-    behavior_plugins: list = param(list(BEHAVIORS), f"the behaviours served, of {', '.join(BEHAVIORS)}")
+    behavior_plugins: list = param(list(BEHAVIORS), "the behaviours served, each an action of its name; its "
+                                                    "type is its <name>.plugin (nav2_behaviors::Spin, ...)")
     local_costmap_topic: str = param("local_costmap/costmap", "the local costmap (nav_msgs/OccupancyGrid) the "
                                      "collision checks read (Nav2: local_costmap/costmap_raw)")
     cycle_frequency: float = param(10.0, "behaviour steps per second (Hz, sim time)")
@@ -78,10 +86,8 @@ class BehaviorServerParameters:
                                 "assisted_teleop.cmd_vel_teleop")
 
     def validate(self) -> None:
-        unknown = [name for name in self.behavior_plugins if name not in BEHAVIORS]
-        if unknown or not self.behavior_plugins:
-            raise ParameterError("behavior_plugins", self.behavior_plugins,
-                                 f"must name some of {', '.join(BEHAVIORS)}")
+        if not self.behavior_plugins or len(set(self.behavior_plugins)) != len(self.behavior_plugins):
+            raise ParameterError("behavior_plugins", self.behavior_plugins, "must name behaviours, each once")
         check_finite_range("cycle_frequency", self.cycle_frequency, 0.0, 1000.0, low_open=True)
         check_finite_range("transform_tolerance", self.transform_tolerance, 0.0, 60.0)
         check_finite_range("simulate_ahead_time", self.simulate_ahead_time, 0.0, 60.0)
@@ -120,6 +126,13 @@ class BehaviorServer(ManagedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("behavior_server", **kwargs)
         self.params = p = declare_parameters(self, BehaviorServerParameters)
+        self.parameter_notes = {
+            "costmap_topic": "Humble's name: the collision checks read local_costmap_topic (Jazzy's)",
+            "footprint_topic": "the footprint is a circle of the costmap's robot_radius",
+            "local_footprint_topic": "the footprint is a circle of the costmap's robot_radius",
+            "global_footprint_topic": "the footprint is a circle of the costmap's robot_radius",
+            "global_costmap_topic": "no behaviour here checks the global costmap",
+            "use_sim_time": ""}
         fixed_parameters(self, lambda: self.params)  # Nav2's has no dynamic parameters
         self._warn = Warnings(self)
         self.tf = TfListener(self, self._warn).buffer
@@ -134,8 +147,11 @@ class BehaviorServer(ManagedNode):
         count_deliveries(self, self.create_subscription(
             Empty, "preempt_teleop", guarded(self, self._on_preempt, "Empty"), 10))
         self._running: _Running | None = None
-        self.servers = {name: GoalServer(self, BEHAVIORS[name], name, self._starter(name), accept=self.taking_goals)
-                        for name in p.behavior_plugins}
+        #: Each served name's behaviour (a key of BEHAVIORS), from its <name>.plugin.
+        self.kinds = {name: BEHAVIOR_TYPES[plugin_type(self, name, BEHAVIOR_TYPES, DEFAULT_BEHAVIOR_TYPES.get(name))]
+                      for name in p.behavior_plugins}
+        self.servers = {name: GoalServer(self, BEHAVIORS[kind], name, self._starter(name), accept=self.taking_goals)
+                        for name, kind in self.kinds.items()}
         self.timer = create_timer(self, 1.0 / p.cycle_frequency, self._cycle)
         self.timer.cancel()
         self.get_logger().info(f"behaviours: {', '.join(p.behavior_plugins)} once active")
@@ -161,7 +177,7 @@ class BehaviorServer(ManagedNode):
         self._teleop = msg
 
     def _on_preempt(self, msg: Empty) -> None:
-        if self._running is not None and self._running.name == "assisted_teleop":
+        if self._running is not None and self.kinds[self._running.name] == "assisted_teleop":
             self._running.preempt_teleop = True
 
     # ------------------------------------------------------------------ goals
@@ -181,7 +197,8 @@ class BehaviorServer(ManagedNode):
         try:
             running.core = self._core(name, request, allowance)
         except _InvalidInput as exc:
-            self._end(running, GoalEnd.ABORTED, BEHAVIORS[name].Result.INVALID_INPUT, str(exc), stop=False)
+            self._end(running, GoalEnd.ABORTED, BEHAVIORS[self.kinds[name]].Result.INVALID_INPUT, str(exc),
+                      stop=False)
             return
         self._running = running
         self.get_logger().info(f"{name} started")
@@ -195,18 +212,19 @@ class BehaviorServer(ManagedNode):
             _InvalidInput: a backup or drive_on_heading request Nav2 refuses with INVALID_INPUT.
         """
         p = self.params
-        if name == "spin":
+        kind = self.kinds[name]
+        if kind == "spin":
             return behaviors.Spin(float(request.target_yaw), p.max_rotational_vel, p.min_rotational_vel,
                                   p.rotational_acc_lim, allowance_s)
-        if name == "wait":
+        if kind == "wait":
             return behaviors.Wait(seconds(request.time))
-        if name == "assisted_teleop":
+        if kind == "assisted_teleop":
             return None
         target, speed = request.target, float(request.speed)
         if target.y != 0.0 or target.z != 0.0:
             raise _InvalidInput(f"{name} drives along the heading only: target.y and target.z must be 0 "
                                 f"(got {target.y:g}, {target.z:g})")
-        core = behaviors.back_up(float(target.x), speed, allowance_s) if name == "backup" \
+        core = behaviors.back_up(float(target.x), speed, allowance_s) if kind == "backup" \
             else behaviors.DriveOnHeading(float(target.x), speed, allowance_s)
         problem = behaviors.drive_on_heading_problem(core.distance_m, core.speed)
         if problem is not None:
@@ -222,7 +240,7 @@ class BehaviorServer(ManagedNode):
         handle = running.handle
         if end is GoalEnd.ABORTED:
             end = stopped_end(handle) if handle.is_cancel_requested else GoalEnd.ABORTED
-        result = BEHAVIORS[running.name].Result()
+        result = BEHAVIORS[self.kinds[running.name]].Result()
         result.error_code, result.error_msg = code, message
         result.total_elapsed_time = Duration(seconds=max(0.0, self._now_s() - running.start_s)).to_msg()
         if end is GoalEnd.ABORTED and message:
@@ -243,7 +261,7 @@ class BehaviorServer(ManagedNode):
             self._end(running, GoalEnd.ABORTED, 0, f"{type(exc).__name__}: {exc}")
 
     def _step(self, running: _Running) -> None:
-        action = BEHAVIORS[running.name]
+        action = BEHAVIORS[self.kinds[running.name]]
         codes = action.Result
         now = self._now_s()
         if running.handle.is_cancel_requested:
@@ -302,7 +320,7 @@ class BehaviorServer(ManagedNode):
         self._feedback(running, now)
 
     def _feedback(self, running: _Running, now: float) -> None:
-        action = BEHAVIORS[running.name]
+        action = BEHAVIORS[self.kinds[running.name]]
         fb = action.Feedback()
         core = running.core
         if isinstance(core, behaviors.Spin):

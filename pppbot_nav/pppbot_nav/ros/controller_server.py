@@ -150,6 +150,7 @@ class ControllerServer(ManagedNode):
         self.controllers = self._load(p.controller_plugins, CONTROLLER_TYPES, DEFAULT_CONTROLLER_TYPES)
         self.goal_checkers = self._load(p.goal_checker_plugins, GOAL_CHECKER_TYPES, DEFAULT_CHECKER_TYPES)
         self.progress_checkers = self._load(p.progress_checkers(), PROGRESS_CHECKER_TYPES, DEFAULT_CHECKER_TYPES)
+        self.costmap_node.footprint_listeners.append(self._on_footprint)
         self._warn = Warnings(self)
         self._speed = (0.0, 0.0)
         self._active: _Following | None = None
@@ -179,7 +180,14 @@ class ControllerServer(ManagedNode):
         """What a plugin of ``type_name`` takes from the local costmap: DWB its footprint."""
         if type_name != DWB:
             return {}
-        return {"robot_radius": self.costmap_node.params.robot_radius, "footprint_padding": 0.01}  # Nav2's padding
+        cm = self.costmap_node.params
+        return {"robot_radius": cm.robot_radius, "footprint_padding": cm.footprint_padding}
+
+    def _on_footprint(self) -> None:
+        """The local costmap's footprint changed: DWB's controllers take it (their critics rebuilt)."""
+        for name, controller in self.controllers.items():
+            if self.plugins[name].type_name == DWB:
+                controller.set_footprint(**self._from_costmap(DWB))
 
     # ----------------------------------------------------------- parameters
     def _set_params(self, new: ControllerServerParameters) -> None:

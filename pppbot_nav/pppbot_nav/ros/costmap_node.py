@@ -104,6 +104,8 @@ class CostmapParameters:
     track_unknown_space: bool = param(False, "unknown cells stay unknown (else free)")
     lethal_cost_threshold: int = param(100, "map values at or above this are lethal")
     map_topic: str = param("/map", "the static layers' map topic when they name none")
+    footprint_padding: float = param(0.01, "added to robot_radius for the controller's footprint check (DWB's "
+                                           "ObstacleFootprint), as Nav2 pads its footprint")
     plugins: list = param(["static_layer", "obstacle_layer", "inflation_layer"],
                           "layers in order; each's type is its <name>.plugin")
 
@@ -123,7 +125,7 @@ class CostmapParameters:
 
 
 #: What a costmap may change while it runs; the rest is refused (Nav2 reads it once).
-LIVE_COSTMAP = {"robot_radius", "publish_frequency", "update_frequency"}
+LIVE_COSTMAP = {"robot_radius", "footprint_padding", "publish_frequency", "update_frequency"}
 
 
 def costmap_message(costmap: Costmap, stamp: Any) -> Nav2Costmap:
@@ -171,6 +173,8 @@ class CostmapNode(Node):
                                                          p.global_frame), self.layers, rolling=True,
                                           default_value=NO_INFORMATION if p.track_unknown_space else 0)
         self.costmap: Costmap | None = None  # the last update, a copy owned by its readers
+        #: Called when robot_radius or footprint_padding change (the controller's DWB takes them).
+        self.footprint_listeners: list[Any] = []
         #: The message of the costmap last published: an unchanged costmap is sent again restamped.
         self._message: tuple[Costmap, OccupancyGridMsg] | None = None
         self.pub = self.create_publisher(OccupancyGridMsg, "costmap", LATCHED)
@@ -229,6 +233,8 @@ class CostmapNode(Node):
                     self._update_timer = made
                 else:
                     self._publish_timer = made
+        for listener in self.footprint_listeners:
+            listener()
         self.update()
 
     def _set_layer_params(self, name: str, new: Any) -> None:

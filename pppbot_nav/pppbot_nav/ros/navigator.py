@@ -119,12 +119,30 @@ PASSED_GOAL_M = 0.5
 TICK_S = 0.05
 
 
+_NO_TREE = "no behaviour tree is loaded: the default tree's logic is fixed code"
+#: bt_navigator keys that mean nothing here, with the reason (named in the start-up warning when given).
+NO_EFFECT = {
+    "plugin_lib_names": _NO_TREE, "default_nav_to_pose_bt_xml": _NO_TREE, "default_nav_through_poses_bt_xml": _NO_TREE,
+    "default_bt_xml_filename": _NO_TREE, "navigators": _NO_TREE, "navigate_to_pose.*": _NO_TREE,
+    "navigate_through_poses.*": _NO_TREE, "error_code_names": _NO_TREE, "error_code_name_prefixes": _NO_TREE,
+    "bt_loop_duration": "the navigator ticks on its replanning_frequency and each server's answers",
+    "default_server_timeout": "server_timeout is pppbot's name for how long it waits for the servers",
+    "enable_groot_monitoring": "no Groot: no behaviour tree to monitor",
+    "groot_*": "no Groot: no behaviour tree to monitor",
+    "odom_topic": "the navigator reads the robot's pose from TF, not odometry",
+    "transform_tolerance": "the navigator uses the newest transform",
+    "filter_duration": "the navigator reads the robot's pose from TF, not odometry",
+    "use_sim_time": "",
+}
+
+
 class Navigator(ManagedNode):
     """Nav2's ``bt_navigator``: a lifecycle node that takes goals only while active."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("bt_navigator", **kwargs)
         self.params = declare_parameters(self, NavigatorParameters)
+        self.parameter_notes = NO_EFFECT
         fixed_parameters(self, lambda: self.params)  # Nav2's has no dynamic parameters
         self._warn = Warnings(self)
         self.tf = TfListener(self, self._warn).buffer

@@ -32,7 +32,7 @@ class Plugin:
     params: Any
 
 
-def plugin_type(node: Node, name: str, types: Mapping[str, type], default_type: str | None) -> str:
+def plugin_type(node: Node, name: str, types: Mapping[str, Any], default_type: str | None) -> str:
     """Declare ``<name>.plugin`` and return the known type it names (as spelled in ``types``).
 
     Raises:

@@ -45,13 +45,23 @@ from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rclpy.duration import Duration
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
-from slam_toolbox.srv import ClearQueue, DeserializePoseGraph, Pause, Reset, SaveMap, SerializePoseGraph
+from slam_toolbox.srv import (
+    Clear,
+    ClearQueue,
+    DeserializePoseGraph,
+    LoopClosure,
+    Pause,
+    Reset,
+    SaveMap,
+    SerializePoseGraph,
+    ToggleInteractive,
+)
 from std_msgs.msg import Header
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
 from pppbot_common.maps import MapFileError, OccupancyGrid, save_map
-from pppbot_common.params import ParameterError, check_finite_range, param, parameter_fields, ros_name
+from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.resources import maps_directory
 from pppbot_common.ros.lockstep import at_step, create_timer, hold, require_match
 from pppbot_common.ros.maps import grid_message, map_metadata
@@ -218,6 +228,25 @@ class SlamParameters:
             matcher=matcher, loop_matcher=loop, global_loop_matcher=whole_window)
 
 
+_SOLVER = "the pose graph is solved by GTSAM's Levenberg-Marquardt (Huber on loop closures), not Ceres"
+#: slam_toolbox keys that mean nothing here, with the reason (named in the start-up warning when given).
+NO_EFFECT = {
+    "solver_plugin": _SOLVER, "ceres_*": _SOLVER,
+    "debug_logging": "the node logs at its --log-level",
+    "enable_interactive_mode": "no interactive markers: the graph is not edited from RViz",
+    "stack_size_to_use": "Python needs no larger stack to serialize a graph",
+    "use_map_saver": "~/save_map is served in mapping mode whatever this says",
+    "throttle_scans": "every scan is taken (slam_toolbox's default, 1)",
+    "minimum_time_interval": "keyframes are taken by minimum_travel_distance and _heading alone",
+    "link_scan_maximum_distance": "each scan is matched against the running buffer "
+                                  "(scan_buffer_maximum_scan_distance), not against linked chains",
+    "use_response_expansion": "the matcher's search window is fixed (correlation_search_space_dimension)",
+    "use_scan_barycenter": "scans are placed at the sensor's pose, not their barycenter",
+    "use_scan_matching": "scans are always matched (false, odometry alone, is not offered)",
+    "use_sim_time": "",
+}
+
+
 class Slam(Node):
     """The ROS side of :class:`~pppbot_slam.async_mapper.AsyncMapper`: scans and TF in, the map,
     pose, transform, graph and health out, and the services. In ``mode: localization`` the work is
@@ -226,10 +255,13 @@ class Slam(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("slam_toolbox", **kwargs)
         self.params = p = declare_parameters(self, SlamParameters)
-        live = {ros_name(f) for f in parameter_fields(SlamParameters)} - {"mode"}
+        self.parameter_notes = NO_EFFECT
+        # What the node reads at each use; the rest (the mode, topics, rates, the matcher's settings)
+        # is built into it at start-up, as slam_toolbox reads it once.
+        live = {"odom_frame", "base_frame", "map_frame", "transform_timeout", "map_save_name", "map_file_name"}
         serve_live_parameters(self, [LiveParameters("", lambda: self.params, self._set_params, live,
-                                                    "the mode is chosen at start-up (slam_toolbox's by its "
-                                                    "executable); restart the node to change it")])
+                                                    "it is read once, at start-up, as slam_toolbox's; restart "
+                                                    "the node to change it")])
         self._diagnostics_lock = threading.Lock()  # one health reading published at a time
         self.paused = False
         self._warn = Warnings(self, WARN_PERIOD_S, settling=("transform",))
@@ -239,6 +271,10 @@ class Slam(Node):
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "pose", 10)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        # slam_toolbox's interactive-mode services, for its RViz panel: answered, with what happened.
+        for srv_type, name in ((Clear, "~/clear_changes"), (LoopClosure, "~/manual_loop_closure"),
+                               (ToggleInteractive, "~/toggle_interactive_mode")):
+            self.create_service(srv_type, name, self._no_interactive_mode)
         self.localization: SlamLocalization | None = None
         if p.slam_mode() is SlamMode.LOCALIZATION:
             self.localization = SlamLocalization(self, self._warn)
@@ -447,6 +483,13 @@ class Slam(Node):
         self.get_logger().info("pause_new_measurements: " + ("paused, new scans are ignored" if self.paused
                                                               else "taking new scans"))
         response.status = True
+        return response
+
+    def _no_interactive_mode(self, request: Any, response: Any) -> Any:
+        """clear_changes, manual_loop_closure, toggle_interactive_mode: there is no interactive mode
+        (no markers to move, so no moved nodes to clear or close a loop with); said in the log."""
+        self.get_logger().warning("slam_toolbox's interactive mode is not implemented: no graph node was moved, "
+                                  "nothing to clear, close or toggle (the graph closes loops by itself)")
         return response
 
     def _clear_queue(self, request: ClearQueue.Request, response: ClearQueue.Response) -> ClearQueue.Response:
