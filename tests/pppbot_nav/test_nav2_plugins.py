@@ -289,3 +289,31 @@ def test_behaviours_are_nav2s_plugin_types_under_any_name(context: None) -> None
         server.destroy_node()
     with pytest.raises(ParameterError, match=r"'spin.plugin' = 'nav2_behaviors::Dock'.*known: nav2_behaviors::Spin"):
         BehaviorServer(parameter_overrides=[Parameter("spin.plugin", value="nav2_behaviors::Dock")])
+
+
+def test_nodes_that_read_their_parameters_once_refuse_sets(context: None) -> None:
+    from pppbot_control.ros.twist_mux import TwistMuxNode
+    from pppbot_nav.ros.collision_monitor import CollisionMonitor
+
+    mux = TwistMuxNode(parameter_overrides=[Parameter("topics.navigation.topic", value="cmd_vel"),
+                                            Parameter("topics.navigation.timeout", value=0.5),
+                                            Parameter("topics.navigation.priority", value=10)])
+    try:
+        result = mux.set_parameters([Parameter("topics.navigation.priority", value=200)])[0]
+        assert not result.successful and "twist_mux reads its inputs" in result.reason
+    finally:
+        mux.destroy_node()
+    from rclpy.lifecycle import TransitionCallbackReturn
+
+    box = "[[0.4, 0.3], [0.4, -0.3], [0.0, -0.3], [0.0, 0.3]]"
+    monitor = CollisionMonitor(parameter_overrides=[
+        Parameter(k, value=v) for k, v in {"polygons": ["Stop"], "Stop.type": "polygon", "Stop.points": box,
+                                           "Stop.action_type": "stop", "observation_sources": ["scan"],
+                                           "scan.type": "scan", "scan.topic": "scan"}.items()])
+    try:
+        assert monitor.set_parameters([Parameter("base_frame_id", value="base_footprint")])[0].successful
+        assert monitor.trigger_configure() == TransitionCallbackReturn.SUCCESS  # it reads them now...
+        refused = monitor.set_parameters([Parameter("base_frame_id", value="base_link")])[0]
+        assert not refused.successful and "read at configure" in refused.reason  # ...and not again until then
+    finally:
+        monitor.destroy_node()

@@ -110,6 +110,19 @@ def fixed_parameters(node: Node, current: Callable[[], Any], live: Collection[st
     serve_live_parameters(node, [LiveParameters("", current, apply or (lambda _: None), live)])
 
 
+def refuse_sets(node: Node, why: str, allowed: Callable[[str], bool] = lambda name: name == "use_sim_time") -> None:
+    """Refuse every run-time set of ``node``'s parameters but ``allowed`` ones, saying ``why`` (a node
+    that reads its parameters once and has no dataclass of them)."""
+    def validate(params: list[Parameter]) -> SetParametersResult:
+        fixed = [p.name for p in params if not allowed(p.name)]
+        if fixed:
+            return SetParametersResult(successful=False,
+                                       reason=f"'{fixed[0]}' cannot change while the node runs: {why}")
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(validate)
+
+
 def on_valid_update(node: Node, current: Callable[[], T], apply: Callable[[T], None]) -> None:
     """Validate runtime ``ros2 param set`` updates; apply the new dataclass when valid.
 

@@ -34,6 +34,7 @@ from controller_manager_msgs.srv import (
 )
 from rclpy.node import Node
 
+from pppbot_common.ros.params import refuse_sets
 from pppbot_control.switching import ControllerInfo, ControllerStatus, Strictness, plan_switch
 
 NODE_NAME = "controller_manager"
@@ -78,6 +79,8 @@ class ControllerManager(Node):
                  declared: Mapping[str, str] | None = None, **kwargs: Any) -> None:
         """``declared``: every controller the parameters file names (name → type), hosted or not."""
         super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **kwargs)
+        refuse_sets(self, "the controllers are loaded from the robot's controllers file at start-up; switch them "
+                          "with switch_controller")
         self.controllers = {c.name: c for c in controllers}
         self.hardware = hardware
         self.declared = dict(declared or {})

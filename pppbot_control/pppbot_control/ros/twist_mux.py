@@ -17,6 +17,7 @@ from std_msgs.msg import Bool
 from pppbot_common.params import ParameterError
 from pppbot_common.ros.lockstep import count_deliveries, create_timer, require_match
 from pppbot_common.ros.node_main import guarded, run_node
+from pppbot_common.ros.params import refuse_sets
 from pppbot_control.mux import MuxConfigError, TwistMux, parse_config
 
 #: How often input timeouts are checked. In lockstep the check fires at the first sync time
@@ -36,9 +37,10 @@ def grouped(node: Node, prefix: str) -> dict[str, dict[str, Any]]:
 
 
 class TwistMuxNode(Node):
-    def __init__(self) -> None:
+    def __init__(self, **kwargs: Any) -> None:
         super().__init__("twist_mux", allow_undeclared_parameters=True,
-                         automatically_declare_parameters_from_overrides=True)
+                         automatically_declare_parameters_from_overrides=True, **kwargs)
+        refuse_sets(self, "twist_mux reads its inputs and locks once, at start-up (as twist_mux's); restart it")
         use_stamped = self.get_parameter("use_stamped").value if self.has_parameter("use_stamped") else False
         if not isinstance(use_stamped, bool):
             raise ParameterError("use_stamped", use_stamped, "must be true or false")

@@ -45,6 +45,7 @@ from pppbot_common.params import (
 from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.lockstep import at_step, count_deliveries, require_match
 from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
+from pppbot_common.ros.params import refuse_sets
 from pppbot_common.ros.planar import stamp_seconds
 from pppbot_common.ros.qos import DEFAULT, LATCHED, SENSOR
 from pppbot_common.ros.tf_listener import TfListener
@@ -212,6 +213,8 @@ class CollisionMonitor(ManagedNode):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("collision_monitor", **kwargs)
+        refuse_sets(self, "it is read at configure: deactivate and clean up the node, set it, then configure it",
+                    allowed=lambda name: name == "use_sim_time" or self.state == "unconfigured")
         self._warn = Warnings(self, settling=("source",))
         self.tf = TfListener(self, self._warn).buffer
         self.config: _Config | None = None
