@@ -6,11 +6,13 @@ from pathlib import Path
 
 import pytest
 from controller_manager_msgs.srv import (
+    ConfigureController,
     ListControllers,
     ListControllerTypes,
     ListHardwareInterfaces,
     LoadController,
     SwitchController,
+    UnloadController,
 )
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
@@ -67,6 +69,13 @@ def test_list_controllers_shows_both_active_with_their_types(ros_node, simulator
     assert "diff_drive_controller/DiffDriveController" in types.types
     assert not call(ros_node, LoadController, f"{CM}/load_controller",
                     LoadController.Request(name="diff_drive_base_controller")).ok  # loaded already
+    # The spawner's next step on a loaded controller goes through; unloading one is refused.
+    assert call(ros_node, ConfigureController, f"{CM}/configure_controller",
+                ConfigureController.Request(name="diff_drive_base_controller")).ok
+    assert not call(ros_node, ConfigureController, f"{CM}/configure_controller",
+                    ConfigureController.Request(name="no_such_controller")).ok
+    assert not call(ros_node, UnloadController, f"{CM}/unload_controller",
+                    UnloadController.Request(name="joint_broad")).ok
 
 
 def test_deactivating_the_diff_drive_stops_the_robot_and_reactivating_resumes(ros_node, simulator):

@@ -13,7 +13,10 @@ Node name ``controller_manager``; services with controller_manager_msgs' types, 
 * ``~/load_controller``: every controller the parameters file declares that pppbot can host is
   loaded at start, so loading answers ``ok`` false naming why (already loaded, a type pppbot
   does not host, no ``<name>.type`` parameter);
-* ``~/list_controller_types``: the types pppbot hosts.
+* ``~/list_controller_types``: the types pppbot hosts;
+* ``~/configure_controller``: ``ok`` for a loaded controller (hosted ones are configured at start),
+  so the spawner's load-configure-activate sequence goes through on them; ``~/unload_controller``
+  is refused (they stay loaded).
 
 Its parameters are the ``controller_manager`` section of the controllers file (``update_rate``,
 ``<controller>.type``), read as given.
@@ -26,11 +29,13 @@ from typing import Any, Protocol
 
 from controller_manager_msgs.msg import ControllerState, HardwareInterface
 from controller_manager_msgs.srv import (
+    ConfigureController,
     ListControllers,
     ListControllerTypes,
     ListHardwareInterfaces,
     LoadController,
     SwitchController,
+    UnloadController,
 )
 from rclpy.node import Node
 
@@ -89,6 +94,8 @@ class ControllerManager(Node):
         self.create_service(SwitchController, "~/switch_controller", self._switch_controller)
         self.create_service(LoadController, "~/load_controller", self._load_controller)
         self.create_service(ListControllerTypes, "~/list_controller_types", self._list_controller_types)
+        self.create_service(ConfigureController, "~/configure_controller", self._configure_controller)
+        self.create_service(UnloadController, "~/unload_controller", self._unload_controller)
         self.get_logger().info(
             "controllers: " + (", ".join(f"{c.name} ({c.type}, {c.status.value})" for c in controllers) or "none"))
 
@@ -156,6 +163,23 @@ class ControllerManager(Node):
             reason = (f"controller '{name}' of type {kind} is not one pppbot hosts "
                       f"({', '.join(HOSTED_TYPES)})")
         self.get_logger().warning(f"load_controller {name}: {reason}")
+        response.ok = False
+        return response
+
+    def _configure_controller(self, request: ConfigureController.Request,
+                              response: ConfigureController.Response) -> ConfigureController.Response:
+        """A hosted controller is configured when the process starts: ``ok`` for a loaded one (what
+        the spawner asks after finding it loaded), false naming why for any other."""
+        response.ok = request.name in self.controllers
+        if not response.ok:
+            self.get_logger().warning(f"configure_controller {request.name}: no controller of that name is loaded")
+        return response
+
+    def _unload_controller(self, request: UnloadController.Request,
+                           response: UnloadController.Response) -> UnloadController.Response:
+        """Hosted controllers stay loaded (the simulator's process owns them): refused, saying so."""
+        self.get_logger().warning(f"unload_controller {request.name}: pppbot's hosted controllers stay loaded "
+                                  "(deactivate one with switch_controller)")
         response.ok = False
         return response
 
