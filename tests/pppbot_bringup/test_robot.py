@@ -70,7 +70,7 @@ def test_parameter_files_follow_the_robot_where_they_say_ppp_bots() -> None:
     amcl = nav["amcl"]["ros__parameters"]
     assert (amcl["base_frame_id"], amcl["odom_frame_id"], amcl["scan_topic"]) == ("base", "my_bot/odom", "/laser_scan")
     local = nav["local_costmap"]["local_costmap"]["ros__parameters"]
-    assert (local["global_frame"], local["robot_base_frame"], local["obstacle_layer"]["scan"]["topic"]) == \
+    assert (local["global_frame"], local["robot_base_frame"], local["voxel_layer"]["scan"]["topic"]) == \
         ("my_bot/odom", "base", "/laser_scan")
     assert nav["global_costmap"]["global_costmap"]["ros__parameters"]["global_frame"] == "map"  # not ppp_bot's odom
     assert nav["controller_server"]["ros__parameters"]["odom_topic"] == "/my_bot/odom"
