@@ -24,13 +24,13 @@ from typing import Any, Protocol
 import yaml
 from pppbot_viz.viewer import ViewerKind
 
+from pppbot_bringup.parameter_files import PARAMETER_FILES, check_slam_localization, parameter_file
 from pppbot_bringup.paths import config_directory, maps_directory
 from pppbot_bringup.robot import PPP_BOT, RobotFacts, adapt_parameters
 from pppbot_bringup.supervisor import NodeSpec, ReadyCheck
-from pppbot_common.errors import MapFileError, ParameterFileError
+from pppbot_common.errors import MapFileError
 from pppbot_common.launch_args import Argument, ArgumentError, parse_assignments
 from pppbot_common.maps import check_map_file
-from pppbot_common.param_files import check_parameter_file
 from pppbot_nav.lifecycle import LOCALIZATION_NODES, command_remaps, navigation_nodes
 
 LOG_LEVELS = ("debug", "info", "warn", "error", "fatal")
@@ -342,50 +342,6 @@ def controllers_file(given: str = "") -> Path:
     """
     return parameter_file(given, config_directory() / "my_controllers.yaml", "controllers_file")
 
-
-def parameter_file(given: str, default: Path, argument: str) -> Path:
-    """The parameter file ``argument:=given`` names (``default`` when empty), checked before anything
-    starts: it exists and is a ROS 2 parameter file (:func:`pppbot_common.param_files.check_parameter_file`).
-
-    Raises:
-        ArgumentError: naming the argument, the file and, for bad YAML, the line and column.
-    """
-    path = Path(given) if given else default
-    if not path.is_file():
-        raise ArgumentError(f"{argument}:={path}: no such file")
-    try:
-        check_parameter_file(path)
-    except ParameterFileError as exc:
-        raise ArgumentError(f"{argument}:={exc}") from exc
-    return path
-
-
-def check_slam_localization(path: Path) -> None:
-    """A slam file with ``mode: localization`` (slam_toolbox's localization node) must name the pose
-    graph it localizes in, which must exist: else the node would wait for a deserialize_map call
-    and the launch for a /map that never comes.
-
-    Raises:
-        ArgumentError: naming the file, the key and what is missing.
-    """
-    document = yaml.safe_load(path.read_text()) or {}
-    sections = [v.get("ros__parameters", {}) for k, v in document.items()
-                if isinstance(v, dict) and k.lstrip("/") in ("slam_toolbox", "**")]
-    params = {k: v for section in sections if isinstance(section, dict) for k, v in section.items()}
-    if params.get("mode") != "localization":
-        return
-    graph = str(params.get("map_file_name") or "")
-    if not graph:
-        raise ArgumentError(f"slam_params_file:={path}: mode: localization needs map_file_name, the pose graph to "
-                            "localize in (serialize one with /slam_toolbox/serialize_map while mapping)")
-    stem = Path(graph).expanduser()
-    if not stem.with_name(stem.name + ".posegraph").is_file() and not stem.is_file():
-        raise ArgumentError(f"slam_params_file:={path}: map_file_name: {graph}: no pose graph "
-                            f"{stem.name}.posegraph there")
-
-
-#: The arguments that name ROS 2 parameter files.
-PARAMETER_FILES = ("params_file", "slam_params_file", "twist_mux_params", "controllers_file", "joy_params")
 
 #: ppp_bot's launch argument names that name one of launch_sim's (its launch_sim.launch.py's).
 ALIASES = {"world_name": "world"}
