@@ -60,6 +60,7 @@ from pppbot_common.ros.lockstep_counting import (
     Receiver,
     install_counting,
 )
+from pppbot_common.ros.lockstep_requests import REQUESTS
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_common.throttle import Throttle
 from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
@@ -122,7 +123,9 @@ class Participant:
         self._pending_seq: int | None = None
         self._early_step: LockstepStep | None = None
         self._last_seq = 0  # the last step taken since joining (the simulator repeats a step until all answer)
-        self.deliveries = Receiver.start(self._on_delivery).deliveries
+        receiver = Receiver.start(self._on_delivery)
+        self.deliveries = receiver.deliveries
+        REQUESTS.context, REQUESTS.receiver = node.context, receiver
         self._counted_topics: list[str] = []  # as last told to the simulator
         self._waiting_step: LockstepStep | None = None  # until the messages published before it are here
         self._waiting_since = 0.0
@@ -212,6 +215,7 @@ class Participant:
         waiting for messages a step needs after :data:`DELIVERY_TIMEOUT_S`."""
         if self._waiting_step is not None:
             self._try_step()
+        REQUESTS.overdue(self._executor.create_task)
         if self.joined or self.ack_pub.get_subscription_count() == 0:
             return
         now = time.monotonic()
@@ -248,6 +252,8 @@ class Participant:
         if self.joined:
             self.joined = False
             OUTBOX.send_all()
+            if self._executor is not None:
+                REQUESTS.overdue(self._executor.create_task, everything=True)
             try:
                 self._send(LockstepAck(kind=LockstepAck.LEAVE, participant=self.name))
                 self.ack_pub.wait_for_all_acked(Duration(seconds=1.0))
@@ -297,6 +303,7 @@ class Participant:
         if t_ns > 0:
             OUTBOX.holding = True  # from now on sends go out at the next step (at time 0 they need no order)
         self._run_deferred()
+        REQUESTS.enter_step(self._run_request)
         timers_due = msg.timers and t_ns > self._timers_ns
         if timers_due:
             self._timers_ns = t_ns
@@ -361,6 +368,17 @@ class Participant:
             return
         self._answer_if_free()
 
+    def _run_request(self, execute: Callable[[], Any]) -> None:
+        """Handle a request kept for this step (:mod:`~pppbot_common.ros.lockstep_requests`) before answering it."""
+        self.hold()
+
+        async def run() -> None:
+            try:
+                await execute()
+            finally:
+                self.release()
+        self._executor.create_task(run)
+
     def hold(self) -> None:
         """A thread of this process has work the current step must wait for (call in the executor's
         thread, when the work is handed over)."""
@@ -398,6 +416,7 @@ class Participant:
             timers_due = self._timers_due
             if not timers_due:
                 seq, self._pending_seq = self._pending_seq, None
+                REQUESTS.leave_step(OUTBOX.holding)
         if timers_due:  # released by a worker thread: the timers run in the executor's (a task is thread-safe)
             self._executor.create_task(self._fire_timers_due)
             return

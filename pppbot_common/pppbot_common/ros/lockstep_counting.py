@@ -29,6 +29,7 @@ import rclpy.task
 from rclpy.serialization import serialize_message
 
 from pppbot_common.lockstep import Counted, Deliveries
+from pppbot_common.ros.lockstep_requests import client_key, install_requests
 
 
 # --------------------------------------------------------------------------- counting
@@ -188,6 +189,7 @@ def install_counting() -> None:
         task_init(self, *args, **kwargs)
 
     rclpy.task.Task.__init__ = counting_init  # type: ignore[method-assign]
+    install_requests()
     COUNTERS.installed = True
 
 
@@ -209,8 +211,12 @@ def _counting(method: Callable[..., Any]) -> Callable[..., Any]:
 def _counting_held(method: Callable[..., Any], returns_future: bool) -> Callable[..., Any]:
     @functools.wraps(method)
     def counted(self: Any, *args: Any, **kwargs: Any) -> Any:
+        # A request is counted on its server's key, as a message on its topic (lockstep_requests).
+        key = client_key(self) if returns_future else None
         if not OUTBOX.holding:
             COUNTERS.sent()
+            if key is not None:
+                COUNTERS.published_on(key)
             return method(self, *args, **kwargs)
         args = tuple(_copied(a) for a in args)
         kwargs = {k: _copied(v) for k, v in kwargs.items()}
@@ -218,7 +224,7 @@ def _counting_held(method: Callable[..., Any], returns_future: bool) -> Callable
             OUTBOX.hold(lambda: method(self, *args, **kwargs))
             return None
         held = HeldFuture()
-        OUTBOX.hold(lambda: held.follow(lambda: method(self, *args, **kwargs)))
+        OUTBOX.hold(lambda: held.follow(lambda: method(self, *args, **kwargs)), key)
         return held
     return counted
 
