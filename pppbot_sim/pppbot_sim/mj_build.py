@@ -27,6 +27,7 @@ from pppbot_sim.contacts import DEFAULT_MU, UNSIMULATED_DEFAULTS, URDF_UNSIMULAT
 from pppbot_sim.errors import SpawnError, WorldError
 from pppbot_sim.meshes import load_mesh
 from pppbot_sim.sdf_joints import JointKind, ModelJoint
+from pppbot_sim.sdf_lights import add_lighting
 from pppbot_sim.sdf_world import Body, Shape, World, resource_paths
 from pppbot_sim.uris import UriError, resolve_uri
 
@@ -133,6 +134,7 @@ def world_spec(world: World) -> mujoco.MjSpec:
     spec.compiler.degree = False  # SDF's angles are radians
     for shape in world.static_shapes:
         _add_shape(spec, spec.worldbody, shape)
+    add_lighting(spec, world.lighting)
     held = {joint.child: joint for joint in world.joints}
     children: dict[str, list[Body]] = {}
     for body in world.bodies:

@@ -14,6 +14,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from pppbot_sim.errors import SimulationDiverged
+from pppbot_sim.render import RenderState
 from pppbot_sim.simulation import (
     Collision,
     Event,
@@ -76,18 +77,27 @@ class ImuReadingAt:
 
 
 @dataclass(frozen=True)
+class CameraReading:
+    """A camera is due: the positions its frame is rendered from (elsewhere: pppbot_sim.camera_worker)."""
+
+    stamp_s: float
+    index: int
+    state: RenderState
+
+
+@dataclass(frozen=True)
 class CollisionReading:
     stamp_s: float
     collision: Collision
 
 
 Reading = (ClockTick | ControlTick | PluginTick | JointStatesReading | GroundTruthReading | LidarReading | ImuReadingAt
-           | CollisionReading)
+           | CameraReading | CollisionReading)
 
 #: Readings at one instant go out in this order: controllers first (their odometry at a scan's
 #: time is then out before the scan), then the rest.
 _ORDER = {EventKind.CONTROL: 0, EventKind.PLUGIN: 0, EventKind.CLOCK: 1, EventKind.JOINT_STATES: 2,
-          EventKind.GROUND_TRUTH: 3, EventKind.IMU: 4, EventKind.LIDAR: 5}
+          EventKind.GROUND_TRUTH: 3, EventKind.IMU: 4, EventKind.LIDAR: 5, EventKind.CAMERA: 6}
 
 
 class PhysicsRunner:
@@ -160,6 +170,7 @@ class PhysicsRunner:
             EventKind.GROUND_TRUTH: lambda: GroundTruthReading(now, sim.ground_truth()),
             EventKind.CONTROL: lambda: ControlTick(now),
             EventKind.PLUGIN: lambda: PluginTick(now, i),
+            EventKind.CAMERA: lambda: CameraReading(now, i, sim.render_state()),
         }
         return make.get(event.kind, lambda: ClockTick(now))()
 

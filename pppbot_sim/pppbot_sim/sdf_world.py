@@ -22,8 +22,9 @@ where it says nothing: 1 kg, inertia 1 kg·m² about each axis, as Gazebo takes 
 ``<inertial auto="true">`` from the collisions at 1000 kg/m³, scaled to its ``<mass>``).
 Their ``<joint>`` elements join them (:mod:`pppbot_sim.sdf_joints`); a link that no joint holds
 is free. A model's ``<plugin>`` elements are kept for the simulator (Gazebo's DiffDrive);
-world ``<plugin>`` elements (Gazebo's system plugins), ``<gui>`` and ``<light>`` are skipped
-and summed up in one info line; other elements that carry no collision (visuals, scene,
+world ``<plugin>`` elements (Gazebo's system plugins), ``<gui>`` and the lights of models are
+skipped and summed up in one info line; the world's ``<light>`` elements and ``<scene><ambient>``
+light the cameras' images (:mod:`pppbot_sim.sdf_lights`); other elements that carry no collision (visuals, scene,
 ...) are known and ignored; anything else is reported by name and line in ``World.warnings``.
 """
 from __future__ import annotations
@@ -45,6 +46,7 @@ from pppbot_sim.contacts import DEFAULT_MU, UNSIMULATED_DEFAULTS, Surface
 from pppbot_sim.errors import WorldError
 from pppbot_sim.sdf_frames import FrameGraph
 from pppbot_sim.sdf_joints import JointKind, ModelJoint, joint_kind, read_axis
+from pppbot_sim.sdf_lights import Lighting, read_lighting
 from pppbot_sim.sdf_state import WorldState, move_free_links, named, read_state
 from pppbot_sim.uris import UriError, fuel_caches, resolve_uri
 
@@ -129,6 +131,7 @@ class World:
     #: joint → {axis: angle (rad) or position (m)} from the world's <state>
     joint_positions: dict[str, dict[int, float]] = field(default_factory=dict)
     plugins: list[ModelPlugin] = field(default_factory=list)
+    lighting: Lighting = field(default_factory=Lighting)  # for the cameras only
     warnings: list[str] = field(default_factory=list)
     skipped: Counter[str] = field(default_factory=Counter)
 
@@ -273,7 +276,10 @@ class _Reader:
         if world_el is None:
             raise self.fail(root, "expected <sdf><world>...</world></sdf>")
         self.world.name = world_el.get("name") or self.source.stem
-        self.note_unknown(world_el, {"physics", "gravity", "model", "include", "frame", "state"}, self.source)
+        self.note_unknown(world_el, {"physics", "gravity", "model", "include", "frame", "state", "light"},
+                          self.source)
+        self.world.lighting = read_lighting(world_el, lambda e: self.pose(e, self.source),
+                                            lambda e, n: self.floats(e, n, self.source))
         state_el = world_el.find("state")
         if state_el is not None:
             self.state = read_state(state_el, lambda e: self.pose(e, self.source),

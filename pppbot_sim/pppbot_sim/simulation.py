@@ -19,6 +19,7 @@ import numpy as np
 
 from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_description.urdf_model import RobotModel, Sensor
+from pppbot_sim.camera_model import add_cameras, bind_cameras, camera_tags
 from pppbot_sim.contacts import anisotropic_pairs
 from pppbot_sim.errors import PluginError, SimulationDiverged, SpawnError, WorldError
 from pppbot_sim.gz_plugins import DiffDriveSpec, Plugins, robot_plugins, world_plugins
@@ -37,6 +38,7 @@ from pppbot_sim.mj_build import (
     surface_below,
     world_spec,
 )
+from pppbot_sim.render import RenderState
 from pppbot_sim.sdf_joints import JointKind
 from pppbot_sim.sdf_world import World, read_sdf_world
 from pppbot_sim.sensors import Imu, ImuReading, ImuSpec, Lidar, LidarSpec, finalize_ranges, sensor_specs
@@ -69,6 +71,7 @@ class EventKind(enum.Enum):
     PLUGIN = "plugin"  # a Gazebo DiffDrive plugin's update (its index in Simulation.diff_drives)
     LIDAR = "lidar"
     IMU = "imu"
+    CAMERA = "camera"
 
 
 @dataclass(frozen=True)
@@ -79,7 +82,7 @@ class Event:
     index: int = 0
 
     def __str__(self) -> str:
-        indexed = (EventKind.LIDAR, EventKind.IMU, EventKind.PLUGIN)
+        indexed = (EventKind.LIDAR, EventKind.IMU, EventKind.PLUGIN, EventKind.CAMERA)
         return f"{self.kind.value}{self.index if self.kind in indexed else ''}"
 
 
@@ -226,11 +229,15 @@ class Simulation:
         world_servos = self._add_robot_and_drives(spec, robot, name, drive, world)
         world_actuators = add_velocity_servos(spec, world_servos, drive)
         apply_friction_rule(spec)
-        lidar_specs, imu_specs, self.unsimulated_sensors = sensor_specs(list(robot.sensors))
+        lidar_specs, imu_specs, others = sensor_specs(list(robot.sensors))
+        cameras, self.unsimulated_sensors = camera_tags(others)
         sensor_sites = {s.name: self._add_sensor_site(spec, name, s.name, s.link, s.pose) for s in lidar_specs}
         sensor_sites.update({s.name: self._add_sensor_site(spec, name, s.name, s.link, s.pose) for s in imu_specs})
         for imu_spec in imu_specs:
             Imu.add_to(spec, sensor_sites[imu_spec.name], f"{name}/{imu_spec.name}/")
+        placed_cameras, camera_notes = add_cameras(spec, robot, cameras, name,
+                                                   world.name if world is not None else spec.modelname or "default")
+        self.warnings += camera_notes
         try:
             self.model = spec.compile()
         except ValueError as exc:
@@ -241,6 +248,8 @@ class Simulation:
         self.imu_rngs = [np.random.default_rng((seed, 3, i)) for i in range(len(imu_specs))]
         self.lidars = [Lidar(s, self.model, sensor_sites[s.name]) for s in lidar_specs]
         self.imus = [Imu(s, self.model, f"{name}/{s.name}/") for s in imu_specs]
+        #: the robot's cameras (rendered outside the physics loop: pppbot_sim.camera_worker)
+        self.cameras = bind_cameras(self.model, placed_cameras, self.handles.sites)
         self.schedule = Schedule()
         for i, lidar in enumerate(self.lidars):
             self.schedule.add(Event(EventKind.LIDAR, i), lidar.spec.rate_hz)
@@ -248,6 +257,9 @@ class Simulation:
             self.schedule.add(Event(EventKind.IMU, i), imu.spec.rate_hz)
         for i, diff_drive in enumerate(self.diff_drives):
             self.schedule.add(Event(EventKind.PLUGIN, i), diff_drive.update_rate_hz)
+        # Due whether or not anyone renders them: physics steps the same with cameras on or off.
+        for i, camera in enumerate(self.cameras):
+            self.schedule.add(Event(EventKind.CAMERA, i), camera.spec.rate_hz)
         prefix = f"{name}/"
         self._root_body = self.model.body(self.handles.root_body).id
         free = self.model.joint(self.handles.free_joint)
@@ -503,6 +515,10 @@ class Simulation:
     def imu_sample(self, index: int) -> ImuSample:
         imu = self.imus[index]
         return ImuSample(imu.spec, self.time_s, imu.read(self.data, self.imu_rngs[index]))
+
+    def render_state(self) -> RenderState:
+        """A copy of the positions, all a camera frame is rendered from."""
+        return RenderState.of(self.data)
 
     # ------------------------------------------------------------------- reset
     def reset_robot(self) -> None:

@@ -88,7 +88,8 @@ def test_dynamic_link_held_by_a_fixed_joint_to_the_world_is_welded_there(world):
 
 
 def test_skipped_and_unsupported_elements_are_reported(world):
-    assert world.skipped_summary() == "skipped gui, light, plugin ×2"
+    assert world.skipped_summary() == "skipped gui, plugin ×2"  # the world's <light> lights the cameras
+    assert [(light.name, light.kind) for light in world.lighting.lights] == [("sun", "directional")]
     assert any("unsupported element <actor> in <world>" in w and "features.sdf:" in w for w in world.warnings)
     # elements that change physics are named, not silently dropped
     assert any("unsupported element <kinematic> in <link>" in w for w in world.warnings)
@@ -204,3 +205,27 @@ def test_a_plane_turns_its_z_onto_its_normal_and_a_quaternion_pose_reads_as_xyzw
     np.testing.assert_allclose(plane.pose[:3, 3], [1, 2, 3], atol=1e-12)
     np.testing.assert_allclose(plane.pose[:3, :3] @ [0, 0, 1], model @ n, atol=1e-12)
     np.testing.assert_allclose(plane.pose[:3, :3] @ plane.pose[:3, :3].T, np.eye(3), atol=1e-12)
+
+
+def test_world_lights_light_the_cameras_images(tmp_path):
+    (tmp_path / "w.sdf").write_text(world_text("""
+        <scene><ambient>0.3 0.3 0.3 1</ambient></scene>
+        <light type="directional" name="sun"><pose>0 0 10 0 0 0</pose><direction>-0.5 0.1 -0.9</direction>
+          <diffuse>0.8 0.8 0.8 1</diffuse></light>
+        <light type="spot" name="lamp"><pose>1 2 3 0 0 0</pose>
+          <attenuation><range>5</range><constant>0.5</constant><linear>0.1</linear><quadratic>0.01</quadratic></attenuation>
+          <spot><inner_angle>0.3</inner_angle><outer_angle>0.6</outer_angle></spot></light>"""))
+    world = read_sdf_world(tmp_path / "w.sdf")
+    assert world.skipped_summary() == "" and world.warnings == []
+    model = world_spec(world).compile()
+    assert model.nlight == 2 and not model.light_castshadow.any()
+    np.testing.assert_allclose(model.light_dir[0], np.array([-0.5, 0.1, -0.9]) / np.linalg.norm([-0.5, 0.1, -0.9]),
+                               atol=1e-6)
+    np.testing.assert_allclose(model.light_diffuse[0], [0.8, 0.8, 0.8])
+    assert int(model.light_type[1]) == int(mujoco.mjtLightType.mjLIGHT_SPOT)
+    np.testing.assert_allclose(model.light_pos[1], [1, 2, 3])
+    np.testing.assert_allclose(model.light_attenuation[1], [0.5, 0.1, 0.01])
+    assert model.light_cutoff[1] == pytest.approx(math.degrees(0.6))
+    # the scene's ambient light; no light at the camera, as in Gazebo
+    np.testing.assert_allclose(model.vis.headlight.ambient, [0.3, 0.3, 0.3])
+    np.testing.assert_allclose(model.vis.headlight.diffuse, [0, 0, 0])

@@ -27,6 +27,15 @@ from rclpy.clock import ClockType, ROSClock
 from rclpy.node import Node
 from rclpy.time import Time
 
+from pppbot_control.ros.controller_manager import (
+    DIFF_DRIVE,
+    JOINT_STATE_BROADCASTER,
+    ControllerManager,
+    HardwareInterfaces,
+    LoadedController,
+)
+from pppbot_control.ros.diff_drive_controller import DiffDriveController
+from pppbot_description.urdf_model import RobotModel
 from pppbot_sim.controllers import ControllerPlan
 from pppbot_sim.errors import SpawnError
 from pppbot_sim.runner import PhysicsRunner
@@ -85,3 +94,27 @@ class HostedBroadcaster:
 
     def deactivate(self) -> None:
         self.active = False
+
+
+def hosted_controller_manager(plan: ControllerPlan, robot: RobotModel, controllers: Sequence[DiffDriveController],
+                              broadcasters: Sequence[HostedBroadcaster], arguments: list[str]) -> ControllerManager:
+    """The controller manager over the hosted diff drives and joint_state_broadcasters, with the
+    robot's ``<ros2_control>`` interfaces."""
+    joints = robot.control_joints.values()
+    hardware = HardwareInterfaces(command=tuple(f"{j.name}/{i}" for j in joints for i in j.command_interfaces),
+                                  state=tuple(f"{j.name}/{i}" for j in joints for i in j.state_interfaces))
+    loaded = []
+    for controller in controllers:
+        p = controller.params
+        wheels = [*p.left_wheel_names, *p.right_wheel_names]
+        feedback = "position" if p.position_feedback else "velocity"
+        loaded.append(LoadedController(controller.get_name(), DIFF_DRIVE, controller, plan.update_rate_hz,
+                                       command_interfaces=tuple(f"{w}/velocity" for w in wheels),
+                                       state_interfaces=() if p.open_loop else tuple(f"{w}/{feedback}"
+                                                                                     for w in wheels)))
+    for name, broadcaster in zip(plan.broadcasters, broadcasters, strict=True):
+        loaded.append(LoadedController(name, JOINT_STATE_BROADCASTER, broadcaster, plan.update_rate_hz,
+                                       state_interfaces=hardware.state))
+    declared = {**dict.fromkeys(plan.diff_drives, DIFF_DRIVE),
+                **dict.fromkeys(plan.broadcasters, JOINT_STATE_BROADCASTER), **dict(plan.unsupported)}
+    return ControllerManager(loaded, hardware, declared, cli_args=arguments)

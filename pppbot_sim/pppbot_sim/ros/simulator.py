@@ -44,24 +44,26 @@ from pppbot_common.ros.node_main import Process, Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values, vector
 from pppbot_common.upright import MAX_TILT_RAD, MIN_HEIGHT_M, UPRIGHT_STATUS, UprightWatch
-from pppbot_control.ros.controller_manager import (
-    DIFF_DRIVE,
-    JOINT_STATE_BROADCASTER,
-    ControllerManager,
-    HardwareInterfaces,
-    LoadedController,
-)
+from pppbot_control.ros.controller_manager import ControllerManager
 from pppbot_control.ros.diff_drive_controller import DiffDriveController
 from pppbot_description.errors import DescriptionError
 from pppbot_description.urdf_model import RobotModel, parse_urdf
 from pppbot_description.xacro_model import read_robot_description
-from pppbot_sim.controllers import ControllerPlan, controllers_file, read_plan
+from pppbot_sim.controllers import controllers_file, read_plan
 from pppbot_sim.errors import SpawnError, WorldError
 from pppbot_sim.mj_build import SpawnPose
+from pppbot_sim.ros.camera_publisher import CameraPublisher
 from pppbot_sim.ros.coordinator import Coordinator
 from pppbot_sim.ros.gz_diff_drive import host_diff_drives
-from pppbot_sim.ros.hosted import HostedBroadcaster, SimWheels, controller_arguments, drive_clock
+from pppbot_sim.ros.hosted import (
+    HostedBroadcaster,
+    SimWheels,
+    controller_arguments,
+    drive_clock,
+    hosted_controller_manager,
+)
 from pppbot_sim.runner import (
+    CameraReading,
     ClockTick,
     CollisionReading,
     ControlTick,
@@ -120,6 +122,7 @@ class SimulatorParameters:
     step_count: int = param(1, "physics steps per step_physics call")
     paused: bool = param(False, "start paused")
     viewer: bool = param(False, "open MuJoCo's viewer window (needs a display)")
+    cameras: bool = param(True, "render the robot's camera tags while someone subscribes (false: no camera topics)")
     upright_max_tilt: float = param(MAX_TILT_RAD, "roll or pitch (rad) past which the robot has tipped over "
                                                   "(reported in the log and on /diagnostics)")
     upright_min_height: float = param(MIN_HEIGHT_M, "height (m, world z) of the robot's root link below which it "
@@ -203,6 +206,9 @@ class Simulator(Node):
         self._clock_ns = -1  # the time of the last /clock
         self._published_since_sync = False  # a reading or a controller's odometry, since the last sync
         self._warn = Warnings(self, WARN_PERIOD_S)
+        self.cameras = CameraPublisher(self, self.sim, p.seed, p.cameras, self._warn, self.get_logger().error)
+        for line in self.cameras.describe():
+            (self.get_logger().error if line.startswith("cameras off:") else self.get_logger().info)(line)
         self.runner = PhysicsRunner(self.sim, p.command_timeout, p.paused,
                                     log=lambda text: self.get_logger().error(text))
         self.pacer = Pacer(p.real_time_factor)
@@ -249,7 +255,7 @@ class Simulator(Node):
                        DiffDriveController(hosted=wheels, cli_args=[*arguments, "-r", f"__node:={name}"])
                        for name in plan.diff_drives]
         self.broadcasters = [HostedBroadcaster() for _ in plan.broadcasters]
-        self.controller_manager = _controller_manager(plan, robot, controllers, self.broadcasters, arguments)
+        self.controller_manager = hosted_controller_manager(plan, robot, controllers, self.broadcasters, arguments)
         if controllers:
             self.sim.schedule.add(Event(EventKind.CONTROL), plan.update_rate_hz)
             names = ", ".join(c.get_name() for c in controllers)
@@ -257,6 +263,7 @@ class Simulator(Node):
         return controllers
 
     def destroy_node(self) -> None:
+        self.cameras.close()
         for node in self.composed_nodes:
             node.destroy_node()
         super().destroy_node()
@@ -264,7 +271,7 @@ class Simulator(Node):
     def _apply(self, params: SimulatorParameters) -> None:
         """Runtime updates: real_time_factor, command_timeout, step_count take effect now."""
         fixed = ("world", "robot_description", "robot_name", "cmd_vel_topic", "controller_remappings",
-                 "x", "y", "z", "yaw", "seed", "wheel_slip", "wheel_slip_correlation", "lockstep",
+                 "x", "y", "z", "yaw", "seed", "wheel_slip", "wheel_slip_correlation", "lockstep", "cameras",
                  "lockstep_participants",
                  "joint_states_rate", "ground_truth_rate", "clock_rate")
         changed = [n for n in fixed if getattr(params, n) != getattr(self.params, n)]
@@ -331,9 +338,10 @@ class Simulator(Node):
                      + (f"; {summary}" if summary else ""))
             for warning in world.warnings:
                 log.warning(warning)
+        else:
+            log.info(f"MJCF world from {world_file}, step {self.sim.step_s * 1000:g} ms")
         for warning in self.sim.warnings:
             log.warning(warning)
-        log.info(f"MJCF world from {world_file}, step {self.sim.step_s * 1000:g} ms")
         p = self.params
         log.info(f"robot '{p.robot_name}' spawned at x={p.x} y={p.y} z={self.sim.spawn.z:.4g} yaw={p.yaw}; "
                  "driven joints: "
@@ -345,7 +353,7 @@ class Simulator(Node):
         for imu in self.sim.imus:
             log.info(f"imu '{imu.spec.name}': {imu.spec.rate_hz:g} Hz on /{imu.spec.topic.lstrip('/')}")
         if self.sim.unsimulated_sensors:
-            log.info(f"accepted but not rendered yet: {unsimulated_summary(self.sim.unsimulated_sensors)}")
+            log.warning(f"sensors not simulated: {unsimulated_summary(self.sim.unsimulated_sensors)}")
         if p.lockstep:
             expected = ", ".join(p.expected_participants()) or "nobody named"
             log.info(f"lockstep: time waits for its participants (at start: {expected}); "
@@ -393,7 +401,7 @@ class Simulator(Node):
     # ------------------------------------------------------------ publishing
     def _handle(self, readings: Sequence[Reading]) -> None:
         for r in readings:
-            if not isinstance(r, ClockTick):
+            if not isinstance(r, ClockTick | CameraReading):  # a camera publishes later, outside lockstep
                 self._published_since_sync = True
             if isinstance(r, ControlTick):
                 self._update_controllers()
@@ -411,9 +419,13 @@ class Simulator(Node):
                 self._publish_imu(r)
             elif isinstance(r, CollisionReading):
                 self._publish_collision(r.collision)
+            elif isinstance(r, CameraReading):
+                self.cameras.submit(r)
             self.published_s = r.stamp_s
 
     def _wanted(self, event: Event) -> bool:
+        if event.kind is EventKind.CAMERA:
+            return self.cameras.wanted(event.index)
         publishers = self._listeners.get(event.kind)
         return publishers is None or publishers[event.index].get_subscription_count() > 0
 
@@ -569,30 +581,6 @@ class Simulator(Node):
                      + (f", a step repeated {c.repeats} time(s)" if c.repeats else ""))
         self.get_logger().info(f"real-time factor {sim_s / wall_s:.1f}x ({target}), t = {self.sim.time_s:.1f} s"
                                + extra)
-
-
-def _controller_manager(plan: ControllerPlan, robot: RobotModel, controllers: Sequence[DiffDriveController],
-                        broadcasters: Sequence[HostedBroadcaster], arguments: list[str]) -> ControllerManager:
-    """The controller manager over the hosted diff drives and joint_state_broadcasters, with the
-    robot's ``<ros2_control>`` interfaces."""
-    joints = robot.control_joints.values()
-    hardware = HardwareInterfaces(command=tuple(f"{j.name}/{i}" for j in joints for i in j.command_interfaces),
-                                  state=tuple(f"{j.name}/{i}" for j in joints for i in j.state_interfaces))
-    loaded = []
-    for controller in controllers:
-        p = controller.params
-        wheels = [*p.left_wheel_names, *p.right_wheel_names]
-        feedback = "position" if p.position_feedback else "velocity"
-        loaded.append(LoadedController(controller.get_name(), DIFF_DRIVE, controller, plan.update_rate_hz,
-                                       command_interfaces=tuple(f"{w}/velocity" for w in wheels),
-                                       state_interfaces=() if p.open_loop else tuple(f"{w}/{feedback}"
-                                                                                     for w in wheels)))
-    for name, broadcaster in zip(plan.broadcasters, broadcasters, strict=True):
-        loaded.append(LoadedController(name, JOINT_STATE_BROADCASTER, broadcaster, plan.update_rate_hz,
-                                       state_interfaces=hardware.state))
-    declared = {**dict.fromkeys(plan.diff_drives, DIFF_DRIVE),
-                **dict.fromkeys(plan.broadcasters, JOINT_STATE_BROADCASTER), **dict(plan.unsupported)}
-    return ControllerManager(loaded, hardware, declared, cli_args=arguments)
 
 
 def _spin(nodes: Sequence[Node], process: Process) -> int | None:
