@@ -109,6 +109,7 @@ class LaunchArgs:
                               "beneath x, y (ppp_bot on the ground: 0.05)")
     yaw: float = _arg(0.0, "spawn yaw (rad)")
     seed: int = _arg(0, "seed of the simulator's sensor noise and wheel slip")
+    cameras: bool = _arg(True, "render the robot's camera tags while someone subscribes (false: no camera topics)")
     wheel_slip: float = _arg(0.0, "wheel slip as the encoders see it (0.02 = 2 %): odometry drifts like a "
                                   "real robot's")
     log_level: str = _arg("info", "log level of every node", LOG_LEVELS)
@@ -546,7 +547,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
     simulator_params: dict[str, Any] = {
         "world": world_file, "robot_description": urdf_file, "real_time_factor": args.real_time_factor,
         "x": args.x, "y": args.y, "z": args.z, "yaw": args.yaw,
-        "seed": args.seed, "wheel_slip": args.wheel_slip, "viewer": not args.headless}
+        "seed": args.seed, "wheel_slip": args.wheel_slip, "viewer": not args.headless, "cameras": args.cameras}
     if robot.simulator_cmd_vel_topic:
         simulator_params["cmd_vel_topic"] = robot.simulator_cmd_vel_topic
     if lockstep:

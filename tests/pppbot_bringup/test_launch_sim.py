@@ -191,6 +191,8 @@ def test_plan_follows_ppp_bots_order_and_wiring():
     sim = " ".join(by_name["simulator"].cmd)
     assert "world:=" in sim and "maze.sdf" in sim and "real_time_factor:=3.0" in sim and "use_sim_time" not in sim
     assert "lockstep" not in " ".join(" ".join(n.cmd) for n in p.nodes)  # wall-clock time by default
+    assert "-p cameras:=true" in sim  # rendered while someone watches
+    assert "-p cameras:=false" in " ".join(fake_plan("cameras:=false")[0].nodes[0].cmd)
     assert all(n.env is None for n in p.nodes)
     mux = " ".join(by_name["twist_mux"].cmd)
     assert "-r cmd_vel_out:=/diff_drive_base_controller/cmd_vel_unstamped" in mux and "use_sim_time:=true" in mux

@@ -40,6 +40,19 @@ def free_pixels(page: Any) -> int:
     return int(np.all(rgb >= 245, axis=2).sum())
 
 
+def camera_view(page: Any) -> tuple[float, float]:
+    """Shares of the camera view (the right column's lower third, below its title) that are sky
+    (black: nothing hit) and ground (MuJoCo's grey plane): what ppp_bot's camera sees in the cones
+    world. An empty view is the page's plain background."""
+    x0, x1, y1 = int(SIZE[0] * 0.6) + 2, SIZE[0], MAP_VIEW[3]
+    y0 = MAP_VIEW[1] + (MAP_VIEW[3] - MAP_VIEW[1]) * 2 // 3 + 28
+    shot = Image.open(io.BytesIO(page.screenshot(clip={"x": x0, "y": y0, "width": x1 - x0, "height": y1 - y0})))
+    rgb = np.asarray(shot.convert("RGB")).astype(int)
+    grey = (np.ptp(rgb, axis=2) < 12) & (rgb.mean(axis=2) > 100) & (rgb.mean(axis=2) < 220)
+    black = np.all(rgb < 25, axis=2)
+    return float(black.mean()), float(grey.mean())
+
+
 def view_center() -> tuple[float, float]:
     x0, y0, x1, y1 = MAP_VIEW
     return (x0 + x1) / 2, (y0 + y1) / 2
@@ -81,6 +94,10 @@ def test_live_view_in_a_browser(ros_node, spawn, tmp_path):
         time.sleep(2.0)
         after = free_pixels(page)
         assert after > 1.5 * before + 2000, f"free cells on screen: {before} before driving, {after} after"
+        # What the robot sees: the simulator renders ppp_bot's camera for the view, in its camera panel.
+        assert "showing camera images of /camera/image_raw" in launch.output
+        sky, ground = camera_view(page)
+        assert sky > 0.1 and ground > 0.1, f"camera view: {sky:.0%} sky, {ground:.0%} ground"
 
         # RViz's tools: a button, then the position and a point in the heading.
         cx, cy = view_center()

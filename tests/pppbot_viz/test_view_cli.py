@@ -17,7 +17,7 @@ import pytest
 import rerun as rr
 from pppbot_viz.errors import VizError
 from pppbot_viz.ros.view_cli import check_recording
-from pppbot_viz.viewer import available_port, free_port, rerun_binary, viewer_environment
+from pppbot_viz.viewer import available_port, free_port, listening, rerun_binary, viewer_environment
 
 from pppbot_common.process import StopTimeouts, stop_process_group
 
@@ -133,3 +133,8 @@ def test_a_saved_recording_is_served_as_it_was(spawn, tmp_path: Path, rerun_cli,
     except urllib.error.HTTPError as refused:
         answer = refused.read().decode()
     assert '"ok": false' in answer and "a recording has no robot behind it" in answer
+    # Stopped as a launch or a test stops it (SIGINT, then SIGTERM and SIGKILL 5 s apart), the view
+    # takes rerun's server with it: no server is left listening.
+    grpc_port = int(grpc_of(page_url).rsplit(":", 1)[1].removesuffix("/proxy"))
+    assert view.stop() == 0
+    assert not listening(grpc_port)

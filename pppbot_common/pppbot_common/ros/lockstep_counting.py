@@ -270,6 +270,12 @@ def publish_aside(publisher: Any, msg: Any) -> None:
     _publish(publisher, msg, asks_round=False)
 
 
+def publish_uncounted(publisher: Any, msg: Any) -> None:
+    """Publish ``msg`` (a message or its serialized bytes) at once, outside lockstep's counts and
+    rounds: for what no participant waits for (a camera's frames, rendered whenever they are)."""
+    _ORIGINAL_PUBLISH(publisher, msg)
+
+
 # -------------------------------------------------------------------------- receiving
 class Receiver:
     """This process's count of what its data-path subscriptions receive (:func:`count_deliveries`):

@@ -19,7 +19,7 @@ from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField
 
-from pppbot_common.ros.lockstep_counting import _ORIGINAL_PUBLISH
+from pppbot_common.ros.lockstep_counting import publish_uncounted
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_sim.camera_worker import CameraFrame, CameraWorker, FrameRequest
 from pppbot_sim.cameras import POINT_FIELDS, POINT_STEP, CameraKind, CameraSpec
@@ -79,10 +79,10 @@ class _CameraTopics:
         stamp = stamp_values(_ns(frame.stamp_s))
         pixels = frame.image if frame.image is not None else frame.depth
         if pixels is not None:
-            _ORIGINAL_PUBLISH(self.image, self.image_wire.serialize({**stamp, "data": pixels.reshape(-1).view("<B")}))
-        _ORIGINAL_PUBLISH(self.info, self.info_wire.serialize(stamp))
+            publish_uncounted(self.image, self.image_wire.serialize({**stamp, "data": pixels.reshape(-1).view("<B")}))
+        publish_uncounted(self.info, self.info_wire.serialize(stamp))
         if frame.points is not None and self.points is not None and self.points_wire is not None:
-            _ORIGINAL_PUBLISH(self.points, self.points_wire.serialize(
+            publish_uncounted(self.points, self.points_wire.serialize(
                 {**stamp, "data": frame.points, "is_dense": frame.dense}))
 
 

@@ -19,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-from pppbot_common.process import StopTimeouts, stop_process_group
+from pppbot_common.process import StopTimeouts, die_with_parent, stop_process_group
 from pppbot_common.resources import checkout_root
 from pppbot_viz import viewer
 from pppbot_viz.errors import VizError
@@ -27,7 +27,10 @@ from pppbot_viz.web import PoseRequest, ViewerPage
 
 #: Wall seconds the rerun server gets to listen (it loads a recording first).
 SERVER_START_S = 60.0
-STOP_S = 5.0
+#: Wall seconds rerun's server and viewer get after SIGINT, and after SIGTERM, before SIGKILL. The
+#: server ignores both (rerun 0.2x): waiting longer only lets whoever stops this program (a
+#: launch's or a test's ladder, 5 s a rung) kill it first, and leave the server running.
+STOP_S = 1.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -78,7 +81,9 @@ def main(args: argparse.Namespace) -> int:
     if args.recording is not None:
         command.append(str(args.recording))
     # Own process groups: stopped by this program, with the project's stop ladder.
-    processes = [subprocess.Popen(command, env=env, stdin=subprocess.DEVNULL, start_new_session=True)]
+    # And killed by the kernel should this program be killed first (rerun's server ignores SIGTERM).
+    processes = [subprocess.Popen(command, env=env, stdin=subprocess.DEVNULL, start_new_session=True,
+                                  preexec_fn=_die_with_view)]
     try:
         deadline = time.monotonic() + SERVER_START_S
         while not (viewer.listening(grpc_port) and viewer.listening(web_port)):
@@ -88,7 +93,8 @@ def main(args: argparse.Namespace) -> int:
             time.sleep(0.1)
         if viewer.ViewerKind(args.viewer).native(os.environ):
             processes.append(subprocess.Popen(viewer.native_viewer_command(grpc_port), env=env,
-                                              stdin=subprocess.DEVNULL, start_new_session=True))
+                                              stdin=subprocess.DEVNULL, start_new_session=True,
+                                              preexec_fn=_die_with_view))
         if args.recording is None:
             return _run_node(grpc_port, web_port, port, args)
         return _serve_recording(grpc_port, web_port, port, args, processes[0])
@@ -97,6 +103,10 @@ def main(args: argparse.Namespace) -> int:
     finally:
         for process in reversed(processes):
             stop_process_group(process, StopTimeouts(STOP_S, STOP_S))
+
+
+def _die_with_view() -> None:
+    die_with_parent(signal.SIGKILL)
 
 
 def _run_node(grpc_port: int, web_port: int, port: int, args: argparse.Namespace) -> int:
