@@ -223,3 +223,38 @@ class Flow(Generic[T]):
     def _end(self, value: T | None, error: BaseException | None) -> None:
         self.ended = True
         self._on_end(value, error)
+
+
+def hold_until(future: Any) -> Any:
+    """:func:`hold_for` ``future`` (a server's prompt answer), released when it is done. Returns
+    ``future``."""
+    release = hold_for(future)
+    future.add_done_callback(lambda _: release())
+    return future
+
+
+class Arrival:
+    """A future that a server completes whenever it is done (an action's result), as periodic
+    ticks should see it: in lockstep, done from the first tick after the sim time it arrived at.
+    A result sent at a step thus reaches the client's logic at the same tick on every machine,
+    whether it arrived before or after the client's own timer of that step. ``clock_s`` reads
+    the node's sim time."""
+
+    def __init__(self, future: Any, clock_s: Callable[[], float | None]) -> None:
+        self.future = future
+        self._clock_s = clock_s
+        self._lockstep = in_lockstep()
+        self.arrived_s: float | None = None
+        future.add_done_callback(self._arrived)
+
+    def _arrived(self, future: Any) -> None:
+        self.arrived_s = self._clock_s() or 0.0
+
+    def done(self) -> bool:
+        if not self._lockstep:
+            return bool(self.future.done())
+        now = self._clock_s()
+        return self.arrived_s is not None and now is not None and now > self.arrived_s
+
+    def result(self) -> Any:
+        return self.future.result()

@@ -15,7 +15,7 @@ from typing import Any, Protocol
 from action_msgs.msg import GoalStatus
 
 from pppbot_common.maps import OccupancyGrid
-from pppbot_common.ros.lockstep import Arrival, hold_until
+from pppbot_common.ros.goals import Arrival, hold_until
 from pppbot_common.se2 import se2_compose, se2_inverse
 from pppbot_eval.driver import RouteDriver
 from pppbot_eval.scenarios import GoalAnswer, GoalRecord, Recording, shortest_path_m
