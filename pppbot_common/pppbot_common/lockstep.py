@@ -284,6 +284,9 @@ class Counted:
     received: int = 0
     #: Messages published before it could receive them (None: not known yet, set at the next step).
     offset: int | None = None
+    #: What it received beyond a step's total came from outside lockstep (a server's requests from a
+    #: command line): taken as published before, so the next counted one is still waited for.
+    catch_up: bool = False
 
 
 class Deliveries:
@@ -294,8 +297,8 @@ class Deliveries:
         self.subscriptions: list[Counted] = []
         self.totals: dict[str, int] = {}
 
-    def add(self, topic: str) -> Counted:
-        counted = Counted(topic)
+    def add(self, topic: str, catch_up: bool = False) -> Counted:
+        counted = Counted(topic, catch_up=catch_up)
         self.subscriptions.append(counted)
         return counted
 
@@ -311,8 +314,11 @@ class Deliveries:
         what it has not received by then as published before it listened."""
         self.totals.update(zip(topics, (int(t) for t in totals), strict=False))
         for counted in self.subscriptions:
-            if counted.offset is None and counted.topic in self.totals:
-                counted.offset = self.totals[counted.topic] - counted.received
+            if counted.topic not in self.totals:
+                continue
+            total = self.totals[counted.topic]
+            if counted.offset is None or (counted.catch_up and counted.received > total - counted.offset):
+                counted.offset = total - counted.received
 
     def lacking(self) -> list[tuple[str, int, int]]:
         """(topic, received, expected) of each subscription still waiting for messages."""

@@ -1,6 +1,8 @@
 """A participant's step: the readings' work (a worker thread's too) before the timers, then the answer."""
 from __future__ import annotations
 
+import contextlib
+import inspect
 import threading
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -11,6 +13,7 @@ from builtin_interfaces.msg import Time as TimeMsg
 from pppbot_common.ros import lockstep
 from pppbot_common.ros.lockstep import Participant
 from pppbot_common.ros.lockstep_counting import OUTBOX
+from pppbot_common.ros.lockstep_requests import REQUESTS
 from pppbot_interfaces.msg import LockstepStatus, LockstepStep
 
 pytestmark = pytest.mark.ros
@@ -33,7 +36,10 @@ class Tasks:
                 if not self.queue:
                     return
                 work = self.queue.pop(0)
-            work()
+            result = work()
+            if inspect.iscoroutine(result):  # a kept request's task: it awaits nothing pending
+                with contextlib.suppress(StopIteration):
+                    result.send(None)
 
 
 @pytest.fixture
@@ -123,3 +129,23 @@ def test_a_step_before_the_listing_is_taken_when_the_listing_comes(
     p._on_status(LockstepStatus(participants=["p"]))
     tasks.run()
     assert p.joined and len(answers) == 1
+
+
+def test_a_request_kept_between_steps_is_handled_at_the_next_step_before_its_answer(
+        participant: tuple[Participant, Tasks, list[Any]]) -> None:
+    p, tasks, answers = participant
+    handled: list[int] = []
+
+    async def request() -> None:  # a service's or an action server's handling of one request
+        handled.append(p.steps)
+
+    p._on_step(step(1, 50_000_000, timers=False))
+    tasks.run()
+    assert len(answers) == 1
+    assert REQUESTS.keep("/planner#requests", request)  # taken after the answer: kept
+    tasks.run()
+    assert handled == []
+    p._on_step(step(2, 100_000_000, timers=False))
+    assert not REQUESTS.keep("/planner#requests", request)  # while a step is handled: at once
+    tasks.run()
+    assert handled == [2] and len(answers) == 2  # handled at step 2, then step 2 answered

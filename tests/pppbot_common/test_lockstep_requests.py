@@ -33,8 +33,7 @@ def executor(ros_node: Any) -> Iterator[Any]:
     try:
         yield events
     finally:
-        REQUESTS.overdue(lambda execute: None, everything=True)
-        REQUESTS.context = REQUESTS.receiver = None
+        REQUESTS.reset()
         events.shutdown()
 
 

@@ -98,9 +98,15 @@ class Requests:
             run(execute)
 
     def leave_step(self, time_runs: bool) -> None:
-        """The step is answered: from now on requests wait for the next one (while time runs)."""
+        """The step is answered, or a step came that is not handled yet: from now on requests wait
+        for the next step handled (while time runs)."""
         with self.lock:
             self.between_steps = time_runs
+
+    def reset(self) -> None:
+        """No participant any more (its process's lockstep ends): nothing is kept or counted."""
+        self.overdue(lambda execute: None, everything=True)
+        self.context = self.receiver = None
 
     def overdue(self, run: Callable[[Execute], None], *, everything: bool = False) -> None:
         """``run`` the requests kept longer than :data:`OVERDUE_S` (all with ``everything``)."""
@@ -115,10 +121,12 @@ class Requests:
 
     # ------------------------------------------------------------------ counting
     def count(self, node: Any, key: str) -> Counted | None:
-        """Count the requests a server of ``node`` takes (in the participant's process only)."""
-        if self.receiver is None or self.context is None or node.context is not self.context:
+        """Count the requests a server of ``node`` takes: in the participant's process, for a node its
+        executor spins (not a lifecycle manager, which serves its requests from a thread of its own)."""
+        if (self.receiver is None or self.context is None or node.context is not self.context
+                or getattr(node, "spins_itself", False)):
             return None
-        return self.receiver.deliveries.add(key)
+        return self.receiver.deliveries.add(key, catch_up=True)
 
     def taken(self, counted: Counted | None, requests: int) -> None:
         if counted is None or not requests:
@@ -141,7 +149,8 @@ def install_requests() -> None:
         service: Any = create_service(self, srv_type, srv_name, callback, **kwargs)
         key = request_key(service.service_name)
         counted = None if key.endswith(UNCOUNTED) else REQUESTS.count(self, key)
-        service.callback = functools.partial(_service_callback, service, key, counted, service.callback)
+        if counted is not None:  # only a counted request is kept: no step would wait for another
+            service.callback = functools.partial(_service_callback, service, key, counted, service.callback)
         return service
 
     send_response = rclpy.service.Service.send_response
@@ -161,15 +170,6 @@ def install_requests() -> None:
         self._pppbot_request_key = action_key(node, action_name)
         self._pppbot_counted = REQUESTS.count(node, self._pppbot_request_key)
 
-    take_data = rclpy.action.server.ActionServer.take_data
-
-    @functools.wraps(take_data)
-    def counted_take(self: Any) -> Any:
-        data = take_data(self)
-        REQUESTS.taken(getattr(self, "_pppbot_counted", None),
-                       sum(1 for kind in ("goal", "cancel", "result") if kind in data))
-        return data
-
     execute_data = rclpy.action.server.ActionServer.execute
 
     @functools.wraps(execute_data)
@@ -178,15 +178,19 @@ def install_requests() -> None:
         rest = {kind: value for kind, value in taken_data.items() if kind not in requests}
         if rest:
             await execute_data(self, rest)  # expired goals: the server's own bookkeeping
+        counted = getattr(self, "_pppbot_counted", None)
         if requests:
             execute = functools.partial(execute_data, self, requests)
-            if not REQUESTS.keep(getattr(self, "_pppbot_request_key", ""), execute):
+            # Kept (or not) before it is counted: the count may let the step be handled, which
+            # then runs what is kept, in order.
+            keeping = counted is not None and REQUESTS.keep(self._pppbot_request_key, execute)
+            REQUESTS.taken(counted, len(requests))
+            if not keeping:
                 await execute()
 
     rclpy.node.Node.create_service = kept_service  # type: ignore[method-assign]
     rclpy.service.Service.send_response = kept_response  # type: ignore[method-assign]
     rclpy.action.server.ActionServer.__init__ = counted_server  # type: ignore[method-assign]
-    rclpy.action.server.ActionServer.take_data = counted_take  # type: ignore[method-assign]
     rclpy.action.server.ActionServer.execute = kept_execute  # type: ignore[method-assign]
     rclpy.node.Node._pppbot_requests = True  # type: ignore[attr-defined]
 
