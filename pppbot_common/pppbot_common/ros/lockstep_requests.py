@@ -26,7 +26,6 @@ from typing import Any
 
 import rclpy.action.client
 import rclpy.action.server
-import rclpy.client
 import rclpy.node
 import rclpy.service
 
@@ -210,7 +209,7 @@ class KeptRequest:
         self.service.send_response(response, self.header)
 
 
-def _service_callback(service: Any, key: str, counted: Counted | None, callback: Callable[[Any, Any], Any],
+def _service_callback(service: Any, key: str, counted: Counted, callback: Callable[[Any, Any], Any],
                       request: Any, response: Any) -> Any:
     """A service's callback: the request handled now, or kept for the next step (both executors,
     rclpy's and the EventsExecutor, call the callback and then ``send_response``)."""
