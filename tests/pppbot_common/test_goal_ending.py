@@ -1,12 +1,15 @@
-"""The one cancel and preemption check of pppbot's action servers (navigator, controller_server)."""
+"""The one cancel and preemption check of pppbot's action servers (navigator, controller_server), and
+what a flow stopped between a goal's send and its answer leaves running."""
 from __future__ import annotations
 
 from types import SimpleNamespace
 from typing import Any
 
 import pytest
+from rclpy.action.client import ClientGoalHandle
+from rclpy.task import Future
 
-from pppbot_common.ros.goals import GoalEnd, Stopped, check_running, stopped_end
+from pppbot_common.ros.goals import Flow, GoalEnd, Stopped, check_running, stopped_end
 
 
 def handle(cancel: bool = False) -> Any:  # a ServerGoalHandle as far as these read it
@@ -30,3 +33,38 @@ def test_a_running_goal_passes_a_canceled_or_replaced_one_stops_with_why():
 def test_a_goal_that_did_not_succeed_is_canceled_only_when_its_client_asked():
     assert stopped_end(handle(cancel=True)) is GoalEnd.CANCELED
     assert stopped_end(handle()) is GoalEnd.ABORTED
+
+
+class Client:
+    """An action client as a ClientGoalHandle calls it: the cancels it was asked for."""
+
+    def __init__(self) -> None:
+        self.canceled: list[Any] = []
+
+    def _cancel_goal_async(self, goal: Any) -> Future:
+        self.canceled.append(goal)
+        return Future()
+
+
+@pytest.mark.parametrize("accepted", [True, False])
+def test_a_goal_sent_by_a_flow_stopped_before_its_answer_is_canceled_once_accepted(accepted: bool):
+    stop: list[str] = []
+    ends: list[Any] = []
+
+    def check() -> None:
+        if stop:
+            raise Stopped(stop[0])
+
+    def steps() -> Any:
+        yield sent  # the send_goal_async future: the flow waits for the server's answer
+        raise AssertionError("the flow never resumes with the answer")
+    sent = Future()
+    flow: Flow[None] = Flow(steps(), lambda: 0.0, lambda value, error: ends.append(error), check=check)
+    flow.start()
+    stop.append("canceled")
+    flow.tick()  # the goal the flow runs for is canceled before the answer came
+    assert flow.ended and isinstance(ends[0], Stopped)
+    client = Client()
+    handle = ClientGoalHandle(client, SimpleNamespace(uuid=bytes(16)), SimpleNamespace(accepted=accepted, stamp=None))
+    sent.set_result(handle)
+    assert client.canceled == ([handle] if accepted else [])

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.client import ClientGoalHandle
 from rclpy.action.server import ServerGoalHandle
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
@@ -167,6 +168,8 @@ class Flow(Generic[T]):
             try:
                 self._check()
             except Exception as exc:  # noqa: BLE001 - whatever check raises ends the wait
+                if self._sleep_until is None and self._waiting is not None:
+                    cancel_once_accepted(self._waiting)
                 self._sleep_until = None
                 self._waiting = None
                 self._resume(None, exc)
@@ -223,6 +226,18 @@ class Flow(Generic[T]):
     def _end(self, value: T | None, error: BaseException | None) -> None:
         self.ended = True
         self._on_end(value, error)
+
+
+def cancel_once_accepted(sent: Future) -> None:
+    """A goal's send (``send_goal_async``'s future) its flow stopped waiting for: the goal, if
+    the server accepts it, is canceled then. As a Nav2 BT action node halted while its goal is
+    pending cancels it, so a goal canceled or preempted between a send and its answer leaves
+    nothing running (a FollowPath driving the robot on, a navigation nobody follows)."""
+    def cancel(future: Future) -> None:
+        handle = None if future.cancelled() or future.exception() is not None else future.result()
+        if isinstance(handle, ClientGoalHandle) and handle.accepted:
+            handle.cancel_goal_async()
+    sent.add_done_callback(cancel)
 
 
 def hold_until(future: Any) -> Any:
