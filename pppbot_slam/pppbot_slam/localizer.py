@@ -39,6 +39,7 @@ import numpy as np
 from pppbot_common.maps import OccupancyGrid
 from pppbot_common.se2 import PoseLike, finite_pose, se2_apply, se2_compose, se2_inverse, wrap_angles
 from pppbot_slam.errors import LocalizerError
+from pppbot_slam.likelihood_field import rotate
 from pppbot_slam.mapper import (
     HEALTH_WINDOW,
     LOST_KEYFRAMES,
@@ -52,7 +53,7 @@ from pppbot_slam.mapper import (
     scan_hits,
     within_reach,
 )
-from pppbot_slam.matcher import MatchResult, ScanMatcher, rotate
+from pppbot_slam.matcher import MatchResult, ScanMatcher
 from pppbot_slam.occupancy import ScanRays
 
 #: Saved keyframes a scan is matched against: the nearest this many within

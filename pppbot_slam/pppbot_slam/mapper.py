@@ -39,8 +39,9 @@ import numpy as np
 from pppbot_common.maps import OccupancyGrid
 from pppbot_common.se2 import PoseLike, finite_pose, se2_apply, se2_compose, se2_inverse, wrap_angles
 from pppbot_slam.errors import MapperError
+from pppbot_slam.likelihood_field import rotate, scan_normals
 from pppbot_slam.loops import LoopChain, LoopSearch, LoopSolution, in_frame_of, solve_loops
-from pppbot_slam.matcher import MatcherSettings, MatchResult, ScanMatcher, rotate, scan_normals
+from pppbot_slam.matcher import MatcherSettings, MatchResult, ScanMatcher
 from pppbot_slam.occupancy import LogOddsGrid, OccupancySettings, ScanRays
 from pppbot_slam.pose_graph import PoseGraph
 from pppbot_slam.visibility import view_of

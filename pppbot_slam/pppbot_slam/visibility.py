@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pppbot_common.se2 import PoseLike, se2_compose
-from pppbot_slam.matcher import rotate, scan_normals
+from pppbot_slam.likelihood_field import rotate, scan_normals
 from pppbot_slam.occupancy import BeamClasses, ScanRays
 
 #: A beam passed a surface when it returned this much beyond it (m): a few cells of the map,

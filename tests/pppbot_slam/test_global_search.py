@@ -10,9 +10,9 @@ from test_visibility import corridors, front_rays, hall_search, hits, rays_at, s
 
 from pppbot_common.se2 import se2_apply, se2_compose
 from pppbot_slam.errors import MapperError
+from pppbot_slam.likelihood_field import rotate
 from pppbot_slam.loops import LOOP_SEE_THROUGH_MAX, LoopChain, LoopSearch, solve_loops
 from pppbot_slam.mapper import Mapper, MapperSettings
-from pppbot_slam.matcher import rotate
 from pppbot_slam.visibility import view_of
 
 

@@ -6,7 +6,8 @@ import pytest
 from slam_synthetic import CORRIDOR, ROOM, cast, wall_points
 
 from pppbot_common.se2 import se2_apply
-from pppbot_slam.matcher import MatcherError, MatcherSettings, ScanMatcher, normal_classes, rotate, scan_normals
+from pppbot_slam.likelihood_field import normal_classes, rotate, scan_normals
+from pppbot_slam.matcher import MatcherError, MatcherSettings, ScanMatcher
 
 SEGMENTS = ROOM
 

@@ -11,9 +11,10 @@ from test_pose_graph import LOOP_COV, drifting_graph, position_errors, square_tr
 
 from pppbot_common.maps import OCCUPIED
 from pppbot_common.se2 import se2_apply, se2_compose, se2_inverse
+from pppbot_slam.likelihood_field import scan_normals
 from pppbot_slam.loops import LoopChain, LoopMatch, LoopSearch, plausible, solve_loops
 from pppbot_slam.mapper import LOST_KEYFRAMES, ODOMETRY_STD_PER_M, LoopClosure, Mapper, MapperSettings, observable_only
-from pppbot_slam.matcher import MatcherSettings, ScanMatcher, scan_normals
+from pppbot_slam.matcher import MatcherSettings, ScanMatcher
 from pppbot_slam.occupancy import ScanRays
 from pppbot_slam.pose_graph import PoseGraph
 

@@ -8,9 +8,9 @@ import pytest
 from slam_synthetic import beam_angles, box, cast_ranges
 
 from pppbot_common.se2 import se2_apply, se2_compose, se2_inverse
+from pppbot_slam.likelihood_field import rotate, scan_normals
 from pppbot_slam.loops import LOOP_SEE_THROUGH_MAX, LoopChain, LoopMatch, LoopSearch, plausible, solve_loops
 from pppbot_slam.mapper import MapperSettings
-from pppbot_slam.matcher import rotate, scan_normals
 from pppbot_slam.occupancy import ScanRays
 from pppbot_slam.pose_graph import PoseGraph
 from pppbot_slam.visibility import SEE_THROUGH_TOLERANCE_M, View, see_through_fraction, view_of
