@@ -114,19 +114,20 @@ def eval_slam(world: str, seconds: float, watch: bool) -> dict[str, Any]:
                                    start_new_session=True)
         if watcher.stdout is None or watcher.stdout.readline().strip() != "ready":
             raise SystemExit("camera_speed: the camera watcher did not start")
-    out = Path(tempfile.mkdtemp(prefix="camera_speed_slam_"))
-    try:
-        result = subprocess.run([PPPBOT, "eval", "slam", "--world", world, "--timeout", str(seconds), "--no-view",
-                                 "--out", str(out)], capture_output=True, text=True)
-    finally:
-        got = ""
-        if watcher is not None:
-            watcher.send_signal(2)
-            got, _ = watcher.communicate(timeout=30)
-    report_file = out / "report.json"
-    if not report_file.is_file():
-        raise SystemExit(f"camera_speed: eval slam wrote no report:\n{result.stderr[-2000:]}")
-    report = json.loads(report_file.read_text())
+    with tempfile.TemporaryDirectory(prefix="camera_speed_slam_") as directory:
+        out = Path(directory)
+        try:
+            result = subprocess.run([PPPBOT, "eval", "slam", "--world", world, "--timeout", str(seconds), "--no-view",
+                                     "--out", str(out)], capture_output=True, text=True)
+        finally:
+            got = ""
+            if watcher is not None:
+                watcher.send_signal(2)
+                got, _ = watcher.communicate(timeout=30)
+        report_file = out / "report.json"
+        if not report_file.is_file():
+            raise SystemExit(f"camera_speed: eval slam wrote no report:\n{result.stderr[-2000:]}")
+        report = json.loads(report_file.read_text())
     run = {"real_time_factor": round(float(report["real_time_factor"]), 2),
            "sim_seconds": round(float(report["sim_seconds"]), 1)}
     if watcher is not None:  # the frames of the run's sim time (the simulator runs on while the stack stops)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -98,6 +99,7 @@ def main() -> None:
     finally:
         server.terminate()
         server.wait(10)
+        shutil.rmtree(state, ignore_errors=True)
     half = [s["server_rss_mb"] for s in samples[len(samples) // 2:]] or [final]
     print(json.dumps({"sim_hours": args.hours, "server_memory_limit": args.limit, "wall_seconds": round(wall, 1),
                       "samples": samples, "final_rss_mb": final, "plateau_rss_mb": max(half),

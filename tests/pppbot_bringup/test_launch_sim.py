@@ -1,24 +1,17 @@
-"""launch_sim: arguments, --show-args, the node plan, and an end-to-end headless run."""
+"""launch_sim: arguments, --show-args, the node plan, and what is refused before anything starts (running
+stacks: test_launch_sim_running.py)."""
 from __future__ import annotations
 
 import dataclasses
 import math
-import os
-import re
-import signal
 import subprocess
-import time
 from pathlib import Path
 
 import pytest
-from geometry_msgs.msg import Twist
-from nav_msgs.msg import Odometry
 from pppbot_viz.errors import VizError
-from rosbags.rosbag2 import Reader
 
 from pppbot_bringup.launch_sim import ARGUMENTS, LaunchArgs, NavigationMode, plan
 from pppbot_common.launch_args import ArgumentError, describe
-from pppbot_common.ros.wait import wait_until
 from pppbot_nav.lifecycle import NAVIGATION_NODES
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -367,112 +360,6 @@ def test_record_adds_a_recorder_right_after_the_simulator(tmp_path):
         fake_plan("record:=true", f"bag_path:={tmp_path / 'b'}")
 
 
-@pytest.mark.ros
-def test_end_to_end_headless_drive_record_and_clean_sigint(ros_node, spawn, tmp_path):
-    bag = tmp_path / "drive_bag"
-    launch = spawn([PPPBOT, "launch_sim", "world:=empty", "use_teleop:=false", "use_rviz:=false", "use_viz:=false",
-                    "real_time_factor:=2.0", "record:=true", f"bag_path:={bag}"], name="launch_sim")
-    launch.wait_for_output(r"ppp_bot is up in 'empty'", 60)
-    pids = [int(p) for p in re.findall(r"process started with pid \[(\d+)\]", launch.output)]
-    assert len(pids) == 5  # simulator (with the controller), bag_record, robot_state_publisher, twist_mux, slam
-    truths: list[Odometry] = []
-    ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
-    pub = ros_node.create_publisher(Twist, "/cmd_vel_teleop", 10)
-    # Two subscribers: twist_mux and the recorder, which finds new topics by polling the graph.
-    wait_until(lambda: truths and pub.get_subscription_count() >= 2, 20, "ground truth, twist_mux and the recorder",
-               node=ros_node)
-    start = truths[-1].pose.pose.position
-    forward = Twist()
-    forward.linear.x = 0.4
-    wait_until(lambda: (pub.publish(forward), math.hypot(truths[-1].pose.pose.position.x - start.x,
-                                                         truths[-1].pose.pose.position.y - start.y) > 0.5)[1],
-               30, "the robot to drive 0.5 m", node=ros_node)
-    t0 = time.monotonic()
-    os.kill(launch.pid, signal.SIGINT)
-    assert launch.wait(15) == 0
-    assert time.monotonic() - t0 < 15
-    assert launch.output.count("process has finished cleanly") == 5, \
-        "\n".join(line for line in launch.output.splitlines() if "[launch]" in line or "process has" in line)
-    for pid in pids:
-        stat = Path(f"/proc/{pid}/stat")
-        assert not stat.exists() or stat.read_text().rsplit(")", 1)[-1].split()[0] == "Z"  # gone, or a zombie
-    # Stopping the launch finished the bag: the drive and the latched description are in it.
-    with Reader(bag) as reader:
-        counts = {c.topic: c.msgcount for c in reader.connections}
-    assert counts["/cmd_vel_teleop"] > 0 and counts["/odom"] > 0 and counts["/scan"] > 0
-    assert counts["/robot_description"] == 1 and counts["/tf_static"] >= 1
-
-
-@pytest.mark.ros
-def test_in_a_terminal_the_teleop_drives_and_ctrl_c_ends_everything(ros_node):
-    """launch_sim on a pseudo-terminal that is its controlling terminal, as in a shell."""
-    import fcntl
-    import pty
-    import select
-    import termios
-
-    from pppbot_common.process import stop_process_group
-
-    master, slave = pty.openpty()
-
-    def own_terminal() -> None:
-        os.setsid()
-        fcntl.ioctl(0, termios.TIOCSCTTY, 0)
-
-    proc = subprocess.Popen([PPPBOT, "launch_sim", "world:=empty", "use_rviz:=false", "use_viz:=false",
-                             "real_time_factor:=2.0"],
-                            stdin=slave, stdout=slave, stderr=slave, preexec_fn=own_terminal)
-    os.close(slave)
-    screen = bytearray()
-
-    def read_until(text: str, timeout_s: float) -> str:
-        deadline = time.monotonic() + timeout_s
-        while text not in screen.decode(errors="replace"):
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                raise AssertionError(f"'{text}' not on the screen:\n{screen.decode(errors='replace')[-3000:]}")
-            ready, _, _ = select.select([master], [], [], min(remaining, 0.2))
-            if ready:
-                try:
-                    screen.extend(os.read(master, 65536))
-                except OSError:
-                    break
-        return screen.decode(errors="replace")
-
-    try:
-        read_until("ppp_bot is up in 'empty': drive with the teleop keys", 90)
-        text = read_until("CTRL-C to quit", 30)
-        assert "node output goes to the log directory" in text
-        assert "[simulator-1] [INFO]" not in text  # node output went to the log files
-        where = re.search(r"log directory: (\S+)", text)
-        assert where is not None, text
-        log_dir = Path(where.group(1))
-        truths: list[Odometry] = []
-        ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
-        wait_until(lambda: truths, 20, "ground truth", node=ros_node)
-        start = truths[-1].pose.pose.position
-        # A held key: the terminal repeats it until the robot has gone 0.2 m.
-        wait_until(lambda: (os.write(master, b"i"), truths[-1].pose.pose.position.x - start.x > 0.2)[1], 30,
-                   "driving forward", node=ros_node)
-        os.write(master, b"\x03")  # Ctrl-C: SIGINT to the terminal's foreground group
-        assert proc.wait(timeout=20) == 0
-        read_until("teleop_keyboard-1]: process has finished cleanly", 5)
-        while select.select([master], [], [], 0.5)[0]:  # the launch has exited: read what is left
-            try:
-                chunk = os.read(master, 65536)
-            except OSError:
-                break
-            if not chunk:
-                break
-            screen.extend(chunk)
-        text = screen.decode(errors="replace")
-        assert text.count("process has finished cleanly") == 5  # with slam_toolbox
-        assert (log_dir / "simulator-1.log").read_text().count("lidar 'laser'") == 1
-    finally:
-        stop_process_group(proc)
-        os.close(master)
-
-
 def test_slam_params_file_replaces_the_default_and_must_exist(tmp_path):
     own = tmp_path / "extend_maze.yaml"
     own.write_text("slam_toolbox:\n  ros__parameters:\n    map_file_name: maps/maze\n")
@@ -556,25 +443,6 @@ def test_a_taken_viz_port_moves_the_page_instead_of_stopping_the_robot(monkeypat
     assert (tmp_path / "config" / "rerun" / "analytics.json").is_file()
     with pytest.raises(VizError, match="viz_port:=70000: must be a port number"):
         ros_launch_sim.viz_plan(values("viz_port:=70000"))
-
-
-@pytest.mark.ros
-def test_a_second_launch_on_a_busy_domain_is_refused_and_the_first_runs_on(ros_node, spawn):
-    first = spawn([PPPBOT, "launch_sim", "world:=empty", "use_teleop:=false", "use_rviz:=false", "use_viz:=false",
-                   "use_slam:=false"], name="launch_sim")
-    first.wait_for_output(r"ppp_bot is up in 'empty'", 60)
-    second = spawn([PPPBOT, "launch_sim", "world:=room", "use_teleop:=false", "use_rviz:=false", "use_viz:=false"],
-                   name="second launch_sim")
-    assert second.wait(timeout_s=60) == 2
-    domain = os.environ["ROS_DOMAIN_ID"]
-    assert f"launch_sim: ROS_DOMAIN_ID={domain} already has a simulation running (something publishes /clock" \
-        in second.output
-    assert f"ROS_DOMAIN_ID={1 if domain != '1' else 2} make run" in second.output
-    assert "process started" not in second.output  # refused before anything started
-    truths: list[Odometry] = []
-    ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
-    wait_until(lambda: len(truths) > 20, 20, "the first stack's ground truth", node=ros_node)
-    assert first.running() and "moved backwards in time" not in first.output
 
 
 @pytest.mark.parametrize(("argv", "environ", "message"), [
