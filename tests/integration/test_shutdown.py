@@ -11,13 +11,16 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import signal
+import subprocess
 import time
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+from pppbot_common.errors import TimeoutExpired
 from pppbot_nav.lifecycle import NAVIGATION_NODES
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -26,13 +29,40 @@ RUNS = 20
 #: The launch's escalation (SIGINT → SIGTERM → SIGKILL) waits longer than its 5 s defaults: on a
 #: loaded machine a node still importing when the stop comes can need more, and any escalation
 #: fails the test anyway; a node that hangs is still named.
-ESCALATION = ("sigterm_timeout:=20", "sigkill_timeout:=10")
+ESCALATION = ("sigterm_timeout:=20", "sigkill_timeout:=30")
 #: Processes of a localization + navigation bringup without teleop and RViz: map_server and amcl
 #: composed, and the navigation nodes (the default), or each its own (``use_composition:=false``,
 #: every fourth run).
 NODES = ("simulator", "robot_state_publisher", "twist_mux", "localization", "navigation")
 SEPARATE_NODES = (*NODES[:3], "map_server", "amcl", "lifecycle_manager_localization", *NAVIGATION_NODES,
                   "lifecycle_manager_navigation")
+
+
+#: The interpreter's own frames, left out of a native stack (the Python stack is printed beside it).
+INTERPRETER_FRAME = re.compile(r"_?Py|py|cfunction_|method_vectorcall|do_call_core|__libc_start|_start$|clone3$")
+
+
+def _native_stacks_of_a_hung_node(launch: Any) -> str:
+    """While the launch stops: if it names a node still running after SIGINT, that node's native
+    stacks (gdb, where installed), each thread's functions innermost first. The Python stack the
+    node prints ends at the binding call it hangs in; this shows where inside it."""
+    try:
+        hung = launch.wait_for_output(r"\[launch\]: (\S+) still running \d+ s after SIGINT", 60).group(1)
+    except TimeoutExpired:
+        return ""  # every node ended in time
+    pid = re.search(rf"\[{re.escape(hung)}\]: process started with pid \[(\d+)\]", launch.output)
+    if pid is None or shutil.which("gdb") is None:
+        return ""
+    try:
+        dump = subprocess.run(["gdb", "-p", pid.group(1), "-batch", "-ex", "thread apply all bt 25"],
+                              capture_output=True, text=True, timeout=25).stdout
+    except subprocess.TimeoutExpired:
+        return f"; gdb on {hung} did not finish"
+    threads = []
+    for block in re.split(r"\nThread ", dump)[1:]:
+        functions = re.findall(r"^#\d+\s+(?:0x[0-9a-f]+ in )?([\w:~<>]+)", block, re.M)
+        threads.append(" < ".join(f for f in functions if not INTERPRETER_FRAME.match(f)))
+    return f"; {hung}'s native stacks (gdb): " + " || ".join(threads)
 
 
 def _stop_moment(run: int) -> str:
@@ -59,6 +89,7 @@ def test_sigint_ends_every_node_of_the_navigation_bringup_with_exit_code_0(spawn
                 time.sleep(2.0)
         up = "ppp_bot is up" in launch.output
         os.kill(launch.pid, signal.SIGINT)
+        native = _native_stacks_of_a_hung_node(launch)
         code = launch.wait(60)
         started = re.findall(r"\[([\w-]+)-\d+\]: process started", launch.output)
         clean = re.findall(r"\[([\w-]+)-\d+\]: process has finished cleanly", launch.output)
@@ -68,7 +99,7 @@ def test_sigint_ends_every_node_of_the_navigation_bringup_with_exit_code_0(spawn
             stopped_while_starting += 1
         if code != 0 or sorted(started) != sorted(clean) or died:
             failures.append(f"run {run} ({moment}): launch exit {code}, started {started}, finished cleanly "
-                            f"{clean}; " + " | ".join(died))
+                            f"{clean}; " + " | ".join(died) + native)
             print(f"---- run {run} ({moment}): the launch's output (a hung node's stacks included)\n{launch.output}")
         if moment != "starting":
             assert sorted(started) == sorted(SEPARATE_NODES if separate else NODES), started
