@@ -160,6 +160,35 @@ def test_a_node_that_fails_to_configure_stops_the_startup_with_its_name(ros_node
     assert log.count("configure map_server") == 1
 
 
+def lose_first_answer(service: Any) -> list[Any]:
+    """``service`` drops its first answer, as Fast DDS drops one to a client whose reader the server
+    has not discovered yet; the list fills with the headers of the answers dropped."""
+    send = service.send_response
+    lost: list[Any] = []
+
+    def send_response(response: Any, header: Any) -> None:
+        if not lost:
+            lost.append(header)
+            return
+        send(response, header)
+    service.send_response = send_response
+    return lost
+
+
+@pytest.mark.ros
+def test_lost_answers_are_asked_again_and_the_state_decides(ros_node, process):
+    servers, log, manager = process
+    amcl = servers["amcl"]
+    lost = [lose_first_answer(amcl._service_get_state), lose_first_answer(amcl._service_change_state)]
+    manager(autostart=True)
+    wait_until(lambda: all(s.active for s in servers.values()), 60, "the nodes active", node=ros_node)
+    assert all(len(headers) == 1 for headers in lost)  # both first answers were dropped
+    # configure's answer was lost: amcl, configured by the first request, refused the second; the
+    # manager saw amcl inactive and went on
+    assert log == [f"configure {n}" for n in NODES] + [f"activate {n}" for n in NODES]
+    assert is_active(ros_node)
+
+
 def test_node_names_must_be_names(ros_node):
     with pytest.raises(ParameterError, match="node_names"):
         LifecycleManager("lifecycle_manager_bad", parameter_overrides=[Parameter("node_names", value=["a", "a"])])

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import sys
 import threading
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
@@ -55,6 +56,10 @@ from pppbot_nav.lifecycle import (
 #: machine), and to answer (s, wall).
 SERVICE_WAIT_S = 60.0
 CALL_TIMEOUT_S = 30.0
+#: A request still unanswered after this long (s, wall) is sent again: Fast DDS drops a service's
+#: answer to a client whose reply reader the server has not discovered yet, most often on a busy
+#: machine with a node just started (as pppbot_common.ros.wait.send_goal does for goals).
+RESEND_S = 3.0
 
 
 @dataclass(frozen=True)
@@ -141,17 +146,20 @@ class LifecycleManager(Node):
         change, get = self._lifecycle_clients[step.node]
         before = self._state_of(step.node, get)
         if before is None:
-            self.get_logger().error(f"Failed to change state for node: {step.node} (its lifecycle services did not "
-                                    f"answer within {SERVICE_WAIT_S:g} s)")
+            self.get_logger().error(f"Failed to change state for node: {step.node} (its get_state service "
+                                    f"{self._silence(get)})")
             return False
         if already_there(before, step):
             return True
         self.get_logger().info(f"{step.transition.name.capitalize().replace('_', ' ')} {step.node}")
         answer = self._call(change, ChangeState.Request(transition=TransitionMsg(id=int(step.transition))))
         after = self._state_of(step.node, get)
-        if answer is None or not answer.success or after != step.goal_label:
-            self.get_logger().error(f"Failed to change state for node: {step.node} ({step.transition.name.lower()} "
-                                    f"left it {after or 'silent'})")
+        # The state decides: a change_state sent again after its answer was lost is refused by a
+        # node that made the transition the first time.
+        if after != step.goal_label:
+            why = self._silence(change) if answer is None else f"{step.transition.name.lower()} left it " \
+                f"{after or 'silent'}"
+            self.get_logger().error(f"Failed to change state for node: {step.node} ({why})")
             return False
         return True
 
@@ -160,11 +168,23 @@ class LifecycleManager(Node):
         return None if answer is None else str(answer.current_state.label)
 
     def _call(self, client: Any, request: Any) -> Any:
+        """``request``'s answer, sent again every RESEND_S until CALL_TIMEOUT_S; None: the service
+        never appeared within SERVICE_WAIT_S or never answered."""
         if not client.wait_for_service(timeout_sec=SERVICE_WAIT_S):
             return None
-        future = client.call_async(request)
-        self._calls_executor.spin_until_future_complete(future, timeout_sec=CALL_TIMEOUT_S)
-        return future.result() if future.done() else None
+        deadline = time.monotonic() + CALL_TIMEOUT_S
+        while (remaining := deadline - time.monotonic()) > 0:
+            future = client.call_async(request)
+            self._calls_executor.spin_until_future_complete(future, timeout_sec=min(RESEND_S, remaining))
+            if future.done():
+                return future.result()
+            client.remove_pending_request(future)
+        return None
+
+    def _silence(self, client: Any) -> str:
+        if not client.service_is_ready():
+            return f"did not appear within {SERVICE_WAIT_S:g} s"
+        return f"did not answer within {CALL_TIMEOUT_S:g} s"
 
     # ---------------------------------------------------------------- services
     def _on_manage(self, request: ManageLifecycleNodes.Request,
