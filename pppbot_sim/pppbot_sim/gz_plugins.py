@@ -36,7 +36,7 @@ from pppbot_control.kinematics import DiffDriveGeometry, Odometry
 from pppbot_control.limits import AxisLimits, SpeedLimiter
 from pppbot_description.urdf_model import GazeboPlugin
 from pppbot_sim.errors import PluginError
-from pppbot_sim.sdf_world import ModelPlugin
+from pppbot_sim.sdf_model import ModelPlugin
 
 GZ_NAMES = ("gz::sim::systems::DiffDrive", "ignition::gazebo::systems::DiffDrive")
 CLASSIC_FILE = "gazebo_ros_diff_drive"

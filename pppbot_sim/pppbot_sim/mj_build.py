@@ -28,7 +28,8 @@ from pppbot_sim.errors import SpawnError, WorldError
 from pppbot_sim.meshes import load_mesh
 from pppbot_sim.sdf_joints import JointKind, ModelJoint
 from pppbot_sim.sdf_lights import add_lighting
-from pppbot_sim.sdf_world import Body, Shape, World, resource_paths
+from pppbot_sim.sdf_model import Body, Shape, World
+from pppbot_sim.sdf_world import resource_paths
 from pppbot_sim.uris import UriError, resolve_uri
 
 ROBOT_GROUP = 3

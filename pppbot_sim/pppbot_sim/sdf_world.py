@@ -31,9 +31,8 @@ from __future__ import annotations
 
 import math
 import os
-from collections import Counter
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -46,7 +45,8 @@ from pppbot_sim.contacts import DEFAULT_MU, UNSIMULATED_DEFAULTS, Surface
 from pppbot_sim.errors import WorldError
 from pppbot_sim.sdf_frames import FrameGraph
 from pppbot_sim.sdf_joints import JointKind, ModelJoint, joint_kind, read_axis
-from pppbot_sim.sdf_lights import Lighting, read_lighting
+from pppbot_sim.sdf_lights import read_lighting
+from pppbot_sim.sdf_model import DEFAULT_MASS_KG, Body, ModelPlugin, Shape, World
 from pppbot_sim.sdf_state import WorldState, move_free_links, named, read_state
 from pppbot_sim.uris import UriError, fuel_caches, resolve_uri
 
@@ -61,55 +61,6 @@ MESH_SUFFIXES = {".stl", ".obj", ".dae"}
 
 
 @dataclass(frozen=True)
-class Shape:
-    """A collision shape; ``pose`` is 4×4, in the world (static) or in its body's frame."""
-
-    name: str
-    kind: str
-    #: box (x, y, z) full extents; cylinder/capsule (radius, length); sphere (radius,);
-    #: ellipsoid (rx, ry, rz); plane (size_x, size_y); mesh: empty
-    size: tuple[float, ...]
-    pose: np.ndarray = field(compare=False)
-    mesh: Path | None = None
-    scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    surface: Surface = Surface()
-
-
-#: SDF's inertial where a link has none: 1 kg, 1 kg·m² about each axis (what Gazebo simulates).
-DEFAULT_MASS_KG = 1.0
-DEFAULT_INERTIA = (1.0, 0.0, 0.0, 1.0, 0.0, 1.0)
-
-
-@dataclass
-class Body:
-    """A link of a model that is not static: a body in the simulation, free unless a joint holds it."""
-
-    name: str
-    pose: np.ndarray
-    shapes: list[Shape]
-    mass: float = DEFAULT_MASS_KG
-    #: ixx, ixy, ixz, iyy, iyz, izz about the centre of mass; None: from the shapes (``auto``)
-    inertia: tuple[float, float, float, float, float, float] | None = DEFAULT_INERTIA
-    #: centre of mass pose in the link frame (4×4)
-    inertial_pose: np.ndarray | None = None
-
-
-@dataclass(frozen=True)
-class ModelPlugin:
-    """A ``<plugin>`` of a model, kept for the simulator; ``canonical_link`` is the model's first
-    link (or its ``canonical_link``), unscoped."""
-
-    model: str
-    element: etree._Element
-    file: Path
-    canonical_link: str
-
-    def where(self, element: etree._Element | None = None) -> str:
-        line = (element if element is not None else self.element).sourceline
-        return f"{self.file}:{line}"
-
-
-@dataclass(frozen=True)
 class ScopedModel:
     """A model to read: its element and file, its name in its scope, its ``<static>`` override."""
 
@@ -117,30 +68,6 @@ class ScopedModel:
     file: Path
     name: str
     static: bool | None
-
-
-@dataclass
-class World:
-    name: str
-    source: Path
-    step_size_s: float = 0.001
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
-    static_shapes: list[Shape] = field(default_factory=list)
-    bodies: list[Body] = field(default_factory=list)
-    joints: list[ModelJoint] = field(default_factory=list)
-    #: joint → {axis: angle (rad) or position (m)} from the world's <state>
-    joint_positions: dict[str, dict[int, float]] = field(default_factory=dict)
-    plugins: list[ModelPlugin] = field(default_factory=list)
-    lighting: Lighting = field(default_factory=Lighting)  # for the cameras only
-    warnings: list[str] = field(default_factory=list)
-    skipped: Counter[str] = field(default_factory=Counter)
-
-    def skipped_summary(self) -> str:
-        """One line naming what was skipped, e.g. 'skipped gui, light ×2, plugin ×3'."""
-        if not self.skipped:
-            return ""
-        parts = [name if n == 1 else f"{name} ×{n}" for name, n in sorted(self.skipped.items())]
-        return "skipped " + ", ".join(parts)
 
 
 def z_onto(direction: np.ndarray) -> np.ndarray:

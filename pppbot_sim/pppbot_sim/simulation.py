@@ -40,7 +40,8 @@ from pppbot_sim.mj_build import (
 )
 from pppbot_sim.render import RenderState
 from pppbot_sim.sdf_joints import JointKind
-from pppbot_sim.sdf_world import World, read_sdf_world
+from pppbot_sim.sdf_model import World
+from pppbot_sim.sdf_world import read_sdf_world
 from pppbot_sim.sensors import Imu, ImuReading, ImuSpec, Lidar, LidarSpec, finalize_ranges, sensor_specs
 from pppbot_sim.wheel_slip import SlipModel, WheelSlip
 from pppbot_sim.worlds import model_paths

@@ -76,7 +76,7 @@ from pppbot_sim.runner import (
     PluginTick,
     Reading,
 )
-from pppbot_sim.sdf_world import World
+from pppbot_sim.sdf_model import World
 from pppbot_sim.simulation import Collision, Event, EventKind, Simulation, load_world, unsimulated_summary
 from pppbot_sim.wheel_slip import SlipModel
 from pppbot_sim.worlds import find_world, model_paths
