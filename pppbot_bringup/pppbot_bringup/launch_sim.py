@@ -239,6 +239,8 @@ class Plan:
     files: dict[Path, str] = field(default_factory=dict)
     #: what the launch does, for the user's information (printed before the start)
     start_info: list[str] = field(default_factory=list)
+    #: information worth reading once, not at every start (an optional tool that is absent), key → text
+    once: dict[str, str] = field(default_factory=dict)
 
 
 #: Scans a view recording without a live view keeps per second (of 10): a fifth of the size.
@@ -275,7 +277,8 @@ def viz_nodes(viz: VizPlan | None, recording: Path | None, resolve: Resolver, pr
         if viz.native:
             nodes.append(NodeSpec("rerun_viewer", viewer.native_viewer_command(viz.grpc_port), env=env,
                                   after=("rerun",)))
-        params.update(rerun_port=viz.grpc_port, rerun_web_port=viz.web_port, port=viz.page_port)
+        params.update(rerun_port=viz.grpc_port, rerun_web_port=viz.web_port, port=viz.page_port, announce=False,
+                      images_while_watched=not viz.native)
         after = ("rerun", *after)
     if recording is not None:
         params["recording_path"] = str(recording)
@@ -557,10 +560,12 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                              ready=ReadyCheck("a first /clock",
                                               probes.first_message("/clock", "rosgraph_msgs/msg/Clock", False)),
                              required=True, pppbot_node=True))
+    once: dict[str, str] = {}
     if args.use_rviz:
         if rviz is None:
-            start_info.append("rviz2 is not on PATH: no RViz (use_rviz:=false silences this); "
-                         "with ROS 2 Jazzy installed, run rviz2 -d config/ppp_bot.rviz on the same ROS_DOMAIN_ID")
+            once["no_rviz2"] = ("rviz2 is not on PATH, so no RViz: the live view shows the robot instead. With ROS 2 "
+                                "Jazzy installed, run rviz2 -d config/ppp_bot.rviz on the same ROS_DOMAIN_ID "
+                                "(said once; use_rviz:=false says it is not wanted)")
         else:
             nodes.append(NodeSpec("rviz2", [rviz, "-d", str(config / "ppp_bot.rviz"), *ros_args(level)],
                                   after=("robot_state_publisher",)))
@@ -569,7 +574,8 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
         nodes += viz_nodes(viz, view_recording, resolve, probes, level, after=("robot_state_publisher",))
     if viz is not None:
         viewer = "a native viewer window and " if viz.native else ""
-        info.append(f"live view: {viewer}http://127.0.0.1:{viz.page_port}/ in a browser "
+        moved = f"; port {args.viz_port} was taken" if args.viz_port and viz.page_port != args.viz_port else ""
+        info.append(f"live view: {viewer}http://127.0.0.1:{viz.page_port}/ <- open it in a browser{moved} "
                     "(2D Goal Pose / 2D Pose Estimate: a button, then two clicks on the map)")
     if args.use_joystick:
         nodes += joystick_nodes(parameter_file(args.joy_params, config / "joystick.yaml", "joy_params"), resolve,
@@ -583,4 +589,4 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                                   after=tuple(n.name for n in nodes if n.required), terminal=True))
         else:
             start_info.append("no terminal here for the keyboard teleop: run ./pppbot teleop in another terminal")
-    return Plan(nodes, notes, info, files, start_info)
+    return Plan(nodes, notes, info, files, start_info, once)

@@ -82,23 +82,51 @@ class TextSink(Protocol):
 
 
 class Output:
-    """Where the launch's and the nodes' lines go."""
+    """Where the launch's and the nodes' lines go.
+
+    A terminal node's output (a keyboard teleop's: its key help and its prompt) goes to the
+    terminal as it is, and its newest line stays the terminal's last: a line from the launch or
+    another node is written above it and the prompt drawn again below, so warnings never split
+    or bury the teleop's prompt line (as a shell keeps its prompt under a background job's
+    output).
+    """
 
     def __init__(self, stream: TextSink = sys.stdout, log_dir: Path | None = None) -> None:
         self.stream = stream
         self.log_dir = log_dir
         self._lock = threading.RLock()
         self._files: dict[str, IO[str]] = {}
+        #: the terminal node's newest line, drawn last on the terminal without its newline
+        self._prompt: str | None = None
         if log_dir is not None:
             log_dir.mkdir(parents=True, exist_ok=True)
 
+    def _emit(self, text: str) -> None:
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):
+            pass
+
     def _write(self, text: str) -> None:
         with self._lock:
-            try:
-                self.stream.write(text + "\n")
-                self.stream.flush()
-            except (OSError, ValueError):
-                pass
+            if self._prompt is None:
+                self._emit(text + "\n")
+            else:  # over the prompt's line (carriage return, erase the line), then the prompt again
+                self._emit(f"\r\x1b[K{text}\n{self._prompt}")
+
+    def terminal_line(self, text: str) -> None:
+        """A line of the terminal node's own output: the terminal's last line from now on."""
+        with self._lock:
+            self._emit(("\n" if self._prompt is not None else "") + text)
+            self._prompt = text
+
+    def end_terminal(self) -> None:
+        """The terminal node is gone: its last line ends, and lines go below it."""
+        with self._lock:
+            if self._prompt is not None:
+                self._emit("\n")
+                self._prompt = None
 
     def event(self, level: str, label: str, text: str) -> None:
         self._write(f"[{level}] [{label}]: {text}")
@@ -118,6 +146,7 @@ class Output:
 
     def close(self) -> None:
         with self._lock:
+            self.end_terminal()
             for log in self._files.values():
                 log.close()
             self._files.clear()
@@ -131,6 +160,7 @@ class _Running:
     started_s: float
     ready: bool = False
     reader: threading.Thread | None = None
+    log_reader: threading.Thread | None = None
 
 
 class Supervisor:
@@ -232,7 +262,10 @@ class Supervisor:
         preexec = _pppbot_node_preexec if spec.pppbot_node else die_with_parent
         try:
             if spec.terminal:
-                proc = subprocess.Popen(list(spec.cmd), env=env, preexec_fn=preexec)
+                # Keys from the terminal, its lines through the launch (which keeps its prompt
+                # last); in the launch's process group, so Ctrl-C reaches it as it reaches us.
+                proc = subprocess.Popen(list(spec.cmd), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                        preexec_fn=preexec)
             else:
                 proc = subprocess.Popen(list(spec.cmd), env=env, stdin=subprocess.DEVNULL,
                                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -248,16 +281,26 @@ class Supervisor:
         if proc.stdout is not None:
             running.reader = threading.Thread(target=self._read, args=(running,), daemon=True)
             running.reader.start()
+        if proc.stderr is not None:  # a terminal node's log lines: as any node's
+            running.log_reader = threading.Thread(target=self._read, args=(running, proc.stderr), daemon=True)
+            running.log_reader.start()
         if spec.ready is None:
             self._mark_ready(running)
 
-    def _read(self, running: _Running) -> None:
-        stream = running.proc.stdout
+    def _read(self, running: _Running, stream: IO[bytes] | None = None) -> None:
+        """A node's output, line by line; a terminal node's standard output is its terminal lines."""
+        to_terminal = stream is None and running.spec.terminal
+        stream = stream if stream is not None else running.proc.stdout
         if stream is None:
             return
         for raw in iter(stream.readline, b""):
             text = raw.decode(errors="replace").rstrip("\r\n")
-            self.output.node_line(running.label, text)
+            if to_terminal:
+                self.output.terminal_line(text)
+            else:
+                self.output.node_line(running.label, text)
+        if to_terminal:
+            self.output.end_terminal()
 
     def _mark_ready(self, running: _Running) -> None:
         running.ready = True
@@ -285,8 +328,9 @@ class Supervisor:
             if code is None:
                 continue
             del self._running[name]
-            if running.reader is not None:
-                running.reader.join(timeout=2.0)
+            for reader in (running.reader, running.log_reader):
+                if reader is not None:
+                    reader.join(timeout=2.0)
             self._report_exit(running, code)
             spec = running.spec
             if spec.respawn and not self._shutdown.is_set():
@@ -372,8 +416,9 @@ class Supervisor:
             if not running.spec.terminal:
                 with contextlib.suppress(ProcessLookupError, PermissionError):  # whatever the node left in its group
                     os.killpg(running.proc.pid, signal.SIGKILL)
-            if running.reader is not None:
-                running.reader.join(timeout=2.0)
+            for reader in (running.reader, running.log_reader):
+                if reader is not None:
+                    reader.join(timeout=2.0)
             self._report_exit(running, running.proc.returncode)
         self._running.clear()
         self._report_repeats()

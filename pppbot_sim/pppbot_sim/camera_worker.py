@@ -5,7 +5,7 @@ camera is due and hands it to :meth:`CameraWorker.submit`; the worker renders it
 OpenGL context and its own copy of the model, turns it into what the camera publishes
 (:func:`produce`) and gives the :class:`CameraFrame` to ``deliver``. The physics loop never
 waits for it. A camera whose previous frame is still waiting when the next is due keeps only
-the newer one (the older is skipped); skips are reported per camera in a throttled warning.
+the newer one (the older is skipped); skips are reported per camera, at most once a minute.
 
 What is reproducible: a frame is rendered from the state at its stamp and its noise comes from a
 generator seeded by (seed, camera, frame number), so a frame stamped t is the same in every
@@ -43,7 +43,8 @@ from pppbot_sim.cameras import (
 )
 from pppbot_sim.render import CameraView, RenderState, RenderUnavailable, SceneRenderer
 
-WARN_PERIOD_S = 5.0
+#: frames skipped are said at most this often (seconds), with the count since the last time
+WARN_PERIOD_S = 60.0
 #: The worker's niceness above the physics loop's (Linux; elsewhere the same priority).
 RENDER_NICE = 10
 #: The optical frame (x right, y down, z forward) in a sensor's frame (x forward, y left, z up).
@@ -149,6 +150,7 @@ class CameraWorker:
         self.failed: str | None = None
         self.frames = 0  # delivered
         self.skipped = [0] * len(self.bindings)  # since each camera's last warning
+        self.asked = [0] * len(self.bindings)  # frames asked for, since each camera's last warning
         self._times_ms: list[deque[float]] = [deque(maxlen=20) for _ in self.bindings]
         self._warned = [time.monotonic()] * len(self.bindings)
         self._pending: dict[int, FrameRequest] = {}
@@ -167,6 +169,7 @@ class CameraWorker:
         with self._cond:
             if self.failed is not None or self._stopping:
                 return False
+            self.asked[request.index] += 1
             if request.index in self._pending:
                 self.skipped[request.index] += 1
             self._pending[request.index] = request
@@ -210,6 +213,7 @@ class CameraWorker:
             return
         with self._cond:  # frames due while the context was made are not the renderer's doing
             self.skipped = [0] * len(self.bindings)
+            self.asked = [0] * len(self.bindings)
             self._warned = [time.monotonic()] * len(self.bindings)
         self._ready.set()
         try:
@@ -242,9 +246,11 @@ class CameraWorker:
         if self.skipped[index] and now - self._warned[index] >= WARN_PERIOD_S:
             with self._cond:
                 skipped, self.skipped[index] = self.skipped[index], 0
-            self.log(f"camera '{self.bindings[index].spec.name}': rendering took "
-                     f"{statistics.median(self._times_ms[index]):.0f} ms, skipped {skipped} frame(s) in the last "
-                     f"{now - self._warned[index]:.0f} s")
+                asked, self.asked[index] = self.asked[index], 0
+            self.log(f"camera '{self.bindings[index].spec.name}': skipped {skipped} of {asked} frame(s) in the last "
+                     f"{now - self._warned[index]:.0f} s: the machine is too busy to render them in time (a frame "
+                     f"takes {statistics.median(self._times_ms[index]):.0f} ms). Cameras render only while someone "
+                     "subscribes: closing the live view's page, or cameras:=false, frees the CPU")
             self._warned[index] = now
 
     def _stop(self, reason: str) -> None:

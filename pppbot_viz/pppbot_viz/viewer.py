@@ -17,11 +17,16 @@ from pathlib import Path
 
 from pppbot_viz.errors import VizError
 
-#: the server keeps the newest data up to this for viewers that connect late, then drops the oldest;
-#: its RSS levels off at 1.4-1.7 times this (benchmarks/viz_server_memory.py)
-SERVER_MEMORY_LIMIT = "256MiB"
-#: the native viewer's cap (the web page sets none: a browser keeps what it was sent)
+#: the server keeps the newest data up to this for viewers that connect late, then drops the oldest
+#: (a few minutes of a run: what a viewer that connects late catches up with; the view sends it
+#: the newest map, costmaps, plans and trail when it starts); its RSS levels off at 1.4-1.7 times
+#: this (benchmarks/viz_server_memory.py)
+SERVER_MEMORY_LIMIT = "64MiB"
+#: the native viewer's cap: past it, it drops its oldest data, keeping each thing's newest
 VIEWER_MEMORY_LIMIT = "2GiB"
+#: the web page's viewer's cap, the same way: a browser tab without a GPU stays under 1.5 GB with
+#: it, for hours (benchmarks/view_browser.py)
+WEB_VIEWER_MEMORY_LIMIT = "512MiB"
 LOCALHOST = "127.0.0.1"
 
 
@@ -79,7 +84,10 @@ def native_viewer_command(grpc_port: int, memory_limit: str = VIEWER_MEMORY_LIMI
 def viewer_environment(state_dir: Path) -> dict[str, str]:
     """The environment for rerun's processes: its config and data directories under ``state_dir``
     (:func:`write_viewer_settings` puts the settings there)."""
-    return {"XDG_CONFIG_HOME": str(state_dir / "config"), "XDG_DATA_HOME": str(state_dir / "data")}
+    return {"XDG_CONFIG_HOME": str(state_dir / "config"), "XDG_DATA_HOME": str(state_dir / "data"),
+            # warnings and errors only: its start-up lines name ports and URLs that are not the
+            # view's (the launch prints the page's address)
+            "RUST_LOG": "warn"}
 
 
 def write_viewer_settings(state_dir: Path) -> Path:

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from PIL import Image
 from transforms3d.quaternions import quat2mat
 
 #: a grid cell no one has seen (nav_msgs/OccupancyGrid's -1), as rerun's RViz colormaps expect it
@@ -31,6 +32,19 @@ def scan_points(ranges: Sequence[float] | np.ndarray, angle_min: float, angle_in
     return points
 
 
+def place_points(points: np.ndarray, pose: Sequence[float], height_m: float = 0.0) -> np.ndarray:
+    """Planar points ((N, 3), z ignored) of a sensor at ``pose`` (x, y, yaw) in another frame, in
+    that frame, ``height_m`` up."""
+    x, y, yaw = (float(v) for v in pose)
+    c, s = math.cos(yaw), math.sin(yaw)
+    local = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    placed = np.empty((len(local), 3), dtype=np.float32)
+    placed[:, 0] = x + c * local[:, 0] - s * local[:, 1]
+    placed[:, 1] = y + s * local[:, 0] + c * local[:, 1]
+    placed[:, 2] = height_m
+    return placed
+
+
 def grid_cells(data: Sequence[int] | np.ndarray, width: int, height: int) -> np.ndarray:
     """An occupancy grid's cells as a (height, width) uint8 image, row 0 at the grid's origin:
     0-100 as they are, unknown (-1) as :data:`UNKNOWN_CELL`.
@@ -43,6 +57,14 @@ def grid_cells(data: Sequence[int] | np.ndarray, width: int, height: int) -> np.
         raise ValueError(f"an occupancy grid of {width}x{height} cells needs {width * height} values, "
                          f"got {cells.size}")
     return cells.reshape(height, width).view(np.uint8)
+
+
+def grid_image(cells: np.ndarray) -> np.ndarray:
+    """Grid cells (:func:`grid_cells`, row 0 at the grid's origin) as the image rerun's ``GridMap``
+    shows: it draws an image as a picture, its first row at the top, and puts the picture's
+    lower-left corner at the map's origin. So the image's first row is the grid's last (the
+    edge farthest along the grid's +y), and its last row the grid's row 0."""
+    return np.ascontiguousarray(cells[::-1])
 
 
 @dataclass(frozen=True)
@@ -190,3 +212,45 @@ def pose_from_clicks(first: Sequence[float], second: Sequence[float]) -> tuple[f
     dx, dy = float(second[0]) - float(first[0]), float(second[1]) - float(first[1])
     yaw = math.atan2(dy, dx) if (dx, dy) != (0.0, 0.0) else 0.0
     return float(first[0]), float(first[1]), yaw
+
+
+#: the view sends camera images at most this wide (px; the camera panel is about as wide)
+VIEW_IMAGE_WIDTH = 320
+
+
+def view_image(pixels: np.ndarray, color_model: str, max_width: int = VIEW_IMAGE_WIDTH) -> np.ndarray:
+    """A camera image as the view sends it: 8-bit RGB (or grey, for a one-channel image), scaled
+    down (an area average) to at most ``max_width`` pixels wide. ``pixels``: height x width
+    (x channels) in ``color_model`` ("RGB", "RGBA", "BGR", "BGRA" or "L"). A 16-bit or float
+    image (depth) is shown grey, from black at 0 to white at its largest finite value, as
+    RViz's Image display scales one; NaN and infinity are black.
+
+    Sent raw, not as a JPEG: a viewer decodes an encoded image in the background and, without a
+    GPU, marks every new frame as loading for about as long as it shows it. A 320 x 240 frame
+    is a quarter of a 640 x 480 one, and the stream to the viewer is compressed (LZ4) anyway.
+
+    Raises:
+        ValueError: an unknown colour model, or pixels of another shape.
+    """
+    channels = {"RGB": 3, "RGBA": 4, "BGR": 3, "BGRA": 4, "L": 1}.get(color_model)
+    if channels is None:
+        raise ValueError(f"color model '{color_model}' is not one of RGB, RGBA, BGR, BGRA, L")
+    shaped = pixels if pixels.ndim == 3 else pixels[..., np.newaxis]
+    if shaped.ndim != 3 or shaped.shape[2] != channels:
+        raise ValueError(f"a {color_model} image needs height x width x {channels} pixels, got {pixels.shape}")
+    if color_model.startswith("BGR"):
+        shaped = shaped[..., 2::-1]
+    elif color_model == "RGBA":
+        shaped = shaped[..., :3]
+    if shaped.dtype != np.uint8:
+        values = shaped.astype(np.float64)
+        finite = np.isfinite(values)
+        top = float(values[finite].max()) if finite.any() else 0.0
+        scaled = np.where(finite, values, 0.0) * (255.0 / top if top > 0.0 else 0.0)
+        shaped = np.clip(np.round(scaled), 0, 255).astype(np.uint8)
+    image = np.ascontiguousarray(shaped if shaped.shape[2] == 3 else shaped[..., 0])
+    height, width = image.shape[:2]
+    if width > max_width:
+        size = (max_width, max(1, round(height * max_width / width)))
+        image = np.asarray(Image.fromarray(image).resize(size, Image.Resampling.BOX))
+    return image

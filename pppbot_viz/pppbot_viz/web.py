@@ -26,9 +26,13 @@ from importlib import resources
 from typing import Any, cast
 
 from pppbot_viz.errors import VizError
-from pppbot_viz.viewer import LOCALHOST, grpc_url
+from pppbot_viz.viewer import LOCALHOST, WEB_VIEWER_MEMORY_LIMIT, grpc_url
 from pppbot_viz.visuals import pose_from_clicks
 
+#: a page's viewer says it is still open this often (seconds)
+ALIVE_PERIOD_S = 5.0
+#: the timeline the view logs on (message stamps: sim time under a simulator)
+TIMELINE = "sim_time"
 #: the pose tools: a ``kind`` posted to ``/pose`` and the topic its pose goes to
 POSE_KINDS = {"goal": "/goal_pose", "initial": "/initialpose"}
 #: headers of rerun's responses the page needs (the wasm is served compressed, with its real size)
@@ -70,10 +74,11 @@ def parse_pose_request(body: bytes) -> PoseRequest:
     return PoseRequest(kind, *pose_from_clicks(first, second))
 
 
-def render_page(grpc_url: str, frame: str) -> bytes:
+def render_page(grpc_url: str, frame: str, memory_limit: str = WEB_VIEWER_MEMORY_LIMIT) -> bytes:
     """``page.html`` with the viewer's start-up settings filled in."""
     template = resources.files("pppbot_viz").joinpath("page.html").read_text(encoding="utf-8")
-    settings = json.dumps({"url": grpc_url, "frame": frame, "kinds": POSE_KINDS})
+    settings = json.dumps({"url": grpc_url, "frame": frame, "kinds": POSE_KINDS, "memory_limit": memory_limit,
+                           "alive_period_ms": int(ALIVE_PERIOD_S * 1000)})
     return template.replace("/*PPPBOT_SETTINGS*/{}", settings).encode()
 
 
@@ -87,14 +92,17 @@ def content_security_policy(grpc_origin: str) -> str:
 
 class ViewerPage:
     """The page server. ``on_pose`` is called (from the server's thread) with each pose set in
-    the view and returns what the page shows, e.g. "goal sent"; raising VizError refuses it."""
+    the view and returns what the page shows, e.g. "goal sent"; raising VizError refuses it.
+    ``on_viewer`` is called (from the server's thread) when a page's viewer has started (True) and
+    every :data:`ALIVE_PERIOD_S` while it stays open (False)."""
 
     def __init__(self, port: int, grpc_port: int, viewer_port: int, on_pose: Callable[[PoseRequest], str],
-                 frame: str = "map", host: str = LOCALHOST) -> None:
-        page = render_page(grpc_url(grpc_port), frame)
+                 frame: str = "map", host: str = LOCALHOST, on_viewer: Callable[[bool], None] = lambda started: None,
+                 memory_limit: str = WEB_VIEWER_MEMORY_LIMIT) -> None:
+        page = render_page(grpc_url(grpc_port), frame, memory_limit)
         policy = content_security_policy(f"http://{LOCALHOST}:{grpc_port}")
         upstream = f"http://{LOCALHOST}:{viewer_port}"
-        handler = _handler(page, policy, upstream, on_pose)
+        handler = _handler(page, policy, upstream, on_pose, on_viewer)
         try:
             self._server = http.server.ThreadingHTTPServer((host, port), handler)
         except OSError as exc:
@@ -128,6 +136,7 @@ class _PageHandler(http.server.BaseHTTPRequestHandler):
     policy: str = ""
     upstream: str = ""
     on_pose: Callable[[PoseRequest], str]
+    on_viewer: Callable[[bool], None]
 
     def do_GET(self) -> None:
         if not _ASSET_PATH.match(self.path):
@@ -139,12 +148,17 @@ class _PageHandler(http.server.BaseHTTPRequestHandler):
         self._forward()
 
     def do_POST(self) -> None:
-        if self.path != "/pose":
+        if self.path not in ("/pose", "/started", "/alive"):
             self._reply(404, b"not found", "text/plain")
             return
         refusal = self._refusal()
         if refusal:
             self._json(403, {"ok": False, "message": refusal})
+            return
+        if self.path in ("/started", "/alive"):
+            self.rfile.read(min(int(self.headers.get("Content-Length") or 0), _MAX_POST_BYTES))
+            self.on_viewer(self.path == "/started")
+            self._json(200, {"ok": True, "message": "heard"})
             return
         length = int(self.headers.get("Content-Length") or 0)
         if not 0 < length <= _MAX_POST_BYTES:
@@ -210,7 +224,7 @@ class _PageHandler(http.server.BaseHTTPRequestHandler):
 
 
 
-def _handler(page: bytes, policy: str, upstream: str,
-             on_pose: Callable[[PoseRequest], str]) -> type[http.server.BaseHTTPRequestHandler]:
+def _handler(page: bytes, policy: str, upstream: str, on_pose: Callable[[PoseRequest], str],
+             on_viewer: Callable[[bool], None]) -> type[http.server.BaseHTTPRequestHandler]:
     return type("Handler", (_PageHandler,), {"page": page, "policy": policy, "upstream": upstream,
-                                             "on_pose": staticmethod(on_pose)})
+                                             "on_pose": staticmethod(on_pose), "on_viewer": staticmethod(on_viewer)})

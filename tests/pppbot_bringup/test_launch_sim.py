@@ -215,7 +215,8 @@ def test_plan_without_terminal_rviz_or_mapping_says_so():
     assert [n.name for n in p.nodes][-1] == "twist_mux"
     info = " ".join(p.start_info)  # information, not warnings: nothing to act on
     assert "run ./pppbot teleop in another terminal" in info
-    assert "rviz2 is not on PATH" in info and p.notes == []
+    assert "rviz2 is not on PATH" not in info and p.notes == []
+    assert "rviz2 is not on PATH" in p.once["no_rviz2"]  # an absent optional tool: said once, not every start
     assert "bag_record" not in [n.name for n in p.nodes]
     assert [n.name for n in fake_plan()[0].nodes][-1] == "slam_toolbox"
 
@@ -377,7 +378,7 @@ def test_live_view_runs_on_localhost_with_its_own_settings(tmp_path):
 
     probes = FakeProbes()
     viz = VizPlan(grpc_port=4001, web_port=4002, page_port=4003, native=False, state_dir=tmp_path / "rerun")
-    p = plan(values("world:=maze"), ROOT / "worlds" / "maze.sdf", Path("/tmp/robot.urdf"),
+    p = plan(values("world:=maze", "viz_port:=4003"), ROOT / "worlds" / "maze.sdf", Path("/tmp/robot.urdf"),
              lambda pkg, exe: f"/bin/{pkg}/{exe}", probes, True, None, viz=viz)
     by_name = {n.name: n for n in p.nodes}
     assert [n.name for n in p.nodes][-3:] == ["rerun", "viz", "teleop_keyboard"]
@@ -387,13 +388,17 @@ def test_live_view_runs_on_localhost_with_its_own_settings(tmp_path):
     assert (server[server.index("--port") + 1], server[server.index("--web-viewer-port") + 1]) == ("4001", "4002")
     # rerun's settings (analytics off) in pppbot's directory, not the user's home
     assert by_name["rerun"].env == {"XDG_CONFIG_HOME": str(tmp_path / "rerun" / "config"),
-                                    "XDG_DATA_HOME": str(tmp_path / "rerun" / "data")}
+                                    "XDG_DATA_HOME": str(tmp_path / "rerun" / "data"), "RUST_LOG": "warn"}
     node = " ".join(by_name["viz"].cmd)
     assert node.startswith("/bin/pppbot_viz/viz ") and "-p rerun_port:=4001" in node and "-p port:=4003" in node
     assert by_name["viz"].after == ("rerun", "robot_state_publisher") and not by_name["viz"].required
     assert probes.endpoints_asked["viz"]["publishes"] == ("/goal_pose", "/initialpose")
-    assert p.info == ["live view: http://127.0.0.1:4003/ in a browser (2D Goal Pose / 2D Pose Estimate: a button, "
-                      "then two clicks on the map)"]
+    assert "-p announce:=false" in node and "-p images_while_watched:=true" in node  # the launch prints the URL
+    assert p.info == ["live view: http://127.0.0.1:4003/ <- open it in a browser (2D Goal Pose / 2D Pose Estimate: "
+                      "a button, then two clicks on the map)"]
+    moved = plan(values("world:=maze", "viz_port:=9090"), ROOT / "worlds" / "maze.sdf", Path("/tmp/robot.urdf"),
+                 lambda pkg, exe: f"/bin/{pkg}/{exe}", probes, True, None, viz=viz)
+    assert moved.info[0].startswith("live view: http://127.0.0.1:4003/ <- open it in a browser; port 9090 was taken")
     # with a display: a native viewer window on the same server too
     native = plan(values("world:=maze"), ROOT / "worlds" / "maze.sdf", Path("/tmp/robot.urdf"),
                   lambda pkg, exe: f"/bin/{pkg}/{exe}", FakeProbes(), False, None,
@@ -438,8 +443,8 @@ def test_a_taken_viz_port_moves_the_page_instead_of_stopping_the_robot(monkeypat
         port = taken.getsockname()[1]
         viz, notes = ros_launch_sim.viz_plan(values(f"viz_port:={port}"))
     assert viz.page_port != port and len({viz.page_port, viz.grpc_port, viz.web_port}) == 3
-    assert notes == [f"viz_port:={port} is taken (another launch_sim?); the live view's page is on "
-                     f"{viz.page_port} instead"]
+    assert notes == [f"viz_port:={port} is taken (another launch_sim?): the live view takes port {viz.page_port} "
+                     "instead"]
     assert (tmp_path / "config" / "rerun" / "analytics.json").is_file()
     with pytest.raises(VizError, match="viz_port:=70000: must be a port number"):
         ros_launch_sim.viz_plan(values("viz_port:=70000"))
@@ -502,3 +507,16 @@ def test_a_malformed_map_is_refused_before_anything_starts(tmp_path):
     (tmp_path / "header.pgm").write_bytes(b"P5\nforty 40\n255\n" + bytes(1600))
     with pytest.raises(ArgumentError, match=r"map:=.*header.pgm"):
         fake_plan("localization:=true", f"map:={header}")
+
+
+def test_a_note_said_once_is_said_the_first_time_only(tmp_path):
+    from pppbot_bringup.notices import first_time
+
+    assert first_time("no_rviz2", tmp_path)
+    assert not first_time("no_rviz2", tmp_path)
+    assert first_time("other", tmp_path)  # each note on its own
+    unwritable = tmp_path / "file"
+    unwritable.write_text("")
+    assert first_time("no_rviz2", unwritable) and first_time("no_rviz2", unwritable)  # can't remember: said again
+    with pytest.raises(ValueError, match="lower-case letters"):
+        first_time("../escape", tmp_path)

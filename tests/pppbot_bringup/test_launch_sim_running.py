@@ -9,6 +9,7 @@ import signal
 import subprocess
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 from geometry_msgs.msg import Twist
@@ -57,12 +58,61 @@ def test_end_to_end_headless_drive_record_and_clean_sigint(ros_node, spawn, tmp_
     assert counts["/robot_description"] == 1 and counts["/tf_static"] >= 1
 
 
+class Screen:
+    """What a pseudo-terminal's master reads: the screen of a program run on its slave."""
+
+    def __init__(self, master: int) -> None:
+        self.master = master
+        self.data = bytearray()
+
+    def text(self) -> str:
+        return self.data.decode(errors="replace")
+
+    def read_until(self, text: str, timeout_s: float) -> str:
+        import select
+        deadline = time.monotonic() + timeout_s
+        while text not in self.text():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise AssertionError(f"'{text}' not on the screen:\n{self.text()[-3000:]}")
+            ready, _, _ = select.select([self.master], [], [], min(remaining, 0.2))
+            if ready:
+                try:
+                    self.data.extend(os.read(self.master, 65536))
+                except OSError:
+                    break
+        return self.text()
+
+    def read_until_published(self, text: str, publisher: Any, msg: Any, timeout_s: float) -> str:
+        """Publish ``msg`` (now and then) until ``text`` is on the screen."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            publisher.publish(msg)
+            try:
+                return self.read_until(text, 1.0)
+            except AssertionError:
+                if time.monotonic() > deadline:
+                    raise
+
+    def read_rest(self) -> str:
+        """What is left once the program has ended."""
+        import select
+        while select.select([self.master], [], [], 0.5)[0]:
+            try:
+                chunk = os.read(self.master, 65536)
+            except OSError:
+                break
+            if not chunk:
+                break
+            self.data.extend(chunk)
+        return self.text()
+
+
 @pytest.mark.ros
 def test_in_a_terminal_the_teleop_drives_and_ctrl_c_ends_everything(ros_node):
     """launch_sim on a pseudo-terminal that is its controlling terminal, as in a shell."""
     import fcntl
     import pty
-    import select
     import termios
 
     from pppbot_common.process import stop_process_group
@@ -77,25 +127,10 @@ def test_in_a_terminal_the_teleop_drives_and_ctrl_c_ends_everything(ros_node):
                              "real_time_factor:=2.0"],
                             stdin=slave, stdout=slave, stderr=slave, preexec_fn=own_terminal)
     os.close(slave)
-    screen = bytearray()
-
-    def read_until(text: str, timeout_s: float) -> str:
-        deadline = time.monotonic() + timeout_s
-        while text not in screen.decode(errors="replace"):
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                raise AssertionError(f"'{text}' not on the screen:\n{screen.decode(errors='replace')[-3000:]}")
-            ready, _, _ = select.select([master], [], [], min(remaining, 0.2))
-            if ready:
-                try:
-                    screen.extend(os.read(master, 65536))
-                except OSError:
-                    break
-        return screen.decode(errors="replace")
-
+    screen = Screen(master)
     try:
-        read_until("ppp_bot is up in 'empty': drive with the teleop keys", 90)
-        text = read_until("CTRL-C to quit", 30)
+        screen.read_until("ppp_bot is up in 'empty': drive with the teleop keys", 90)
+        text = screen.read_until("CTRL-C to quit", 30)
         assert "node output goes to the log directory" in text
         assert "[simulator-1] [INFO]" not in text  # node output went to the log files
         where = re.search(r"log directory: (\S+)", text)
@@ -108,18 +143,18 @@ def test_in_a_terminal_the_teleop_drives_and_ctrl_c_ends_everything(ros_node):
         # A held key: the terminal repeats it until the robot has gone 0.2 m.
         wait_until(lambda: (os.write(master, b"i"), truths[-1].pose.pose.position.x - start.x > 0.2)[1], 30,
                    "driving forward", node=ros_node)
+        # A node's warning while the teleop owns the terminal: written above the teleop's prompt,
+        # which is drawn again as the terminal's last line (never split, never buried).
+        bad = Twist()
+        bad.linear.x = math.nan
+        command = ros_node.create_publisher(Twist, "/diff_drive_base_controller/cmd_vel_unstamped", 10)
+        text = screen.read_until_published("dropping a velocity command with non-finite values", command, bad, 30)
+        after = text[text.rindex("dropping a velocity command"):]
+        assert after.partition("\n")[2].startswith("currently:"), repr(after[:300])
         os.write(master, b"\x03")  # Ctrl-C: SIGINT to the terminal's foreground group
         assert proc.wait(timeout=20) == 0
-        read_until("teleop_keyboard-1]: process has finished cleanly", 5)
-        while select.select([master], [], [], 0.5)[0]:  # the launch has exited: read what is left
-            try:
-                chunk = os.read(master, 65536)
-            except OSError:
-                break
-            if not chunk:
-                break
-            screen.extend(chunk)
-        text = screen.decode(errors="replace")
+        screen.read_until("teleop_keyboard-1]: process has finished cleanly", 5)
+        text = screen.read_rest()
         assert text.count("process has finished cleanly") == 5  # with slam_toolbox
         assert (log_dir / "simulator-1.log").read_text().count("lidar 'laser'") == 1
     finally:

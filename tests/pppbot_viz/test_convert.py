@@ -45,7 +45,9 @@ def test_grid_at_its_origin_with_unknown_cells_as_255() -> None:
     archetypes = convert.grid(msg, rr.components.Colormap.RvizMap, lift_m=0.01)
     grid = archetypes[1]
     assert frame(archetypes) == "map"
-    assert list(values(grid.data)[0]) == [UNKNOWN_CELL, 0, 100, 0, 0, 50]
+    # rerun draws the image as a picture (first row on top, lower-left corner at the origin): the
+    # grid's row 0, at its origin, goes last
+    assert list(values(grid.data)[0]) == [0, 0, 50, UNKNOWN_CELL, 0, 100]
     assert values(grid.cell_size) == [pytest.approx(0.05)]
     assert values(grid.translation) == [[-1.5, 2.0, pytest.approx(0.01)]]
 
@@ -126,12 +128,30 @@ def test_markers_draw_the_slam_graph_and_clear() -> None:
     assert convert.markers(MarkerArray(markers=[nodes, Marker(action=Marker.DELETEALL)])) == {"": None}
 
 
-def test_images_in_common_encodings() -> None:
-    rgb = Image(width=2, height=1, encoding="rgb8", step=6, data=bytes([255, 0, 0, 0, 255, 0]))
-    picture = convert.image(rgb)
-    assert values(picture.format)[0]["width"] == 2
-    padded = Image(width=1, height=2, encoding="mono8", step=4, data=bytes([7, 0, 0, 0, 9, 0, 0, 0]))
-    assert bytes(values(convert.image(padded).buffer)[0]) == bytes([7, 9])  # row padding dropped
+def shown(picture: rr.Image) -> np.ndarray:
+    """An image as the view sent it: (height, width[, 3]) uint8."""
+    fmt = values(picture.format)[0]
+    pixels = np.frombuffer(bytes(values(picture.buffer)[0]), dtype=np.uint8)
+    return pixels.reshape(fmt["height"], fmt["width"], -1).squeeze(axis=2) if pixels.size == fmt["height"] * \
+        fmt["width"] else pixels.reshape(fmt["height"], fmt["width"], -1)
+
+
+def test_images_in_common_encodings_go_to_the_view_8_bit_and_at_most_320_px_wide() -> None:
+    red_green = np.zeros((480, 640, 3), dtype=np.uint8)
+    red_green[:, :320, 0] = 255
+    red_green[:, 320:, 1] = 255
+    rgb = shown(convert.image(Image(width=640, height=480, encoding="rgb8", step=1920, data=red_green.tobytes())))
+    assert rgb.shape == (240, 320, 3)  # halved: the camera panel shows no more
+    assert rgb[100, 10].tolist() == [255, 0, 0] and rgb[100, 300].tolist() == [0, 255, 0]
+    bgr = shown(convert.image(Image(width=640, height=480, encoding="bgr8", step=1920, data=red_green.tobytes())))
+    assert bgr[100, 10].tolist() == [0, 0, 255]  # blue where the bytes say B first
+    rows = np.zeros((2, 4), dtype=np.uint8)  # one padding byte per 3-pixel row
+    rows[0, :3], rows[1, :3] = 40, 200
+    padded = shown(convert.image(Image(width=3, height=2, encoding="mono8", step=4, data=rows.tobytes())))
+    assert padded.tolist() == [[40, 40, 40], [200, 200, 200]]  # padding dropped
+    depth = np.array([[0.0, 2.0, 4.0, np.nan]], dtype=np.float32)
+    grey = shown(convert.image(Image(width=4, height=1, encoding="32FC1", step=16, data=depth.tobytes())))
+    assert grey.tolist() == [[0, 128, 255, 0]]  # 0 black, the farthest white, NaN black
     with pytest.raises(ValueError, match="encoding 'yuv422' is not shown"):
         convert.image(Image(width=1, height=1, encoding="yuv422", step=2, data=bytes(2)))
     with pytest.raises(ValueError, match="needs step >= 6"):

@@ -15,13 +15,14 @@ from typing import Any
 
 import numpy as np
 import pytest
-from browser import chromium_page, wait_for
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
 from nav_msgs.msg import Odometry
 from PIL import Image
+from pppbot_viz.headless import chromium_page, wait_for
 
 from pppbot_common.ros.wait import wait_until
 from pppbot_common.se2 import yaw_from_quaternion
+from pppbot_viz import headless as tools
 
 PPPBOT = str(Path(__file__).resolve().parents[2] / "pppbot")
 SIZE = (1000, 700)
@@ -29,15 +30,51 @@ SIZE = (1000, 700)
 #: rerun's (35) and the view's title (28), above the collapsed time panel (37)
 MAP_VIEW = (0, 99, int(SIZE[0] * 0.6) - 2, SIZE[1] - 37)
 
+#: the radius of a scan point in the view (m; pppbot_viz.ros.convert.scan)
+SCAN_POINT_M = 0.03
+#: the mouse wheel zooms the top-down view in this many steps of this many pixels (about 4x)
+ZOOM_STEPS, ZOOM_STEP_PX = 3, 100
+
 pytestmark = pytest.mark.ros
+
+
+def map_view(page: Any) -> np.ndarray:
+    """The top-down view as the page shows it: (height, width, 3) RGB."""
+    x0, y0, x1, y1 = MAP_VIEW
+    shot = Image.open(io.BytesIO(page.screenshot(clip={"x": x0, "y": y0, "width": x1 - x0, "height": y1 - y0})))
+    return np.asarray(shot.convert("RGB")).astype(int)
 
 
 def free_pixels(page: Any) -> int:
     """White pixels (free cells in RViz's map colours) in the top-down view."""
-    x0, y0, x1, y1 = MAP_VIEW
-    shot = Image.open(io.BytesIO(page.screenshot(clip={"x": x0, "y": y0, "width": x1 - x0, "height": y1 - y0})))
-    rgb = np.asarray(shot.convert("RGB"))
-    return int(np.all(rgb >= 245, axis=2).sum())
+    return int(np.all(map_view(page) >= 245, axis=2).sum())
+
+
+def scan_to_wall_px(rgb: np.ndarray, point_px: float) -> np.ndarray:
+    """For each pixel of the scan (RViz's red points, ``point_px`` in radius), how far (px) the
+    nearest occupied map cell (black) is on screen: where the map lies under the scan, a cell
+    or less from a point's edge. The robot's lidar (a red disk, far wider than a point) is left
+    out."""
+    from scipy import ndimage
+    red = (rgb[..., 0] > 170) & (rgb[..., 1] < 80) & (rgb[..., 2] < 80)
+    radius = int(math.ceil(point_px)) + 1
+    disk = np.hypot(*np.mgrid[-radius:radius + 1, -radius:radius + 1]) <= radius
+    wide = ndimage.binary_dilation(ndimage.binary_opening(red, structure=disk), structure=disk, iterations=2)
+    red &= ~wide
+    black = np.all(rgb < 40, axis=2)
+    assert red.sum() > 20 and black.sum() > 20, f"{red.sum()} scan and {black.sum()} wall pixels on screen"
+    return ndimage.distance_transform_edt(~black)[red]
+
+
+def metres_per_pixel(page: Any, center: tuple[float, float], apart_px: float = 160.0) -> float:
+    """The view's scale: two clicks ``apart_px`` apart, where the viewer says they hit the map."""
+    hits = []
+    for dx in (-apart_px / 2, apart_px / 2):
+        page.evaluate("window.pppbot.selected = null")
+        page.mouse.click(center[0] + dx, center[1])
+        hits.append(wait_for(page, "window.pppbot.selected", 20, "the viewer to report a click"))
+    page.keyboard.press("Escape")  # nothing stays selected (a selection tints what it selects)
+    return math.dist(hits[0][:2], hits[1][:2]) / apart_px
 
 
 def camera_view(page: Any) -> tuple[float, float]:
@@ -64,11 +101,7 @@ def test_live_view_in_a_browser(ros_node, spawn, tmp_path):
     url = launch.wait_for_output(r"live view: (http://127\.0\.0\.1:\d+/)", 120).group(1)
     launch.wait_for_output(r"\[viz-1\]: ready", 30)
     odometry: list[Odometry] = []
-    goals: list[PoseStamped] = []
-    initial_poses: list[PoseWithCovarianceStamped] = []
     ros_node.create_subscription(Odometry, "/odom", odometry.append, 10)
-    ros_node.create_subscription(PoseStamped, "/goal_pose", goals.append, 10)
-    ros_node.create_subscription(PoseWithCovarianceStamped, "/initialpose", initial_poses.append, 10)
     drive = ros_node.create_publisher(Twist, "/cmd_vel_teleop", 10)
 
     with chromium_page(spawn, tmp_path / "profile", SIZE) as browser:
@@ -94,29 +127,17 @@ def test_live_view_in_a_browser(ros_node, spawn, tmp_path):
         time.sleep(2.0)
         after = free_pixels(page)
         assert after > 1.5 * before + 2000, f"free cells on screen: {before} before driving, {after} after"
+        # The map lies under the scan: seen closer (the wheel zooms in on the map's origin), every
+        # cone's red arc sits on its black cells, within a cell (the map is no longer drawn
+        # upside down: then the arcs were about 1 m from their cones).
+        assert_map_under_scan(page, tmp_path)
         # What the robot sees: the simulator renders ppp_bot's camera for the view, in its camera panel.
-        assert "showing camera images of /camera/image_raw" in launch.output
+        assert "showing camera images of /camera/image_raw" in launch.output  # once the page's viewer is here
         sky, ground = camera_view(page)
         assert sky > 0.1 and ground > 0.1, f"camera view: {sky:.0%} sky, {ground:.0%} ground"
 
         # RViz's tools: a button, then the position and a point in the heading.
-        cx, cy = view_center()
-        set_pose(page, "#goal", (cx, cy), (cx + 120, cy))  # heading +x (the view's right)
-        goal = wait_until(lambda: goals[-1] if goals else None, 30, "/goal_pose", node=ros_node)
-        assert goal.header.frame_id == "map"
-        # The view looks down on the map's origin (the spawn pose): its centre is near (0, 0).
-        assert math.hypot(goal.pose.position.x, goal.pose.position.y) < 1.0, goal.pose.position
-        o = goal.pose.orientation
-        assert abs(yaw_from_quaternion(o.x, o.y, o.z, o.w)) < 0.3
-        set_pose(page, "#initial", (cx, cy), (cx, cy - 120))  # heading +y (the view's up)
-        initial = wait_until(lambda: initial_poses[-1] if initial_poses else None, 30, "/initialpose",
-                             node=ros_node)
-        o = initial.pose.pose.orientation
-        assert abs(yaw_from_quaternion(o.x, o.y, o.z, o.w) - math.pi / 2) < 0.3
-        assert initial.pose.covariance[0] == pytest.approx(0.25) and initial.pose.covariance[35] > 0
-        posted = page.evaluate("window.pppbot.posted")
-        assert [p["ok"] for p in posted] == [True, True]
-        assert posted[0]["message"].startswith("goal sent: x ")
+        assert_pose_tools(page, ros_node)
         # Nothing beyond this machine: the viewer's update check and usage reports are blocked.
         assert browser.requests and all(re.match(r"http://127\.0\.0\.1:\d+/", u) for u in browser.requests), \
             sorted({u for u in browser.requests if "127.0.0.1" not in u})
@@ -127,11 +148,56 @@ def test_live_view_in_a_browser(ros_node, spawn, tmp_path):
         assert re.search(rf"\[{node}-1\]: process has finished cleanly", launch.output), node
 
 
+def assert_map_under_scan(page: Any, tmp_path: Path) -> None:
+    """Zoomed in on the map's origin, the scan's points lie on the map's occupied cells, within a
+    cell; then the view is zoomed out again."""
+    page.mouse.move(*view_center())
+    for _ in range(ZOOM_STEPS):
+        page.mouse.wheel(0, -ZOOM_STEP_PX)
+        time.sleep(0.3)
+    page.mouse.move(SIZE[0] - 10, 10)  # off the view: a hovered thing shows a tooltip and a tint
+    time.sleep(3.0)
+    zoomed = map_view(page)
+    Image.fromarray(zoomed.astype(np.uint8)).save(tmp_path / "zoomed.png")  # to look at when it fails
+    metres_px = metres_per_pixel(page, view_center())
+    cell_px, point_px = 0.05 / metres_px, SCAN_POINT_M / metres_px
+    assert cell_px > 2.0, f"zoomed in to {cell_px:.1f} px a cell"
+    distances = scan_to_wall_px(zoomed, point_px) - point_px  # from a point's edge
+    assert np.median(distances) <= cell_px and np.mean(distances <= 2 * cell_px) > 0.8, \
+        f"scan to map: median {np.median(distances):.1f} px, {np.mean(distances <= 2 * cell_px):.0%} within " \
+        f"two cells ({cell_px:.1f} px a cell)"
+    page.mouse.move(*view_center())
+    for _ in range(ZOOM_STEPS):  # back to the whole map
+        page.mouse.wheel(0, ZOOM_STEP_PX)
+        time.sleep(0.3)
+
+
+def assert_pose_tools(page: Any, ros_node: Any) -> None:
+    """RViz's 2D Goal Pose and 2D Pose Estimate, used as a user does, publish what was clicked."""
+    goals: list[PoseStamped] = []
+    initial_poses: list[PoseWithCovarianceStamped] = []
+    ros_node.create_subscription(PoseStamped, "/goal_pose", goals.append, 10)
+    ros_node.create_subscription(PoseWithCovarianceStamped, "/initialpose", initial_poses.append, 10)
+    cx, cy = view_center()
+    set_pose(page, "#goal", (cx, cy), (cx + 120, cy))  # heading +x (the view's right)
+    goal = wait_until(lambda: goals[-1] if goals else None, 30, "/goal_pose", node=ros_node)
+    assert goal.header.frame_id == "map"
+    # The view looks down on the map's origin (the spawn pose): its centre is near (0, 0).
+    assert math.hypot(goal.pose.position.x, goal.pose.position.y) < 1.0, goal.pose.position
+    o = goal.pose.orientation
+    assert abs(yaw_from_quaternion(o.x, o.y, o.z, o.w)) < 0.3
+    set_pose(page, "#initial", (cx, cy), (cx, cy - 120))  # heading +y (the view's up)
+    initial = wait_until(lambda: initial_poses[-1] if initial_poses else None, 30, "/initialpose", node=ros_node)
+    o = initial.pose.pose.orientation
+    assert abs(yaw_from_quaternion(o.x, o.y, o.z, o.w) - math.pi / 2) < 0.3
+    assert initial.pose.covariance[0] == pytest.approx(0.25) and initial.pose.covariance[35] > 0
+    posted = page.evaluate("window.pppbot.posted")
+    assert [p["ok"] for p in posted] == [True, True]
+    assert posted[0]["message"].startswith("goal sent: x ")
+
+
 def set_pose(page: Any, button: str, position: tuple[float, float], heading: tuple[float, float]) -> None:
+    """A pose tool used as a user does, until the page has posted the pose."""
     posted = len(page.evaluate("window.pppbot.posted"))
-    page.click(button)
-    page.mouse.click(*position)
-    wait_for(page, "document.getElementById('status').textContent.includes('heading')", 20,
-             "the tool to take its first click")
-    page.mouse.click(*heading)
+    tools.set_pose(page, button, position, heading)
     wait_for(page, f"window.pppbot.posted.length > {posted}", 20, "the pose to be posted")

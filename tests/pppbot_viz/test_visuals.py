@@ -13,6 +13,7 @@ from pppbot_viz.visuals import (
     Trail,
     covariance_ellipse,
     grid_cells,
+    grid_image,
     heading_arrows,
     pose_from_clicks,
     scan_points,
@@ -31,6 +32,15 @@ def test_grid_cells_map_unknown_to_255_rows_from_origin() -> None:
     cells = grid_cells([-1, 0, 100, 50, -1, 0], width=3, height=2)
     assert cells.dtype == np.uint8 and cells.shape == (2, 3)
     assert cells.tolist() == [[UNKNOWN_CELL, 0, 100], [50, UNKNOWN_CELL, 0]]
+
+
+def test_grid_image_puts_the_grids_origin_row_last_as_rerun_draws_a_picture() -> None:
+    # row 0 of nav_msgs/OccupancyGrid lies at the origin (lowest y); rerun's GridMap draws an
+    # image's first row at the top and its lower-left corner at the origin
+    cells = grid_cells([100, 0, 0, 0, 0, -1], width=3, height=2)
+    image = grid_image(cells)
+    assert image.tolist() == [[0, 0, UNKNOWN_CELL], [100, 0, 0]]
+    assert image.flags.c_contiguous
 
 
 def test_grid_cells_reject_a_size_mismatch() -> None:

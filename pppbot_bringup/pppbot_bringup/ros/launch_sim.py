@@ -29,6 +29,7 @@ from pppbot_bringup.launch_sim import (
     plan,
     twist_mux_inputs,
 )
+from pppbot_bringup.notices import first_time
 from pppbot_bringup.paths import checkout_root, config_directory, log_root
 from pppbot_bringup.robot import load_description, robot_facts
 from pppbot_bringup.ros.graph_probe import GraphProbe, domain_taken_message
@@ -53,7 +54,7 @@ def viz_plan(args: LaunchArgs) -> tuple[VizPlan, list[str]]:
     notes: list[str] = []
     page_port = viewer.available_port(args.viz_port, "viz_port:=")
     if args.viz_port and page_port != args.viz_port:
-        notes.append(f"viz_port:={args.viz_port} is taken (another launch_sim?); the live view's page is on "
+        notes.append(f"viz_port:={args.viz_port} is taken (another launch_sim?): the live view takes port "
                      f"{page_port} instead")
     state_dir = viewer.state_directory(checkout_root())
     viewer.write_viewer_settings(state_dir)
@@ -108,6 +109,9 @@ def run(argv: Sequence[str]) -> int:
             output.event("INFO", "launch", "node output goes to the log directory; warnings and errors show here")
         for note in the_plan.start_info:
             output.event("INFO", "launch", note)
+        for key, note in the_plan.once.items():
+            if first_time(key):
+                output.event("INFO", "launch", note)
         for note in [*viz_notes, *the_plan.notes]:
             output.event("WARNING", "launch", note)
         supervisor = Supervisor(the_plan.nodes, output, sigint_timeout_s=sigint_timeout_s,

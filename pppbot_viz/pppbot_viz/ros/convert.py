@@ -10,7 +10,7 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 import rerun as rr
@@ -20,9 +20,12 @@ from pppbot_description.kinematics import rpy_quaternion
 from pppbot_viz.visuals import (
     covariance_ellipse,
     grid_cells,
+    grid_image,
     heading_arrows,
+    place_points,
     scan_points,
     transform_points,
+    view_image,
 )
 
 # RViz's default colours, as RGBA bytes
@@ -64,10 +67,15 @@ def transform(msg: Any) -> rr.Transform3D:
                           parent_frame=msg.header.frame_id.lstrip("/"), child_frame=msg.child_frame_id.lstrip("/"))
 
 
-def scan(msg: Any, radius_m: float = 0.03) -> list[Any]:
-    """sensor_msgs/LaserScan: the beams that hit, as points in the lidar's frame."""
+def scan(msg: Any, radius_m: float = 0.03, pose: tuple[float, float, float] | None = None, frame: str = "",
+         height_m: float = 0.0) -> list[Any]:
+    """sensor_msgs/LaserScan: the beams that hit, as points in the lidar's frame; or, with ``pose``
+    (the lidar's x, y, yaw in ``frame`` at the scan's stamp), in ``frame``, ``height_m`` up."""
     points = scan_points(msg.ranges, msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max)
-    return [frame_of(msg.header), rr.Points3D(points, radii=radius_m, colors=SCAN_COLOR)]
+    if pose is None:
+        return [frame_of(msg.header), rr.Points3D(points, radii=radius_m, colors=SCAN_COLOR)]
+    return [rr.CoordinateFrame(frame), rr.Points3D(place_points(points, pose, height_m), radii=radius_m,
+                                                   colors=SCAN_COLOR)]
 
 
 def grid(msg: Any, colormap: rr.components.Colormap, opacity: float = 1.0, lift_m: float = 0.0,
@@ -79,7 +87,7 @@ def grid(msg: Any, colormap: rr.components.Colormap, opacity: float = 1.0, lift_
     cells = grid_cells_of(msg) if cells is None else cells
     origin = info.origin
     return [frame_of(msg.header), rr.GridMap(
-        data=cells.tobytes(), format=rr.components.ImageFormat(width=info.width, height=info.height,
+        data=grid_image(cells).tobytes(), format=rr.components.ImageFormat(width=info.width, height=info.height,
                                                                color_model="L", channel_datatype="U8"),
         cell_size=float(info.resolution),
         translation=[origin.position.x, origin.position.y, origin.position.z + lift_m],
@@ -201,7 +209,8 @@ _IMAGE_ENCODINGS = {"rgb8": ("RGB", np.uint8), "rgba8": ("RGBA", np.uint8), "bgr
 
 
 def image(msg: Any) -> rr.Image:
-    """sensor_msgs/Image in one of the common encodings (RGB/BGR(A) 8-bit, mono 8/16-bit, 32FC1).
+    """sensor_msgs/Image in one of the common encodings (RGB/BGR(A) 8-bit, mono 8/16-bit, 32FC1),
+    as the view sends it (:func:`~pppbot_viz.visuals.view_image`: 8-bit, at most 320 px wide).
 
     Raises:
         ValueError: another encoding, or data that does not fill ``height * step``.
@@ -218,9 +227,10 @@ def image(msg: Any) -> rr.Image:
     row_bytes = msg.width * channels * np.dtype(dtype).itemsize
     rows = raw[: msg.height * msg.step].reshape(msg.height, msg.step)[:, :row_bytes]
     pixels = np.ascontiguousarray(rows).view(np.dtype(dtype).newbyteorder(">" if msg.is_bigendian else "<"))
+    shown = view_image(pixels.astype(dtype, copy=False).reshape(msg.height, msg.width, channels), color_model)
     # Sizes given, not a shape: rerun would read a one-row image's (1, W, C) as (W, C).
-    return rr.Image(bytes=pixels.astype(dtype, copy=False).tobytes(), width=msg.width, height=msg.height,
-                    color_model=cast(Any, color_model), datatype=dtype)
+    return rr.Image(bytes=shown.tobytes(), width=shown.shape[1], height=shown.shape[0],
+                    color_model="RGB" if shown.ndim == 3 else "L", datatype=np.uint8)
 
 
 def compressed_image(msg: Any) -> rr.EncodedImage:

@@ -96,7 +96,7 @@ def main(args: argparse.Namespace) -> int:
                                               stdin=subprocess.DEVNULL, start_new_session=True,
                                               preexec_fn=_die_with_view))
         if args.recording is None:
-            return _run_node(grpc_port, web_port, port, args)
+            return _run_node(grpc_port, web_port, port, args, native=len(processes) > 1)
         return _serve_recording(grpc_port, web_port, port, args, processes[0])
     except KeyboardInterrupt:
         return 0
@@ -109,10 +109,10 @@ def _die_with_view() -> None:
     die_with_parent(signal.SIGKILL)
 
 
-def _run_node(grpc_port: int, web_port: int, port: int, args: argparse.Namespace) -> int:
+def _run_node(grpc_port: int, web_port: int, port: int, args: argparse.Namespace, native: bool) -> int:
     from pppbot_viz.ros import viz
     params = {"rerun_port": grpc_port, "rerun_web_port": web_port, "port": port, "fixed_frame": args.fixed_frame,
-              "use_sim_time": str(not args.wall_time).lower()}
+              "use_sim_time": str(not args.wall_time).lower(), "images_while_watched": str(not native).lower()}
     return viz.main(["pppbot view", "--ros-args", *(f for name, value in params.items()
                                                     for f in ("-p", f"{name}:={value}"))])
 

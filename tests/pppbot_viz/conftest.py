@@ -1,7 +1,0 @@
-"""Lets this folder's tests import the browser helper (``browser``)."""
-from __future__ import annotations
-
-import sys
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
