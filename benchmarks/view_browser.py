@@ -213,6 +213,8 @@ def main() -> None:
     parser.add_argument("--sample", type=float, default=30.0, help="seconds between samples")
     parser.add_argument("--goal-period", type=float, default=120.0, help="seconds between 2D Goal Pose uses")
     parser.add_argument("--late-pages", type=int, default=0, help="pages opened later, at even times of the run")
+    parser.add_argument("--no-first-page", action="store_true",
+                        help="no page from the start: only the late ones (one browser at a time)")
     parser.add_argument("--late-seconds", type=float, default=180.0, help="how long each late page stays open")
     parser.add_argument("--max-wait", type=float, default=60.0, help="latency samples give up after this (s)")
     parser.add_argument("--radius", type=float, default=6.0, help="the robot drives back past this distance (m)")
@@ -236,7 +238,8 @@ def main() -> None:
         with tempfile.TemporaryDirectory(prefix="view_browser_") as scratch, ExitStack() as stack:
             t0 = time.monotonic()
             playwright = stack.enter_context(sync_playwright())
-            pages.append(open_page(stack, start, "first", url, Path(scratch), playwright))
+            if not args.no_first_page:
+                pages.append(open_page(stack, start, "first", url, Path(scratch), playwright))
             late_at = [t0 + args.seconds * (k + 1) / (args.late_pages + 1) for k in range(args.late_pages)]
             late: ExitStack | None = None
             next_sample, next_goal = t0, t0 + 30.0
@@ -249,7 +252,7 @@ def main() -> None:
                 if late is not None and now - pages[-1].opened_s >= args.late_seconds:
                     late.close()
                     late = None
-                open_pages = [pages[0]] + ([pages[-1]] if late is not None else [])
+                open_pages = ([] if args.no_first_page else [pages[0]]) + ([pages[-1]] if late is not None else [])
                 if now >= next_goal:
                     next_goal = now + args.goal_period
                     for watched in open_pages:
@@ -260,7 +263,7 @@ def main() -> None:
                     for watched in open_pages:
                         sample(watched, robot, t0, args.max_wait)
                 time.sleep(0.5)
-            for watched in [pages[0]] + ([pages[-1]] if late is not None else []):
+            for watched in ([] if args.no_first_page else [pages[0]]) + ([pages[-1]] if late is not None else []):
                 sample(watched, robot, t0, args.max_wait)
             if late is not None:
                 late.close()

@@ -11,7 +11,7 @@ an hour of wall time; this takes minutes. The server's RSS is sampled every 5 mi
 time; the last line is one JSON object with the samples and the plateau (the largest RSS
 over the second half).
 
-    ./pppbot env python benchmarks/viz_server_memory.py [--hours 1] [--limit 256MiB]
+    ./pppbot env python benchmarks/viz_server_memory.py [--hours 1] [--limit 32MiB]
 """
 from __future__ import annotations
 

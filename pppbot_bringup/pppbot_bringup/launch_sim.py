@@ -24,14 +24,21 @@ from typing import Any, Protocol
 import yaml
 from pppbot_viz.viewer import ViewerKind
 
-from pppbot_bringup.parameter_files import PARAMETER_FILES, check_slam_localization, parameter_file
+from pppbot_bringup.parameter_files import (
+    NOT_IN_PPP_BOTS_BRINGUP,
+    PARAMETER_FILES,
+    check_slam_localization,
+    missing_sections_note,
+    parameter_file,
+    sections_missing,
+)
 from pppbot_bringup.paths import config_directory, maps_directory
 from pppbot_bringup.robot import PPP_BOT, RobotFacts, adapt_parameters
 from pppbot_bringup.supervisor import NodeSpec, ReadyCheck
 from pppbot_common.errors import MapFileError
 from pppbot_common.launch_args import Argument, ArgumentError, parse_assignments
 from pppbot_common.maps import check_map_file
-from pppbot_nav.lifecycle import LOCALIZATION_NODES, command_remaps, navigation_nodes
+from pppbot_nav.lifecycle import LOCALIZATION_NODES, NAVIGATION_NODES, command_remaps, navigation_nodes
 
 LOG_LEVELS = ("debug", "info", "warn", "error", "fatal")
 #: the simulator's largest ``wheel_slip`` (pppbot_sim.wheel_slip.MAX_SLIP_STDDEV)
@@ -409,6 +416,8 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
     start_info: list[str] = list(robot.info)
     files: dict[Path, str] = {}
     participants: list[str] = []
+    missing: list[str] = []  # nodes the Nav2 params file has no section for
+    left_out: list[str] = []  # of those, the ones left out
 
     def participant(name: str, description: str, check: ReadyCheck) -> tuple[dict[str, Any], ReadyCheck]:
         """A lockstep participant's parameters and readiness: joined, in lockstep; else ``check``."""
@@ -459,8 +468,9 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
             check_map_file(map_file)  # before anything starts, not when map_server fails on it
         except MapFileError as exc:
             raise ArgumentError(f"map:={exc}") from exc
-        nav2_params = adapted_file(parameter_file(args.params_file, config / "nav2_params.yaml", "params_file"),
-                                   robot, urdf_file.parent, files, start_info)
+        given = parameter_file(args.params_file, config / "nav2_params.yaml", "params_file")
+        nav2_params = adapted_file(given, robot, urdf_file.parent, files, start_info)
+        missing += sections_missing(given, LOCALIZATION_NODES)
         # AMCL starts where the robot was spawned (the shipped maps' frame is the world's, the
         # spawn pose of a map made with the default spawn); RViz's 2D Pose Estimate moves it.
         # The launch's seed seeds AMCL's particles too: one seed makes the whole run repeatable.
@@ -512,10 +522,13 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
     if args.navigation.enabled(args.localization):
         if localizer is None:
             raise ArgumentError("navigation:=true needs a map frame: localization:=true or use_slam:=true")
-        nav2_params = adapted_file(parameter_file(args.params_file, config / "nav2_params.yaml", "params_file"),
-                                   robot, urdf_file.parent, files, start_info)
+        given = parameter_file(args.params_file, config / "nav2_params.yaml", "params_file")
+        nav2_params = adapted_file(given, robot, urdf_file.parent, files, start_info)
+        missing += sections_missing(given, NAVIGATION_NODES)
+        left_out = [name for name in missing if name in NOT_IN_PPP_BOTS_BRINGUP]
         without = tuple(name for name, use in (("velocity_smoother", args.use_velocity_smoother),
-                                               ("collision_monitor", args.use_collision_monitor)) if not use)
+                                               ("collision_monitor", args.use_collision_monitor))
+                        if not use or name in left_out)
         managed = navigation_nodes(without)
         remaps = command_remaps(without)
         # Up once lifecycle_manager_navigation has them all active (the last one last), as
@@ -547,6 +560,8 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                 lambda: active.probe() and all(j() for j in joins))))
         start_info.append("navigating: send goals with RViz's 2D Goal Pose, ./pppbot nav goto X Y YAW, "
                      "or the navigate_to_pose action")
+    if missing:
+        start_info.append(missing_sections_note(given, missing, left_out))
     simulator_params: dict[str, Any] = {
         "world": world_file, "robot_description": urdf_file, "real_time_factor": args.real_time_factor,
         "x": args.x, "y": args.y, "z": args.z, "yaw": args.yaw,

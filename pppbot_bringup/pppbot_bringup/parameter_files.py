@@ -54,3 +54,33 @@ def check_slam_localization(path: Path) -> None:
 
 #: The arguments that name ROS 2 parameter files.
 PARAMETER_FILES = ("params_file", "slam_params_file", "twist_mux_params", "controllers_file", "joy_params")
+
+
+#: Nodes Jazzy's Nav2 bringup runs that ppp_bot's (Humble's) did not: a params file written for
+#: that bringup has no section for them, and they have no defaults that make sense (the collision
+#: monitor needs its zones); the launch leaves them out (their commands bridged) when a file lacks
+#: their section.
+NOT_IN_PPP_BOTS_BRINGUP = ("collision_monitor",)
+
+
+def sections_missing(path: Path, nodes: tuple[str, ...]) -> list[str]:
+    """Which of ``nodes`` the parameter file at ``path`` (already checked) has no section for: no
+    ``<node>:`` or ``/<node>:`` key (a ``/**`` section sets what all nodes share, not a node's own)."""
+    try:
+        document = yaml.safe_load(path.read_text()) or {}
+    except (OSError, yaml.YAMLError):
+        return []
+    keys = {str(key).lstrip("/") for key in document} if isinstance(document, dict) else set()
+    return [node for node in nodes if node not in keys]
+
+
+def missing_sections_note(path: Path, missing: list[str], left_out: list[str]) -> str:
+    """One line: which nodes run on their defaults and which are left out, for a file without their sections."""
+    parts = []
+    if left_out:
+        parts.append(f"{', '.join(left_out)} left out (not in ppp_bot's Humble-era bringup, and no defaults "
+                     "make sense; its commands are bridged: velocity_smoother to twist_mux)")
+    defaults = [node for node in missing if node not in left_out]
+    if defaults:
+        parts.append(f"{', '.join(defaults)} on Nav2's defaults")
+    return f"{path.name} has no section for {len(missing)} node(s): {'; '.join(parts)}"

@@ -21,7 +21,7 @@ from pppbot_viz.errors import VizError
 #: (a few minutes of a run: what a viewer that connects late catches up with; the view sends it
 #: the newest map, costmaps, plans and trail when it starts); its RSS levels off at 1.4-1.7 times
 #: this (benchmarks/viz_server_memory.py)
-SERVER_MEMORY_LIMIT = "64MiB"
+SERVER_MEMORY_LIMIT = "32MiB"
 #: the native viewer's cap: past it, it drops its oldest data, keeping each thing's newest
 VIEWER_MEMORY_LIMIT = "2GiB"
 #: the web page's viewer's cap, the same way: a browser tab without a GPU stays under 1.5 GB with

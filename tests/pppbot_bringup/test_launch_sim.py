@@ -8,6 +8,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+import yaml
 from pppbot_viz.errors import VizError
 
 from pppbot_bringup.launch_sim import ARGUMENTS, LaunchArgs, NavigationMode, plan
@@ -344,6 +345,29 @@ def test_the_velocity_chain_is_on_by_default_and_each_part_can_be_left_out(switc
     for name in managed:
         own = [apart[name].cmd[i + 1] for i, arg in enumerate(apart[name].cmd) if arg == "-r"]
         assert own == [rule for rule in remaps if rule.startswith(f"{name}:")]
+
+
+@pytest.mark.parametrize("section", NAVIGATION_NODES)
+def test_a_params_file_without_a_nodes_section_runs_it_on_defaults_or_leaves_out_the_monitor(section, tmp_path):
+    """ppp_bot's nav2_params.yaml (Humble's shape) has no collision_monitor: Jazzy's bringup runs one,
+    Humble's did not, and no default zones make sense, so it is left out (velocity_smoother's
+    output bridged to twist_mux); every other node runs on Nav2's defaults. One line says which."""
+    document = yaml.safe_load((ROOT / "config" / "nav2_params.yaml").read_text())
+    del document[section]
+    own = tmp_path / "nav2_params.yaml"
+    own.write_text(yaml.safe_dump(document))
+    p, _ = fake_plan("localization:=true", f"params_file:={own}")
+    composed = {n.name: n for n in p.nodes}["navigation"].cmd
+    left_out = [composed[i + 1] for i, arg in enumerate(composed) if arg == "--without"]
+    notes = [line for line in p.start_info if "has no section" in line]
+    assert len(notes) == 1 and notes[0].startswith("nav2_params.yaml has no section for 1 node(s): ")
+    if section == "collision_monitor":
+        assert left_out == ["collision_monitor"] and "collision_monitor left out" in notes[0]
+        assert "velocity_smoother:cmd_vel_smoothed:=cmd_vel" in composed  # bridged to twist_mux
+    else:
+        assert left_out == [] and notes[0].endswith(f"{section} on Nav2's defaults")
+    full, _ = fake_plan("localization:=true")
+    assert not [line for line in full.start_info if "has no section" in line]
 
 
 def test_record_adds_a_recorder_right_after_the_simulator(tmp_path):

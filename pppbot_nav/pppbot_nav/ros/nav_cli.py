@@ -10,6 +10,8 @@ import argparse
 import math
 import sys
 import time
+from collections.abc import Callable
+from typing import Any
 
 import rclpy
 from action_msgs.msg import GoalStatus
@@ -49,6 +51,38 @@ def goal_of(x: float, y: float, yaw: float, frame: str) -> NavigateToPose.Goal:
     return goal
 
 
+class Progress:
+    """What ``nav goto`` prints of the navigator's feedback: nothing before the goal was accepted
+    (no stale line before "navigating to"); until the first plan, once a second, that it waits
+    for one; then the robot's progress once a second, and each recovery as it starts."""
+
+    def __init__(self, print_line: Callable[[str], None] = lambda text: print(text, flush=True)) -> None:
+        self.accepted = False
+        self.planned = False
+        self.recoveries = 0
+        self.last_s = -math.inf
+        self.print_line = print_line
+
+    def feedback(self, fb: Any) -> None:
+        if not self.accepted:
+            return
+        now = time.monotonic()
+        self.planned = self.planned or fb.distance_remaining > 0.0 or fb.number_of_recoveries > 0
+        if fb.number_of_recoveries > self.recoveries:  # each recovery as it starts
+            self.recoveries = fb.number_of_recoveries
+            self.print_line(f"recovery {fb.number_of_recoveries} started, {fb.distance_remaining:.2f} m to go")
+        elif now - self.last_s < 1.0:
+            return
+        self.last_s = now
+        if not self.planned:
+            if fb.navigation_time.sec >= 1:
+                self.print_line(f"waiting for a plan ({fb.navigation_time.sec} s): the planner has not answered yet")
+            return
+        p = fb.current_pose.pose.position
+        self.print_line(f"at ({p.x:.2f}, {p.y:.2f}), {fb.distance_remaining:.2f} m to go, "
+                        f"{fb.navigation_time.sec} s, {fb.number_of_recoveries} recoveries")
+
+
 def main(args: argparse.Namespace) -> int:
     try:
         goal = goal_of(args.x, args.y, args.yaw, args.frame)
@@ -64,23 +98,10 @@ def main(args: argparse.Namespace) -> int:
             print(f"pppbot nav: no navigate_to_pose server after {args.server_timeout} s "
                   "(is launch_sim running with navigation?)")
             return 2
-        last = [0.0]
-        recoveries = [0]
-
-        def feedback(msg: NavigateToPose.Impl.FeedbackMessage) -> None:
-            fb = msg.feedback
-            if fb.number_of_recoveries > recoveries[0]:  # each recovery as it starts
-                recoveries[0] = fb.number_of_recoveries
-                print(f"recovery {fb.number_of_recoveries} started, {fb.distance_remaining:.2f} m to go", flush=True)
-            elif time.monotonic() - last[0] < 1.0:
-                return
-            last[0] = time.monotonic()
-            p = fb.current_pose.pose.position
-            print(f"at ({p.x:.2f}, {p.y:.2f}), {fb.distance_remaining:.2f} m to go, "
-                  f"{fb.navigation_time.sec} s, {fb.number_of_recoveries} recoveries", flush=True)
-
+        progress = Progress()
         try:
-            handle = send_goal(client, goal, node, GOAL_ANSWER_S, feedback_callback=feedback)
+            handle = send_goal(client, goal, node, GOAL_ANSWER_S,
+                               feedback_callback=lambda msg: progress.feedback(msg.feedback))
         except TimeoutExpired:
             print(f"pppbot nav: no answer from navigate_to_pose in {GOAL_ANSWER_S:g} s", file=sys.stderr)
             return 1
@@ -90,6 +111,7 @@ def main(args: argparse.Namespace) -> int:
                   file=sys.stderr)
             return 1
         print(f"navigating to ({args.x}, {args.y}, {args.yaw}) in '{args.frame}'", flush=True)
+        progress.accepted = True
         result_future = handle.get_result_async()
         rclpy.spin_until_future_complete(node, result_future)
         response = result_future.result()
