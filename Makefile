@@ -16,7 +16,7 @@ test: check
 
 # Static checks: lint (ruff, rules in pyproject.toml) and types (mypy) across packages, tools and tests.
 check:
-	./pppbot env ruff check --quiet pppbot_common pppbot_description pppbot_sim \
+	./pppbot env ruff check --quiet pppbot_common pppbot_lockstep pppbot_description pppbot_sim \
 		pppbot_control pppbot_slam pppbot_nav pppbot_bag pppbot_bringup pppbot_eval pppbot_viz tools tests benchmarks \
 		examples
 	./pppbot env python -m mypy

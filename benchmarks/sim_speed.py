@@ -43,8 +43,8 @@ PARTICIPANT = """
 import os, signal, sys, time
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
-from pppbot_common.ros.lockstep import require_match
-from pppbot_common.ros.node_main import run_nodes
+from pppbot_lockstep.ros.participant import require_match
+from pppbot_lockstep.ros.runner import run_nodes
 target = int(sys.argv[1])
 class Counter(Node):
     def __init__(self):
@@ -93,7 +93,7 @@ def ros_rtf(world: str, sim_seconds: float, with_subscriber: bool) -> tuple[floa
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
-    from pppbot_common.ros.node_main import Process
+    from pppbot_lockstep.ros.runner import Process
     from pppbot_sim.ros.simulator import Simulator
 
     subscriber = None

@@ -9,9 +9,9 @@ the same sim-time rates, so nothing depends on DDS timing:
   :data:`COMMAND_PERIOD_S` has passed, as the eval node does;
 * twist_mux passes the teleop input through (one input, never timed out);
 * the diff-drive controller at 100 Hz (``config/my_controllers.yaml``): its speed
-  limiters (:class:`pppbot_control.limits.SpeedLimiter`), twist → wheel speeds
+  limiters (:class:`pppbot_common.limits.SpeedLimiter`), twist → wheel speeds
   (:meth:`DiffDriveGeometry.wheel_speeds`; the simulator clamps to the URDF's
-  ±10 rad/s) and wheel odometry (:class:`pppbot_control.kinematics.Odometry`) from
+  ±10 rad/s) and wheel odometry (:class:`pppbot_common.kinematics.Odometry`) from
   the wheel positions the simulator reports at 100 Hz, with its wheel slip;
 * the lidar (640 beams, 10 Hz) and the IMU are sampled as the simulator node samples
   them, so a seed gives the same noise as ``launch_sim seed:=N``.
@@ -178,9 +178,9 @@ def generate(world: str, route_name: str | None, seed: int, wheel_slip: float, o
     Raises:
         RuntimeError: the route was not completed within 2.5 × its time + 60 s (nothing written).
     """
+    from pppbot_common.kinematics import Odometry
+    from pppbot_common.limits import SpeedLimiter
     from pppbot_common.se2 import se2_compose, se2_inverse, se2_relative, wrap_angles
-    from pppbot_control.kinematics import Odometry
-    from pppbot_control.limits import SpeedLimiter
     from pppbot_description.kinematics import KinematicTree
     from pppbot_description.urdf_model import parse_urdf
     from pppbot_description.xacro_model import process_xacro

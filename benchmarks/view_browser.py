@@ -206,7 +206,7 @@ def figures(pages: list[Watched], args: argparse.Namespace, wall_s: float, robot
     return result
 
 
-def main() -> None:
+def parse_arguments() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--world", default="cones")
     parser.add_argument("--seconds", type=float, default=600.0)
@@ -219,7 +219,11 @@ def main() -> None:
     parser.add_argument("--max-wait", type=float, default=60.0, help="latency samples give up after this (s)")
     parser.add_argument("--radius", type=float, default=6.0, help="the robot drives back past this distance (m)")
     parser.add_argument("--launch-arg", action="append", default=[], help="more launch_sim name:=value arguments")
-    args = parser.parse_args()
+    return parser.parse_args()
+
+
+def main() -> None:
+    args = parse_arguments()
     isolate_dds()
     children: list[ChildProcess] = []
 

@@ -25,5 +25,12 @@ setup(
             'joy_node = pppbot_control.ros.joy_node:main',
             'teleop_node = pppbot_control.ros.teleop_joy:main',
         ],
+        # The controllers the simulator hosts in its process, by ros2_control type (pppbot_sim.hosting).
+        'pppbot_sim.hosted_controllers': [
+            'diff_drive_controller/DiffDriveController = pppbot_control.hosting:diff_drive_controller',
+        ],
+        'pppbot_sim.controller_managers': [
+            'controller_manager = pppbot_control.hosting:controller_manager',
+        ],
     },
 )

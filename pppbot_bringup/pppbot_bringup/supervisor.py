@@ -66,7 +66,7 @@ class NodeSpec:
     #: the node reads and writes this terminal (a keyboard teleop); it stays in our process group
     terminal: bool = False
     env: Mapping[str, str] | None = None
-    #: one of pppbot's nodes (pppbot_common.ros.node_main): it is started with SIGINT and SIGTERM
+    #: one of pppbot's nodes (pppbot_lockstep.ros.runner): it is started with SIGINT and SIGTERM
     #: blocked and takes a stop sent while it was starting once it can end cleanly
     pppbot_node: bool = False
 
@@ -376,7 +376,7 @@ class Supervisor:
 
     def _dump_stacks(self, hung: list[_Running]) -> None:
         """Ask pppbot nodes still running after SIGINT for their threads' stacks (SIGUSR1: see
-        pppbot_common.ros.node_main), so that the log shows where they hang."""
+        pppbot_lockstep.ros.runner), so that the log shows where they hang."""
         if not hung:
             return
         self.output.event("WARNING", "launch", f"{', '.join(r.label for r in hung)} still running "

@@ -40,10 +40,6 @@ class TemplateError(PppbotError, ValueError):
     """A field a template cannot patch (unknown, a string, or a sequence it would have to resize)."""
 
 
-class LockstepError(PppbotError):
-    """A lockstep protocol error; the message names the participant and what it did."""
-
-
 class ParameterFileError(PppbotError, ValueError):
     """A ROS 2 parameter file is unreadable, not YAML, or not of the params-file shape; the message
     names the file, where in it (line and column when known) and what is allowed."""

@@ -56,7 +56,7 @@ def die_with_parent(sig: int = signal.SIGTERM) -> None:
 
 #: The signals that ask a process to stop.
 STOP_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM})
-#: Makes one of pppbot's nodes print every thread's stack (pppbot_common.ros.node_main).
+#: Makes one of pppbot's nodes print every thread's stack (pppbot_lockstep.ros.runner).
 STACK_DUMP_SIGNAL = signal.SIGUSR1
 
 
@@ -129,7 +129,7 @@ def _group_members(pgid: int) -> list[int]:
 
 def block_stop_signals() -> None:
     """In a child (``preexec_fn``) that runs pppbot's node runner: SIGINT and SIGTERM stay pending
-    until the runner has its handlers (:func:`pppbot_common.ros.node_main.take_stop_signals`), so
+    until the runner has its handlers (:func:`pppbot_lockstep.ros.runner.take_stop_signals`), so
     a stop while the child is still importing ends it cleanly instead of killing it. The mask
     survives ``exec``; only for children that unblock them (a stop signal is never lost)."""
     signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)

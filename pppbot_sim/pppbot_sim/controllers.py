@@ -31,13 +31,17 @@ JOINT_STATE_BROADCASTER = "joint_state_broadcaster/JointStateBroadcaster"
 
 @dataclass(frozen=True)
 class ControllerPlan:
-    """What the parameter file asks for: the update rate and the controllers by type."""
+    """What the parameter file asks for: the update rate and the controllers, (name, type) in the
+    file's order."""
 
     parameters_file: Path
     update_rate_hz: float
-    diff_drives: tuple[str, ...]
-    unsupported: tuple[tuple[str, str], ...]  # (name, type)
-    broadcasters: tuple[str, ...] = ()  # the joint_state_broadcasters (the simulator's /joint_states)
+    controllers: tuple[tuple[str, str], ...]
+
+    @property
+    def diff_drives(self) -> tuple[str, ...]:
+        """The names of the diff_drive_controllers."""
+        return tuple(name for name, kind in self.controllers if kind == DIFF_DRIVE)
 
 
 def controllers_file(robot: RobotModel) -> Path | None:
@@ -76,18 +80,9 @@ def read_plan(path: Path) -> ControllerPlan:
     rate = params.get("update_rate", 100)
     if not isinstance(rate, (int, float)) or isinstance(rate, bool) or not 0 < rate <= 10000:
         raise SpawnError(f"{path}: controller_manager update_rate = {rate!r}: must be a number in (0, 10000] Hz")
-    diff_drives, broadcasters, unsupported = [], [], []
-    for name, value in params.items():
-        if not isinstance(value, dict) or "type" not in value:
-            continue
-        kind = str(value["type"])
-        if kind == DIFF_DRIVE:
-            diff_drives.append(name)
-        elif kind == JOINT_STATE_BROADCASTER:
-            broadcasters.append(name)
-        else:
-            unsupported.append((name, kind))
-    return ControllerPlan(path, float(rate), tuple(diff_drives), tuple(unsupported), tuple(broadcasters))
+    controllers = tuple((str(name), str(value["type"])) for name, value in params.items()
+                        if isinstance(value, dict) and "type" in value)
+    return ControllerPlan(path, float(rate), controllers)
 
 
 def controller_parameters(path: Path, name: str) -> dict[str, Any]:

@@ -1,7 +1,7 @@
 """Errors of the simulator package."""
 from __future__ import annotations
 
-from pppbot_common.errors import LockstepError, PppbotError
+from pppbot_common.errors import PppbotError
 
 
 class WorldError(PppbotError, ValueError):
@@ -22,7 +22,3 @@ class SimulationDiverged(PppbotError, RuntimeError):
 
 class WorldGenError(PppbotError, ValueError):
     """A bad family, seed or size; the message names it and what is allowed."""
-
-
-class LockstepTimeout(LockstepError):
-    """A participant did not answer in time (the message names it, the step and the sim time)."""

@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 
 from lxml import etree
 
-from pppbot_control.kinematics import DiffDriveGeometry, Odometry
-from pppbot_control.limits import AxisLimits, SpeedLimiter
+from pppbot_common.kinematics import DiffDriveGeometry, Odometry
+from pppbot_common.limits import AxisLimits, SpeedLimiter
 from pppbot_description.urdf_model import GazeboPlugin
 from pppbot_sim.errors import PluginError
 from pppbot_sim.sdf_model import ModelPlugin

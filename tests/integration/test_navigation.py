@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, Twist
 from lifecycle_msgs.srv import GetState
@@ -208,3 +209,43 @@ def run_goal(node: Any, client: Any, x: float, y: float) -> tuple[int, Any]:
     done = handle.get_result_async()
     wait_until(done.done, 120, f"the result of ({x}, {y})", node=node)
     return done.result().status, done.result().result
+
+
+# A Nav2 params file that configures less still runs: ppp_bot's own nav2_params.yaml (Humble's shape:
+# no collision_monitor section), further stripped of every section a node can run without, brings
+# localization and navigation up and takes the robot to a goal. The collision monitor is left out, its
+# commands bridged; every other node without a section runs on Nav2's defaults; one line says which.
+#: ppp_bot's file's sections a node runs without (its defaults: Nav2's)
+OPTIONAL = ("bt_navigator", "smoother_server", "behavior_server", "waypoint_follower", "velocity_smoother")
+
+
+@pytest.mark.ros
+def test_ppp_bots_file_without_optional_sections_brings_navigation_up(ros_node: Any, spawn: Any,
+                                                                       tmp_path: Path) -> None:
+    document = yaml.safe_load((ROOT / "tests" / "data" / "ppp_bot" / "nav2_params.yaml").read_text())
+    assert "collision_monitor" not in document and set(OPTIONAL) <= set(document)  # ppp_bot's, as published
+    for section in OPTIONAL:
+        del document[section]
+    params = tmp_path / "nav2_params.yaml"
+    params.write_text(yaml.safe_dump(document))
+    launch = spawn([PPPBOT, "launch_sim", "world:=room", "localization:=true", f"params_file:={params}",
+                    "use_teleop:=false", "use_rviz:=false", "use_viz:=false", "lockstep:=true",
+                    "real_time_factor:=0"], name="launch_sim")
+    launch.wait_for_output(r"ppp_bot is up in 'room'", 120)
+    notes = [line for line in launch.output.splitlines() if "has no section for" in line]
+    assert len(notes) == 1, notes
+    assert "nav2_params.yaml has no section for 7 node(s): collision_monitor left out" in notes[0]
+    defaults = notes[0].rpartition("; ")[2]
+    assert defaults.endswith("on Nav2's defaults") and all(name in defaults for name in ("map_server", *OPTIONAL))
+    for name in ("bt_navigator", "velocity_smoother", "behavior_server", "waypoint_follower", "smoother_server"):
+        assert lifecycle_state(ros_node, name) == "active", name
+    truths: list[Odometry] = []
+    ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
+    client = ActionClient(ros_node, NavigateToPose, "navigate_to_pose")
+    assert client.wait_for_server(timeout_sec=20)
+    handle = send_goal(client, NavigateToPose.Goal(pose=goal_pose(1.5, 0.5, 0.0)), ros_node, 20)
+    done = handle.get_result_async()
+    wait_until(done.done, 180, "the goal's result", node=ros_node)
+    assert done.result().status == GoalStatus.STATUS_SUCCEEDED, done.result().result.error_msg
+    x, y, _ = truth_pose(truths[-1])
+    assert math.hypot(x - 1.5, y - 0.5) < 0.4

@@ -2,7 +2,7 @@
 
 One SIGINT of four once left planner_server dead with SIGSEGV on the way down (a signal
 thread triggering a guard condition of an executor being destroyed). The nodes now own
-their signals (pppbot_common.ros.node_main); this starts the full localization and
+their signals (pppbot_lockstep.ros.runner); this starts the full localization and
 navigation bringup again and again and stops it at different moments — while nodes are
 still starting, right when it is up, and after it has run a while — and requires every
 started process to finish with exit code 0.

@@ -9,6 +9,7 @@ from rclpy.task import Future
 from pppbot_common.maps import OccupancyGrid
 from pppbot_eval.ros.behaviors import GoalLimits, NavigateGoals
 from pppbot_eval.scenarios import Recording
+from pppbot_lockstep.ros.port import FREE_RUNNING
 
 FREE_ROOM = OccupancyGrid(np.zeros((100, 100), dtype=np.int8), 0.05, (-2.5, -2.5, 0.0))
 
@@ -24,6 +25,7 @@ class FakeNode:
         self.driving = False
         self.answer = answer
         self.sent: list[tuple[float, float, float]] = []
+        self.port = FREE_RUNNING  # free running: no lockstep here
 
     def send_goal(self, x: float, y: float, yaw: float) -> Future:
         self.sent.append((x, y, yaw))

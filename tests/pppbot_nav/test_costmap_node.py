@@ -204,3 +204,32 @@ def test_live_parameters_apply_at_once_without_forgetting_what_was_seen(context:
         assert cost(node, 1.52) == LETHAL_OBSTACLE  # ...and keeps what it had seen
     finally:
         node.destroy_node()
+
+
+def test_published_footprint_is_the_padded_circle_at_the_robot_in_the_costmaps_frame(context: None) -> None:
+    from geometry_msgs.msg import PolygonStamped
+
+    from pppbot_common.ros.wait import wait_until
+
+    node = local_costmap(persistence=0.0)
+    node.tf.set_transform("odom", "base_link", 0.0, (1.0, 2.0, 0.5), True)
+    listener = rclpy.create_node("footprint_listener")
+    got: list[PolygonStamped] = []
+    listener.create_subscription(PolygonStamped, "/local_costmap/published_footprint", got.append, 10)
+    try:
+        node._on_scan(node.sources[0], scan(1.0, 1.5))
+        node.update()
+        def published() -> bool:
+            node.publish()
+            return bool(got)
+
+        wait_until(published, 10, "a footprint", node=listener)
+        msg = got[-1]
+        assert msg.header.frame_id == "odom" and len(msg.polygon.points) == 16
+        radii = [math.hypot(p.x - 1.0, p.y - 2.0) for p in msg.polygon.points]
+        assert radii == pytest.approx([0.31] * 16, abs=1e-6)  # robot_radius 0.3, padding 0.01
+        first = msg.polygon.points[0]
+        assert math.atan2(first.y - 2.0, first.x - 1.0) == pytest.approx(0.5, abs=1e-6)  # turned with the robot
+    finally:
+        listener.destroy_node()
+        node.destroy_node()

@@ -12,8 +12,8 @@ from std_srvs.srv import Trigger
 
 from pppbot_common.errors import PppbotError
 from pppbot_common.params import ParameterError
-from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.wait import wait_until
+from pppbot_lockstep.ros.lifecycle import ManagedNode
 from pppbot_nav.errors import LifecycleError
 from pppbot_nav.lifecycle import (
     NAVIGATION_NODES,

@@ -17,8 +17,8 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 
 from pppbot_common.params import ParameterError
-from pppbot_common.ros.goals import GoalEnd, GoalServer
 from pppbot_common.ros.wait import change_state, send_goal, wait_until
+from pppbot_lockstep.ros.goals import GoalEnd, GoalServer
 from pppbot_nav.ros.waypoint_follower import WaypointFollower
 
 pytestmark = pytest.mark.ros

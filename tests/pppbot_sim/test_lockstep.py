@@ -44,7 +44,9 @@ def test_time_waits_for_a_slow_participant_and_a_chain_of_nodes_takes_no_sim_tim
     ros_node.create_subscription(Int64MultiArray, "/ls_test/relayed", lambda m: relayed.append(list(m.data)), 1000)
     # A plain node, no participant: it gets the clock (and is never waited for).
     ros_node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
-    wait_until(lambda: len(relayed) >= 40, 90, "40 ticks through the relay", node=ros_node)
+    # (the plain node may discover the simulator after the first ticks: it waits for a clock too)
+    wait_until(lambda: len(relayed) >= 40 and len(clocks) >= 2, 90, "40 ticks through the relay and a /clock",
+               node=ros_node)
     counts = [count for count, _, _ in relayed]
     assert counts == list(range(counts[0], counts[0] + len(counts)))  # none skipped, none late
     for count, tick_ns, relay_ns in relayed:

@@ -231,3 +231,15 @@ def test_every_shipped_map_is_drawn_where_its_world_has_walls(world: str) -> Non
     upside_down = OccupancyGridCore(drawn.data[::-1], drawn.resolution, drawn.origin)
     if world == "cones":
         assert compare_maps(upside_down, truth).precision < 0.2
+
+
+def test_a_footprint_is_a_closed_line_just_above_the_costmaps() -> None:
+    from geometry_msgs.msg import Point32, PolygonStamped
+
+    msg = PolygonStamped()
+    msg.header.frame_id = "odom"
+    msg.polygon.points = [Point32(x=1.0, y=0.0), Point32(x=0.0, y=1.0), Point32(x=-1.0, y=0.0)]
+    archetypes = convert.polygon(msg, convert.FOOTPRINT_COLOR)
+    assert frame(archetypes) == "odom"
+    (strip,) = values(archetypes[1].strips)
+    np.testing.assert_allclose(strip, [[1, 0, 0.03], [0, 1, 0.03], [-1, 0, 0.03], [1, 0, 0.03]], atol=1e-6)

@@ -14,21 +14,21 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from typing import Any
 
-from rclpy.node import Node
 from std_msgs.msg import Int64MultiArray
 
-from pppbot_common.ros.lockstep import create_timer, require_match
-from pppbot_common.ros.node_main import run_nodes
+from pppbot_lockstep.ros.node import StepNode
+from pppbot_lockstep.ros.runner import run_nodes
 
 
-class Ticker(Node):
-    def __init__(self, sleep_every: int, sleep_s: float, hang_at_s: float) -> None:
-        super().__init__("ls_ticker")
+class Ticker(StepNode):
+    def __init__(self, sleep_every: int, sleep_s: float, hang_at_s: float, **kwargs: Any) -> None:
+        super().__init__("ls_ticker", **kwargs)
         self.pub = self.create_publisher(Int64MultiArray, "/ls_test/tick", 100)
         self.count = 0
         self.sleep_every, self.sleep_s, self.hang_at_s = sleep_every, sleep_s, hang_at_s
-        create_timer(self, 0.05, self.tick)
+        self.step_timer(0.05, self.tick)
 
     def tick(self) -> None:
         now = self.get_clock().now().nanoseconds
@@ -41,12 +41,12 @@ class Ticker(Node):
         self.pub.publish(Int64MultiArray(data=[self.count, now]))
 
 
-class Relay(Node):
-    def __init__(self) -> None:
-        super().__init__("ls_relay")
+class Relay(StepNode):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("ls_relay", **kwargs)
         self.pub = self.create_publisher(Int64MultiArray, "/ls_test/relayed", 100)
-        require_match(self, self.pub)
-        require_match(self, self.create_subscription(Int64MultiArray, "/ls_test/tick", self.on_tick, 100))
+        self.port.require_match(self, self.pub)
+        self.create_subscription(Int64MultiArray, "/ls_test/tick", self.on_tick, 100, data_path=True)
 
     def on_tick(self, msg: Int64MultiArray) -> None:
         now = self.get_clock().now().nanoseconds
@@ -63,7 +63,8 @@ def main() -> int:
     parser.add_argument("--hang-at", type=float, default=0.0)
     args = parser.parse_args(argv[:ros])
     if args.role == "ticker":
-        return run_nodes([lambda: Ticker(args.sleep_every, args.sleep_s, args.hang_at)], "ls_ticker", argv[ros:])
+        return run_nodes([lambda port: Ticker(args.sleep_every, args.sleep_s, args.hang_at, port=port)], "ls_ticker",
+                         argv[ros:])
     return run_nodes([Relay], "ls_relay", argv[ros:])
 
 

@@ -23,10 +23,10 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
-from pppbot_common.ros.lockstep import STATUS_QOS, STATUS_TOPIC
 from pppbot_common.ros.messages import get_interface
 from pppbot_common.ros.qos import DEFAULT, LATCHED
 from pppbot_interfaces.msg import LockstepStatus
+from pppbot_lockstep.ros.participant import STATUS_QOS, STATUS_TOPIC
 
 #: how long a new launch listens for another simulation's /clock on its domain (a simulation
 #: publishes it at 100 Hz; discovering and matching its publisher takes one to three seconds)

@@ -37,17 +37,14 @@ from controller_manager_msgs.srv import (
     SwitchController,
     UnloadController,
 )
-from rclpy.node import Node
 
 from pppbot_common.ros.params import refuse_sets
 from pppbot_control.switching import ControllerInfo, ControllerStatus, Strictness, plan_switch
+from pppbot_lockstep.ros.node import StepNode
 
 NODE_NAME = "controller_manager"
-DIFF_DRIVE = "diff_drive_controller/DiffDriveController"
-JOINT_STATE_BROADCASTER = "joint_state_broadcaster/JointStateBroadcaster"
-#: the controller types pppbot hosts, and their base class as ros2_control's plugin registry names it
-HOSTED_TYPES = {DIFF_DRIVE: "controller_interface::ControllerInterface",
-                JOINT_STATE_BROADCASTER: "controller_interface::ControllerInterface"}
+#: the base class of every hosted type, as ros2_control's plugin registry names it
+BASE_CLASS = "controller_interface::ControllerInterface"
 
 
 class Switchable(Protocol):
@@ -79,16 +76,18 @@ class HardwareInterfaces:
     state: tuple[str, ...] = ()
 
 
-class ControllerManager(Node):
+class ControllerManager(StepNode):
     def __init__(self, controllers: Sequence[LoadedController], hardware: HardwareInterfaces,
-                 declared: Mapping[str, str] | None = None, **kwargs: Any) -> None:
-        """``declared``: every controller the parameters file names (name → type), hosted or not."""
+                 declared: Mapping[str, str] | None = None, hostable: Sequence[str] = (), **kwargs: Any) -> None:
+        """``declared``: every controller the parameters file names (name → type), hosted or not;
+        ``hostable``: the types the process can host."""
         super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **kwargs)
         refuse_sets(self, "the controllers are loaded from the robot's controllers file at start-up; switch them "
                           "with switch_controller")
         self.controllers = {c.name: c for c in controllers}
         self.hardware = hardware
         self.declared = dict(declared or {})
+        self.hostable = tuple(hostable)
         self.create_service(ListControllers, "~/list_controllers", self._list_controllers)
         self.create_service(ListHardwareInterfaces, "~/list_hardware_interfaces", self._list_hardware_interfaces)
         self.create_service(SwitchController, "~/switch_controller", self._switch_controller)
@@ -161,7 +160,7 @@ class ControllerManager(Node):
             reason = f"no '{name}.type' parameter declares controller '{name}'"
         else:
             reason = (f"controller '{name}' of type {kind} is not one pppbot hosts "
-                      f"({', '.join(HOSTED_TYPES)})")
+                      f"({', '.join(self.hostable) or 'none'})")
         self.get_logger().warning(f"load_controller {name}: {reason}")
         response.ok = False
         return response
@@ -185,6 +184,6 @@ class ControllerManager(Node):
 
     def _list_controller_types(self, request: ListControllerTypes.Request,
                                response: ListControllerTypes.Response) -> ListControllerTypes.Response:
-        response.types = list(HOSTED_TYPES)
-        response.base_classes = list(HOSTED_TYPES.values())
+        response.types = list(self.hostable)
+        response.base_classes = [BASE_CLASS] * len(self.hostable)
         return response

@@ -5,7 +5,7 @@ default) or, with ``use_stamped_vel: false`` as ppp_bot's file sets it,
 ``~/cmd_vel_unstamped`` (Twist, what ppp_bot's twist_mux feeds it). A stamped command
 older than ``cmd_vel_timeout`` when it arrives is dropped with a warning (a zero stamp
 counts as now), as Jazzy's does. It limits the command per axis (Jazzy's signs:
-:mod:`pppbot_control.limits`); integrates odometry from the wheels (positions, or
+:mod:`pppbot_common.limits`); integrates odometry from the wheels (positions, or
 velocities, or the command in open loop) and publishes it on ``~/odom`` and TF ``odom →
 base_link``. With no command for ``cmd_vel_timeout`` it brakes to zero within its
 deceleration limits. A parameter set at run time takes effect without resetting the
@@ -34,21 +34,21 @@ from typing import Protocol
 from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import TransformStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry as OdometryMsg
-from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
+from pppbot_common.kinematics import DiffDriveGeometry, Odometry
+from pppbot_common.limits import AxisLimits, SpeedLimiter
 from pppbot_common.params import ParameterError, check_finite_range, param, parameter_fields, ros_name
-from pppbot_common.ros.lockstep import count_deliveries, create_timer, destroy_timer
-from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_common.se2 import quaternion_from_yaw
-from pppbot_control.kinematics import DiffDriveGeometry, Odometry
-from pppbot_control.limits import AxisLimits, SpeedLimiter
+from pppbot_lockstep.ros.node import StepNode
+from pppbot_lockstep.ros.runner import Warnings, guarded, run_node
 
 NAN = math.nan
 WARN_PERIOD_S = 5.0
+NODE_NAME = "diff_drive_base_controller"
 
 
 @dataclass(frozen=True)
@@ -166,23 +166,25 @@ class HostedWheels(Protocol):
         """Velocity targets (rad/s) by joint name."""
 
 
-class DiffDriveController(Node):
+class DiffDriveController(StepNode):
     def __init__(self, hosted: HostedWheels | None = None, **kwargs: object) -> None:
-        super().__init__("diff_drive_base_controller", **kwargs)  # type: ignore[arg-type]
+        super().__init__(NODE_NAME, **kwargs)  # type: ignore[arg-type]
         self.params = declare_parameters(self, DiffDriveParameters)
         self._configure(self.params)
         self.hosted = hosted
         self.active = True  # controller_manager's state: inactive ignores commands and is not updated
+        # In lockstep a step waits for the commands sent before it (a command may never come).
         if self.params.use_stamped_vel:
             self.cmd_sub = self.create_subscription(TwistStamped, "~/cmd_vel",
-                                                    guarded(self, self.on_cmd_vel, "TwistStamped"), 10)
+                                                    guarded(self, self.on_cmd_vel, "TwistStamped"), 10,
+                                                    data_path=True, needs_publisher=False)
         else:
             self.cmd_sub = self.create_subscription(Twist, "~/cmd_vel_unstamped",
-                                                    guarded(self, self.on_cmd_vel_unstamped, "Twist"), 10)
-        count_deliveries(self, self.cmd_sub)  # in lockstep a step waits for the commands sent before it
+                                                    guarded(self, self.on_cmd_vel_unstamped, "Twist"), 10,
+                                                    data_path=True, needs_publisher=False)
         if hosted is None:
-            count_deliveries(self, self.create_subscription(JointState, "/joint_states",
-                                                            guarded(self, self.on_joint_states, "JointState"), 10))
+            self.create_subscription(JointState, "/joint_states", guarded(self, self.on_joint_states, "JointState"),
+                                     10, data_path=True, needs_publisher=False)
             self.command_pub = self.create_publisher(JointState, "/joint_commands", 10)
         self.odom_pub = self.create_publisher(OdometryMsg, "~/odom", 10)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
@@ -196,7 +198,7 @@ class DiffDriveController(Node):
         self._wheels: tuple[float, float, float, float] | None = None  # left pos, right pos, left vel, right vel
         self._wheels_stamp_ns = 0  # when the wheels were measured (the joint states' stamp)
         self._odom_stamp_ns = -1  # the stamp of the odometry last published
-        self.timer = None if hosted else create_timer(self, 1.0 / self.params.update_rate, self.update)
+        self.timer = None if hosted else self.step_timer(1.0 / self.params.update_rate, self.update)
         # The command topic's type is chosen once (ros2_control reads use_stamped_vel at configure).
         live = {ros_name(f) for f in parameter_fields(DiffDriveParameters)} - {"use_stamped_vel"}
         fixed_parameters(self, lambda: self.params, live, self._apply)
@@ -249,8 +251,8 @@ class DiffDriveController(Node):
         self.params = params
         self._configure(params)
         if rate_changed and self.timer is not None:
-            destroy_timer(self, self.timer)
-            self.timer = create_timer(self, 1.0 / params.update_rate, self.update)
+            self.destroy_step_timer(self.timer)
+            self.timer = self.step_timer(1.0 / params.update_rate, self.update)
 
     # ------------------------------------------------------------------ inputs
 

@@ -17,14 +17,14 @@ import sys
 import threading
 from dataclasses import dataclass
 
-from rclpy.node import Node
 from sensor_msgs.msg import Joy
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.node_main import run_nodes
 from pppbot_common.ros.params import declare_parameters
 from pppbot_control.joystick import JoySettings, JoyState
 from pppbot_control.joystick_device import DeviceSpec, JoystickLoop
+from pppbot_lockstep.ros.node import StepNode
+from pppbot_lockstep.ros.runner import run_nodes
 
 #: Wall seconds between looks for a missing device.
 RETRY_S = 1.0
@@ -64,7 +64,7 @@ class JoyParameters:
         return DeviceSpec(dev=self.dev, device_id=self.device_id, device_name=self.device_name)
 
 
-class JoyNode(Node):
+class JoyNode(StepNode):
     def __init__(self, retry_s: float = RETRY_S, **kwargs: object) -> None:
         super().__init__("joy_node", **kwargs)  # type: ignore[arg-type]
         self.params = declare_parameters(self, JoyParameters)

@@ -15,13 +15,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from geometry_msgs.msg import Twist, TwistStamped
-from rclpy.node import Node
 from sensor_msgs.msg import Joy
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.node_main import guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_control.teleop_joy import ANGULAR_FIELDS, LINEAR_FIELDS, TeleopJoyConfig, TeleopTwistJoy, TwistCommand
+from pppbot_lockstep.ros.node import StepNode
+from pppbot_lockstep.ros.runner import guarded, run_node
 
 AXIS = "joystick axis for {}; -1 = unused"
 SCALE = "{} per unit of axis at {} speed"
@@ -82,7 +82,7 @@ class TeleopTwistJoyParameters:
             require_enable_button=self.require_enable_button, inverted_reverse=self.inverted_reverse)
 
 
-class TeleopTwistJoyNode(Node):
+class TeleopTwistJoyNode(StepNode):
     def __init__(self, **kwargs: object) -> None:
         super().__init__("teleop_twist_joy_node", **kwargs)  # type: ignore[arg-type]
         self.params = declare_parameters(self, TeleopTwistJoyParameters)

@@ -25,10 +25,10 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.node_main import run_node
 from pppbot_common.ros.params import declare_parameters
 from pppbot_control.teleop import HELP, TeleopState
 from pppbot_control.teleop import Twist as CoreTwist
+from pppbot_lockstep.ros.runner import run_node
 
 STATUS_LINES_PER_HELP = 14
 SUBSCRIBER_WAIT_S = 5.0

@@ -15,10 +15,10 @@ from rclpy.node import Node
 from std_msgs.msg import Bool
 
 from pppbot_common.params import ParameterError
-from pppbot_common.ros.lockstep import count_deliveries, create_timer, require_match
-from pppbot_common.ros.node_main import guarded, run_node
 from pppbot_common.ros.params import refuse_sets
 from pppbot_control.mux import MuxConfigError, TwistMux, parse_config
+from pppbot_lockstep.ros.node import StepNode
+from pppbot_lockstep.ros.runner import guarded, run_node
 
 #: How often input timeouts are checked. In lockstep the check fires at the first sync time
 #: after its deadline (a scan's, 10 Hz by default, or another participant's timer) without
@@ -36,7 +36,7 @@ def grouped(node: Node, prefix: str) -> dict[str, dict[str, Any]]:
     return out
 
 
-class TwistMuxNode(Node):
+class TwistMuxNode(StepNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("twist_mux", allow_undeclared_parameters=True,
                          automatically_declare_parameters_from_overrides=True, **kwargs)
@@ -54,13 +54,14 @@ class TwistMuxNode(Node):
         self.mux = TwistMux(inputs, locks)
         self.msg_type = TwistStamped if self.stamped else Twist
         self.output = self.create_publisher(self.msg_type, "cmd_vel_out", 10)
-        require_match(self, self.output)
-        for spec in inputs:
-            count_deliveries(self, self.create_subscription(self.msg_type, spec.topic,
-                                                            self._input_callback(spec.name), 10))
+        self.port.require_match(self, self.output)
+        for spec in inputs:  # inputs and locks may have no publisher (no teleop): none is waited for
+            self.create_subscription(self.msg_type, spec.topic, self._input_callback(spec.name), 10,
+                                     data_path=True, needs_publisher=False)
         for lock in locks:
-            count_deliveries(self, self.create_subscription(Bool, lock.topic, self._lock_callback(lock.name), 10))
-        create_timer(self, 1.0 / CHECK_RATE_HZ, self.check, wakes=False)
+            self.create_subscription(Bool, lock.topic, self._lock_callback(lock.name), 10, data_path=True,
+                                     needs_publisher=False)
+        self.step_timer(1.0 / CHECK_RATE_HZ, self.check, wakes=False)
         summary = ", ".join(f"{s.name} ({s.topic}, priority {s.priority}, {s.timeout_s:g} s)" for s in inputs)
         locked = f"; locks: {', '.join(lock.name for lock in locks)}" if locks else ""
         self.get_logger().info(f"inputs: {summary}{locked}")

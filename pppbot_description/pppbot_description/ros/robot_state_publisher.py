@@ -17,22 +17,20 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from geometry_msgs.msg import TransformStamped
-from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.lockstep import count_deliveries
-from pppbot_common.ros.lockstep_counting import publish_aside
-from pppbot_common.ros.node_main import guarded, run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.qos import LATCHED
 from pppbot_description.errors import DescriptionError
 from pppbot_description.kinematics import FrameTransform, KinematicTree
 from pppbot_description.urdf_model import RobotModel, parse_urdf
 from pppbot_description.xacro_model import read_robot_description
+from pppbot_lockstep.ros.node import StepNode
+from pppbot_lockstep.ros.runner import guarded, run_node
 
 #: What tf2's StaticTransformBroadcaster uses: reliable, transient local, depth 1.
 TF_STATIC_QOS = LATCHED
@@ -94,18 +92,19 @@ def to_msg(t: FrameTransform, stamp: Time) -> TransformStamped:
     return msg
 
 
-class RobotStatePublisher(Node):
+class RobotStatePublisher(StepNode):
     def __init__(self, **kwargs: object) -> None:
         super().__init__("robot_state_publisher", **kwargs)  # type: ignore[arg-type]
         self.params = declare_parameters(self, RspParameters)
         self.description_pub = self.create_publisher(String, "robot_description", LATCHED)
         self.tf_static_pub = self.create_publisher(TFMessage, "/tf_static", TF_STATIC_QOS)
-        self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
+        # Wheel transforms: for RViz; nobody in lockstep reacts to them (no extra round).
+        self.tf_pub = self.create_publisher(TFMessage, "/tf", 100, aside=True)
         self._last_published: Time | None = None
         self._load(self.params)
         # In lockstep (launch_sim lockstep:=true) its wheel transforms are part of each step's /tf.
-        count_deliveries(self, self.create_subscription(JointState, "joint_states",
-                                                        guarded(self, self.on_joint_states, "JointState"), 10))
+        self.create_subscription(JointState, "joint_states", guarded(self, self.on_joint_states, "JointState"), 10,
+                                 data_path=True, needs_publisher=False)
         on_valid_update(self, lambda: self.params, self._load)
 
     def _load(self, params: RspParameters) -> None:
@@ -145,8 +144,7 @@ class RobotStatePublisher(Node):
             return
         transforms = self.tree.moving_transforms(positions)
         if transforms:
-            # Wheel transforms: for RViz, nobody in lockstep reacts to them (no extra round).
-            publish_aside(self.tf_pub, TFMessage(transforms=[to_msg(t, stamp) for t in transforms]))
+            self.tf_pub.publish(TFMessage(transforms=[to_msg(t, stamp) for t in transforms]))
             self._last_published = stamp
 
     def _due(self, stamp: Time) -> bool:

@@ -15,10 +15,11 @@ from typing import Any, Protocol
 from action_msgs.msg import GoalStatus
 
 from pppbot_common.maps import OccupancyGrid
-from pppbot_common.ros.goals import Arrival, hold_until
 from pppbot_common.se2 import se2_compose, se2_inverse
 from pppbot_eval.driver import RouteDriver
 from pppbot_eval.scenarios import GoalAnswer, GoalRecord, Recording, shortest_path_m
+from pppbot_lockstep.ros.goals import Arrival, hold_until
+from pppbot_lockstep.ros.port import StepPort
 
 #: The evaluation ticks at 20 Hz of sim time, a teleop's or a controller's rate.
 TICK_S = 0.05
@@ -35,6 +36,11 @@ class EvalActions(Protocol):
     truth_pose: tuple[float, float, float] | None
     amcl_poses: int
     driving: bool
+
+    @property
+    def port(self) -> StepPort:
+        """The node's step port (the run's lockstep participant, or the free-running one)."""
+        ...
 
     def command(self, linear_mps: float, angular_radps: float) -> None: ...
     def send_initial_pose(self, x: float, y: float, yaw: float, covariance: list[float]) -> None: ...
@@ -199,7 +205,7 @@ class NavigateGoals:
             if self._handle is None or not self._handle.accepted:
                 self._record(node, GoalAnswer.REJECTED)
                 return
-            self._result = Arrival(self._handle.get_result_async(), lambda: node.sim_now_s)
+            self._result = Arrival(self._handle.get_result_async(), lambda: node.sim_now_s, node.port)
         if self._result.done():
             response = self._result.result()
             answer = ANSWERS.get(response.status, GoalAnswer.UNKNOWN)
@@ -212,7 +218,7 @@ class NavigateGoals:
                 self._record(node, answer, int(response.result.error_code), message)
         elif not self._canceled and elapsed > self._limit_s:
             self._canceled = True
-            hold_until(self._handle.cancel_goal_async())
+            hold_until(node.port, self._handle.cancel_goal_async())
         elif self._canceled and elapsed > self._limit_s + self.limits.base_s:
             self._record(node, GoalAnswer.TIMEOUT, error_msg=f"no result within {self._limit_s:.0f} sim seconds, "
                                                     f"nor {self.limits.base_s:.0f} s after the cancel")
@@ -224,7 +230,8 @@ class NavigateGoals:
         x, y, yaw = (float(v) for v in se2_compose(self.world_to_map, goal))
         self._start_s = node.sim_now_s or 0.0
         self._canceled = False
-        self._sent = Arrival(hold_until(node.send_goal(x, y, yaw)), lambda: node.sim_now_s)
+        self._sent = Arrival(hold_until(node.port, node.send_goal(x, y, yaw)), lambda: node.sim_now_s,
+                             node.port)
 
     def _record(self, node: EvalActions, status: GoalAnswer, error_code: int = 0, error_msg: str = "") -> None:
         node.recording.goals.append(GoalRecord(

@@ -27,8 +27,6 @@ from slam_toolbox.srv import SerializePoseGraph
 from std_srvs.srv import Empty
 from tf2_msgs.msg import TFMessage
 
-from pppbot_common.ros.action_client import ActionClient
-from pppbot_common.ros.lockstep import Participant, create_timer, require_match
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.planar import planar_transforms, stamp_seconds
 from pppbot_common.ros.qos import DEFAULT, LATCHED
@@ -36,6 +34,10 @@ from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
 from pppbot_common.upright import UprightWatch
 from pppbot_eval.ros.behaviors import TICK_S, Behavior
 from pppbot_eval.scenarios import Estimate, Recording
+from pppbot_lockstep.ros.action_client import ActionClient
+from pppbot_lockstep.ros.node import StepExecutor, StepNode
+from pppbot_lockstep.ros.participant import Participant
+from pppbot_lockstep.ros.port import FREE_RUNNING, StepPort
 
 #: The lockstep participant's name, for the launch's list of whom time waits for.
 PARTICIPANT = "pppbot_eval"
@@ -49,16 +51,21 @@ class EvalNode:
                  localizes: bool = False, navigates: bool = False, lockstep: bool = False) -> None:
         self.context = rclpy.Context()
         rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node("pppbot_eval", context=self.context, start_parameter_services=False,
-                                      parameter_overrides=[Parameter("use_sim_time", value=True)])
+        self.participant = Participant(PARTICIPANT, rclpy.create_node(
+            f"_lockstep_{PARTICIPANT}", context=self.context, start_parameter_services=False,
+            enable_rosout=False)) if lockstep else None
+        port = self.participant if self.participant is not None else FREE_RUNNING
+        self.node = StepNode("pppbot_eval", port=port, context=self.context, start_parameter_services=False,
+                             parameter_overrides=[Parameter("use_sim_time", value=True)])
         handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-        self.executor = EventsExecutor(context=self.context)
+        self.executor = StepExecutor(self.participant, context=self.context) if self.participant is not None \
+            else EventsExecutor(context=self.context)
         for sig, handler in handlers.items():  # the executor installs its own: the run's own handlers win
             if callable(handler):
                 signal.signal(sig, handler)
         self.executor.add_node(self.node)
-        self.participant = Participant.for_node(PARTICIPANT, self.node) if lockstep else None
         if self.participant is not None:
+            self.executor.add_node(self.participant.node)
             self.participant.start(self.executor, [self.node])
         self.estimate = estimate
         self.recording = recording
@@ -76,23 +83,23 @@ class EvalNode:
         node = self.node
         self.cmd_pub = node.create_publisher(Twist, "/cmd_vel_teleop", DEFAULT)
         if not navigates:
-            require_match(node, self.cmd_pub)  # the route driver's commands
-        require_match(node, node.create_subscription(Odometry, "/ground_truth/odom", self._on_truth, 100))
+            port.require_match(node, self.cmd_pub)  # the route driver's commands
+        node.create_subscription(Odometry, "/ground_truth/odom", self._on_truth, 100, data_path=True)
         if estimate.topic is not None:
-            require_match(node, node.create_subscription(Odometry, estimate.topic, self._on_estimate, 100))
+            node.create_subscription(Odometry, estimate.topic, self._on_estimate, 100, data_path=True)
         else:
-            require_match(node, node.create_subscription(TFMessage, "/tf", self._on_tf, 200))
+            node.create_subscription(TFMessage, "/tf", self._on_tf, 200, data_path=True)
             node.create_subscription(TFMessage, "/tf_static", self._keep_edges, LATCHED)
-        require_match(node, node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100))
+        node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100, data_path=True)
         if wants_map:
             node.create_subscription(OccupancyGridMsg, "/map", self._on_map, LATCHED)
             node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 10)
         self.amcl_poses = 0
         if localizes:
             self.initial_pose_pub = node.create_publisher(PoseWithCovarianceStamped, "/initialpose", DEFAULT)
-            require_match(node, self.initial_pose_pub)
-            require_match(node, node.create_subscription(PoseWithCovarianceStamped, "/amcl_pose", self._on_amcl_pose,
-                                                         LATCHED))
+            port.require_match(node, self.initial_pose_pub)
+            node.create_subscription(PoseWithCovarianceStamped, "/amcl_pose", self._on_amcl_pose, LATCHED,
+                                     data_path=True)
             self.global_client = node.create_client(Empty, "/reinitialize_global_localization")
         self._recoveries = 0  # of the current navigation goal, from its feedback
         #: Servers the run needs before it starts, by name (a request sent before its server is
@@ -106,10 +113,13 @@ class EvalNode:
         if wants_map:
             self.serialize_client = node.create_client(SerializePoseGraph, "/slam_toolbox/serialize_map")
             self.servers["the serialize_map service"] = self.serialize_client.service_is_ready
-        if self.participant is not None:
-            for what, ready in self.servers.items():
-                self.participant.require_when(what, ready)
-        create_timer(node, TICK_S, self._tick)
+        for what, ready in self.servers.items():
+            port.require_when(what, ready)
+        node.step_timer(TICK_S, self._tick)
+
+    @property
+    def port(self) -> StepPort:
+        return self.node.port
 
     @property
     def driving(self) -> bool:
@@ -245,9 +255,10 @@ class EvalNode:
     def close(self) -> None:
         if self.participant is not None and self.context.ok():
             self.participant.leave()
-        Participant.clear_current()
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
+        if self.participant is not None:
+            self.participant.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
 
 

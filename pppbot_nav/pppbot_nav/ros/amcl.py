@@ -41,15 +41,14 @@ from std_srvs.srv import Empty
 from tf2_msgs.msg import TFMessage
 
 from pppbot_common.params import ParameterError, check_finite_range, param, parameter_fields, ros_name
-from pppbot_common.ros.lifecycle import ManagedNode
-from pppbot_common.ros.lockstep import at_step, require, require_match
 from pppbot_common.ros.maps import grid_from_message
-from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_common.ros.planar import transform_message
 from pppbot_common.ros.qos import LATCHED, SENSOR
-from pppbot_common.ros.scan_odometry import ScanOdometry
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
+from pppbot_lockstep.ros.lifecycle import ManagedNode
+from pppbot_lockstep.ros.runner import Warnings, guarded, run_node
+from pppbot_lockstep.ros.scan_odometry import ScanOdometry
 from pppbot_nav.amcl.filter import FilterSettings
 from pppbot_nav.amcl.laser import LaserModelType, LaserSettings, laser_scans
 from pppbot_nav.amcl.localizer import (
@@ -195,13 +194,13 @@ class Amcl(ManagedNode):
         self._no_pose = Warnings(self, NO_POSE_WARN_PERIOD_S)
         self.scans = ScanOdometry(self, p.odom_frame_id, p.base_frame_id, self._on_scan_with_odometry, self._warn,
                                   p.tf_buffer_duration)
-        self._map_arrived = require(self, f"a map on '{p.map_topic}'")
+        self._map_arrived = self.port.require(f"a map on '{p.map_topic}'")
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
         self.cloud_pub = self.create_publisher(ParticleCloud, "particle_cloud", SENSOR)
         self.tf_pub = self.create_publisher(TFMessage, "/tf", 100)
         self.create_subscription(OccupancyGridMsg, p.map_topic, guarded(self, self._on_map, "OccupancyGrid"), LATCHED)
-        on_scan = guarded(self, at_step(self, self.scans.add), "LaserScan")
-        require_match(self, self.create_subscription(LaserScan, p.scan_topic, on_scan, SENSOR))
+        self.create_subscription(LaserScan, p.scan_topic, guarded(self, self.scans.add, "LaserScan"), SENSOR,
+                                 data_path=True, at_step=True)
         self.create_subscription(PoseWithCovarianceStamped, "initialpose",
                                  guarded(self, self._on_initial_pose, "PoseWithCovarianceStamped"), 10)
         self.create_service(SetInitialPose, "set_initial_pose", self._set_initial_pose)

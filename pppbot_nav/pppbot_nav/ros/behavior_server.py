@@ -25,6 +25,7 @@ puts the footprint circle on an obstacle. Past ``time_allowance``: TIMEOUT. No r
 """
 from __future__ import annotations
 
+import functools
 import math
 import sys
 from collections.abc import Callable
@@ -39,15 +40,14 @@ from rclpy.duration import Duration
 from std_msgs.msg import Empty
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.goals import GoalEnd, GoalServer, stopped_end
-from pppbot_common.ros.lifecycle import ManagedNode
-from pppbot_common.ros.lockstep import count_deliveries, create_timer, require_match
 from pppbot_common.ros.maps import grid_from_message
-from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_common.ros.qos import LATCHED
-from pppbot_common.ros.tf_listener import TfListener
 from pppbot_common.transforms import TransformError
+from pppbot_lockstep.ros.goals import GoalEnd, GoalServer, stopped_end
+from pppbot_lockstep.ros.lifecycle import ManagedNode
+from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
+from pppbot_lockstep.ros.tf_listener import TfListener
 from pppbot_nav import behaviors
 from pppbot_nav.behaviors import Behavior, Outcome
 from pppbot_nav.ros.plugins import plugin_type
@@ -137,22 +137,23 @@ class BehaviorServer(ManagedNode):
         self._warn = Warnings(self)
         self.tf = TfListener(self, self._warn).buffer
         self.cmd_pub = self.create_publisher(Twist, "cmd_vel", 1)
-        require_match(self, self.cmd_pub)
+        self.port.require_match(self, self.cmd_pub)
         self._costmap: OccupancyGridMsg | None = None
-        count_deliveries(self, self.create_subscription(
-            OccupancyGridMsg, p.local_costmap_topic, guarded(self, self._on_costmap, "OccupancyGrid"), LATCHED))
+        self.create_subscription(OccupancyGridMsg, p.local_costmap_topic,
+                                 guarded(self, self._on_costmap, "OccupancyGrid"), LATCHED, data_path=True,
+                                 needs_publisher=False)
         self._teleop = Twist()
-        count_deliveries(self, self.create_subscription(
-            Twist, p.cmd_vel_teleop, guarded(self, self._on_teleop, "Twist"), 10))
-        count_deliveries(self, self.create_subscription(
-            Empty, "preempt_teleop", guarded(self, self._on_preempt, "Empty"), 10))
+        self.create_subscription(Twist, p.cmd_vel_teleop, guarded(self, self._on_teleop, "Twist"), 10, data_path=True,
+                                 needs_publisher=False)
+        self.create_subscription(Empty, "preempt_teleop", guarded(self, self._on_preempt, "Empty"), 10,
+                                 data_path=True, needs_publisher=False)
         self._running: _Running | None = None
         #: Each served name's behaviour (a key of BEHAVIORS), from its <name>.plugin.
         self.kinds = {name: BEHAVIOR_TYPES[plugin_type(self, name, BEHAVIOR_TYPES, DEFAULT_BEHAVIOR_TYPES.get(name))]
                       for name in p.behavior_plugins}
         self.servers = {name: GoalServer(self, BEHAVIORS[kind], name, self._starter(name), accept=self.taking_goals)
                         for name, kind in self.kinds.items()}
-        self.timer = create_timer(self, 1.0 / p.cycle_frequency, self._cycle)
+        self.timer = self.step_timer(1.0 / p.cycle_frequency, self._cycle)
         self.timer.cancel()
         self.get_logger().info(f"behaviours: {', '.join(p.behavior_plugins)} once active")
 
@@ -331,7 +332,7 @@ class BehaviorServer(ManagedNode):
             fb.time_left = Duration(seconds=core.remaining).to_msg()
         else:
             fb.current_teleop_duration = Duration(seconds=max(0.0, now - running.start_s)).to_msg()
-        running.handle.publish_feedback(fb)
+        self.port.send(functools.partial(running.handle.publish_feedback, fb))
 
 
 def main(args: list[str] | None = None) -> int:

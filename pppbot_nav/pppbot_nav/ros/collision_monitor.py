@@ -42,14 +42,13 @@ from pppbot_common.params import (
     parameter_fields,
     ros_name,
 )
-from pppbot_common.ros.lifecycle import ManagedNode
-from pppbot_common.ros.lockstep import at_step, count_deliveries, require_match
-from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
 from pppbot_common.ros.params import refuse_sets
 from pppbot_common.ros.planar import stamp_seconds
 from pppbot_common.ros.qos import DEFAULT, LATCHED, SENSOR
-from pppbot_common.ros.tf_listener import TfListener
 from pppbot_common.transforms import Pose2D, TransformError, compose, inverse
+from pppbot_lockstep.ros.lifecycle import ManagedNode
+from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
+from pppbot_lockstep.ros.tf_listener import TfListener
 from pppbot_nav.collision_monitor import (
     ACTION_NAMES,
     INVALID_SOURCE,
@@ -279,10 +278,10 @@ class CollisionMonitor(ManagedNode):
         self.config = p = config
         self.msg_type = TwistStamped if p.node.enable_stamped_cmd_vel else Twist
         self.output = self.create_publisher(self.msg_type, p.node.cmd_vel_out_topic, 1)
-        require_match(self, self.output)
+        self.port.require_match(self, self.output)
         commands = self.create_subscription(self.msg_type, p.node.cmd_vel_in_topic,
-                                            at_step(self, guarded(self, self._on_command, "command")), 1)
-        count_deliveries(self, commands)
+                                            guarded(self, self._on_command, "command"), 1, data_path=True,
+                                            at_step=True, needs_publisher=False)
         self._endpoints = [self.output, commands]
         self.state_pub = None
         if p.node.state_topic:
@@ -298,8 +297,7 @@ class CollisionMonitor(ManagedNode):
             self.latest[name] = None
             if source.enabled:
                 on_scan = guarded(self, functools.partial(self._on_scan, name), "LaserScan")
-                scans = self.create_subscription(LaserScan, source.topic, on_scan, SENSOR)
-                require_match(self, scans)
+                scans = self.create_subscription(LaserScan, source.topic, on_scan, SENSOR, data_path=True)
                 self._endpoints.append(scans)
 
     # ---------------------------------------------------------------- inputs

@@ -25,6 +25,7 @@ refused with the reason.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import sys
 from dataclasses import dataclass
@@ -37,13 +38,12 @@ from nav_msgs.msg import Odometry, Path
 from rclpy.action.server import ServerGoalHandle
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.goals import GoalEnd, GoalServer, Stopped, check_running, stopped_end
-from pppbot_common.ros.lifecycle import ManagedNode
-from pppbot_common.ros.lockstep import create_timer, require_match
-from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
 from pppbot_common.ros.params import LiveParameters, declare_parameters, serve_live_parameters
 from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_common.transforms import TransformError, compose
+from pppbot_lockstep.ros.goals import GoalEnd, GoalServer, Stopped, check_running, stopped_end
+from pppbot_lockstep.ros.lifecycle import ManagedNode
+from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
 from pppbot_nav.controller.follow import FollowEnd, Follower
 from pppbot_nav.controller.plugin_settings import (
     CONTROLLER_TYPES,
@@ -144,7 +144,7 @@ class ControllerServer(ManagedNode):
         super().__init__("controller_server", **kwargs)
         self.params = p = declare_parameters(self, ControllerServerParameters)
         self.parameter_notes = NO_EFFECT
-        self.costmap_node = CostmapNode("local_costmap")
+        self.costmap_node = CostmapNode("local_costmap", port=self.port)
         self.composed_nodes = [self.costmap_node]
         self.plugins: dict[str, Plugin] = {}
         self.controllers = self._load(p.controller_plugins, CONTROLLER_TYPES, DEFAULT_CONTROLLER_TYPES)
@@ -155,13 +155,12 @@ class ControllerServer(ManagedNode):
         self._speed = (0.0, 0.0)
         self._active: _Following | None = None
         self.cmd_pub = self.create_publisher(Twist, "cmd_vel", 1)
-        require_match(self, self.cmd_pub)
+        self.port.require_match(self, self.cmd_pub)
         self.local_plan_pub = self.create_publisher(Path, "local_plan", 1)
-        require_match(self, self.create_subscription(Odometry, p.odom_topic, guarded(self, self._on_odom, "Odometry"),
-                                                     10))
+        self.create_subscription(Odometry, p.odom_topic, guarded(self, self._on_odom, "Odometry"), 10, data_path=True)
         self.server = GoalServer(self, FollowPath, "follow_path", self._on_goal, accept=self.taking_goals)
         # The control loop runs while a path is followed (an idle controller makes no sync times).
-        self.timer = create_timer(self, 1.0 / p.controller_frequency, self._control)
+        self.timer = self.step_timer(1.0 / p.controller_frequency, self._control)
         self.timer.cancel()
         serve_live_parameters(self, [LiveParameters("", lambda: self.params, self._set_params, LIVE_SERVER),
                                      *live_plugin_parameters(self.plugins, self._set_plugin_params, LIVE_PLUGINS)])
@@ -196,8 +195,8 @@ class ControllerServer(ManagedNode):
             self._active.follower.failure_tolerance_s = new.failure_tolerance
         if new.controller_frequency != old.controller_frequency:
             running = not self.timer.is_canceled()
-            self.destroy_timer(self.timer)
-            self.timer = create_timer(self, 1.0 / new.controller_frequency, self._control)
+            self.destroy_step_timer(self.timer)
+            self.timer = self.step_timer(1.0 / new.controller_frequency, self._control)
             if not running:
                 self.timer.cancel()
 
@@ -351,7 +350,7 @@ class ControllerServer(ManagedNode):
         assert pose is not None
         feedback.distance_to_goal = float(math.hypot(following.goal[0] - pose[0], following.goal[1] - pose[1]))
         feedback.speed = float(abs(self._speed[0]))
-        following.handle.publish_feedback(feedback)
+        self.port.send(functools.partial(following.handle.publish_feedback, feedback))
         return None
 
 def _pick(plugins: dict[str, Any], name: str, what: str) -> Any:

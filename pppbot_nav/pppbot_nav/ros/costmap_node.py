@@ -3,7 +3,9 @@
 The node is named after its costmap (``global_costmap`` or ``local_costmap``) in a namespace of
 the same name, as Nav2's, so its parameters sit under ``global_costmap: global_costmap:
 ros__parameters:`` in ``config/nav2_params.yaml`` and it publishes ``/global_costmap/costmap``
-(nav_msgs/OccupancyGrid, Nav2's cost translation, transient local) and serves
+(nav_msgs/OccupancyGrid, Nav2's cost translation, transient local) and, while someone listens,
+``/global_costmap/published_footprint`` (geometry_msgs/PolygonStamped, the padded footprint at
+the robot's pose), and serves
 ``/global_costmap/clear_entirely_global_costmap`` (nav2_msgs/ClearEntireCostmap).
 
 Layers (``plugins``, applied in order) are Nav2's plugin types, each chosen by its
@@ -36,22 +38,23 @@ from functools import partial
 from typing import Any
 
 import numpy as np
+from geometry_msgs.msg import Point32, PolygonStamped
 from nav2_msgs.msg import Costmap as Nav2Costmap
 from nav2_msgs.srv import ClearCostmapAroundRobot, ClearCostmapExceptRegion, ClearEntireCostmap, GetCostmap
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
-from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.lockstep import at_step, create_timer, require, require_match
 from pppbot_common.ros.maps import grid_from_message, grid_message
-from pppbot_common.ros.node_main import Warnings, guarded
 from pppbot_common.ros.params import LiveParameters, declare_parameters, serve_live_parameters
 from pppbot_common.ros.planar import stamp_seconds
-from pppbot_common.ros.qos import LATCHED, MAP_VOLATILE, SENSOR
-from pppbot_common.ros.tf_listener import TfListener
+from pppbot_common.ros.qos import DEFAULT, LATCHED, MAP_VOLATILE, SENSOR
 from pppbot_common.transforms import TransformError
+from pppbot_lockstep.ros.node import StepNode
+from pppbot_lockstep.ros.runner import Warnings, guarded
+from pppbot_lockstep.ros.tf_listener import TfListener
 from pppbot_nav.costmap.costs import NO_INFORMATION
+from pppbot_nav.costmap.footprint import circle_footprint, placed
 from pppbot_nav.costmap.grid import Costmap
 from pppbot_nav.costmap.layer_settings import (
     DEFAULT_TYPES,
@@ -144,7 +147,7 @@ def costmap_message(costmap: Costmap, stamp: Any) -> Nav2Costmap:
     return msg
 
 
-class CostmapNode(Node):
+class CostmapNode(StepNode):
     def __init__(self, name: str, **kwargs: Any) -> None:
         super().__init__(name, namespace=name, **kwargs)
         self.costmap_name = name
@@ -178,22 +181,23 @@ class CostmapNode(Node):
         #: The message of the costmap last published: an unchanged costmap is sent again restamped.
         self._message: tuple[Costmap, OccupancyGridMsg] | None = None
         self.pub = self.create_publisher(OccupancyGridMsg, "costmap", LATCHED)
+        self.footprint_pub = self.create_publisher(PolygonStamped, "published_footprint", DEFAULT)
         self._map_arrived: Any = None
         for plugin in self.plugins.values():
             if plugin.type_name == STATIC:
                 topic = plugin.params.map_topic or p.map_topic
-                self._map_arrived = require(self, f"a map on '{topic}'")
+                self._map_arrived = self.port.require(f"a map on '{topic}'")
                 qos = LATCHED if plugin.params.map_subscribe_transient_local else MAP_VOLATILE
                 self.create_subscription(OccupancyGridMsg, topic, guarded(self, self._on_map, "OccupancyGrid"), qos)
         for source in self.sources:
-            on_scan = guarded(self, at_step(self, partial(self._on_scan, source)), "LaserScan")
-            require_match(self, self.create_subscription(LaserScan, source.topic, on_scan, SENSOR))
+            on_scan = guarded(self, partial(self._on_scan, source), "LaserScan")
+            self.create_subscription(LaserScan, source.topic, on_scan, SENSOR, data_path=True, at_step=True)
         self.create_service(ClearEntireCostmap, f"clear_entirely_{name}", self._clear)
         self.create_service(GetCostmap, "get_costmap", self._get_costmap)
         self.create_service(ClearCostmapAroundRobot, f"clear_around_{name}", self._clear_around)
         self.create_service(ClearCostmapExceptRegion, f"clear_except_{name}", self._clear_except)
-        self._update_timer = create_timer(self, 1.0 / p.update_frequency, self.update)
-        self._publish_timer = create_timer(self, 1.0 / p.publish_frequency, self.publish)
+        self._update_timer = self.step_timer(1.0 / p.update_frequency, self.update)
+        self._publish_timer = self.step_timer(1.0 / p.publish_frequency, self.publish)
         sources = {source.name: Plugin(source.name, "source", source.params) for source in self.sources}
         serve_live_parameters(self, [LiveParameters("", lambda: self.params, self._set_params, LIVE_COSTMAP),
                                      *live_plugin_parameters(self.plugins, self._set_layer_params, LIVE),
@@ -227,8 +231,8 @@ class CostmapNode(Node):
         for timer, rate, callback in ((self._update_timer, "update_frequency", self.update),
                                       (self._publish_timer, "publish_frequency", self.publish)):
             if getattr(new, rate) != getattr(old, rate):
-                self.destroy_timer(timer)
-                made = create_timer(self, 1.0 / getattr(new, rate), callback)
+                self.destroy_step_timer(timer)
+                made = self.step_timer(1.0 / getattr(new, rate), callback)
                 if rate == "update_frequency":
                     self._update_timer = made
                 else:
@@ -377,6 +381,22 @@ class CostmapNode(Node):
         msg = self._message[1]
         msg.header.stamp = msg.info.map_load_time = stamp
         self.pub.publish(msg)
+        self._publish_footprint(stamp)
+
+    def _publish_footprint(self, stamp: Any) -> None:
+        """Nav2's ``published_footprint``: the padded footprint at the robot's pose in the costmap's
+        frame, for RViz (and the live view) to draw round the robot."""
+        if self.footprint_pub.get_subscription_count() == 0:
+            return
+        pose = self.robot_pose()
+        if pose is None:
+            return
+        p = self.params
+        msg = PolygonStamped()
+        msg.header.frame_id, msg.header.stamp = p.global_frame, stamp
+        corners = placed(circle_footprint(p.robot_radius, p.footprint_padding), pose)
+        msg.polygon.points = [Point32(x=float(x), y=float(y)) for x, y in corners]
+        self.footprint_pub.publish(msg)
 
     def clear(self) -> None:
         for layer in self.obstacles:

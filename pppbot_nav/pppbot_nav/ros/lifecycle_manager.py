@@ -83,9 +83,10 @@ class LifecycleManager(Node):
     spins_itself = True
 
     def __init__(self, name: str = "lifecycle_manager", node_names: Sequence[str] = (), autostart: bool = False,
-                 **kwargs: Any) -> None:
+                 port: Any = None, **kwargs: Any) -> None:
         """``node_names`` and ``autostart``: the defaults of the parameters (a bringup's), which a
-        parameters file overrides."""
+        parameters file overrides. ``port``: the process's step port, not used: a lifecycle manager
+        is a plain rclpy node that spins itself (its services answer at once, in lockstep too)."""
         super().__init__(name, **kwargs)
         given = set(self._parameter_overrides)  # from the command line and parameters files
         self.params = p = declare_parameters(self, LifecycleManagerParameters)
@@ -213,7 +214,7 @@ class LifecycleManager(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    from pppbot_common.ros.node_main import run_nodes
+    from pppbot_lockstep.ros.runner import run_nodes
 
     return run_nodes([LifecycleManager], "lifecycle_manager", args, fatal=(ParameterError,), lockstep=False)
 

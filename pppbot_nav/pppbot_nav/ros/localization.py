@@ -18,7 +18,7 @@ from __future__ import annotations
 import sys
 from functools import partial
 
-from pppbot_common.ros.node_main import run_nodes
+from pppbot_lockstep.ros.runner import run_nodes
 from pppbot_nav.lifecycle import LOCALIZATION_NODES
 from pppbot_nav.ros.amcl import Amcl
 from pppbot_nav.ros.lifecycle_manager import LifecycleManager

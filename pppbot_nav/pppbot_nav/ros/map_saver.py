@@ -33,9 +33,9 @@ from pppbot_common.maps import MapFileError, OccupancyGrid, save_map
 from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.resources import maps_directory
 from pppbot_common.ros.maps import grid_from_message
-from pppbot_common.ros.node_main import run_node
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.qos import DEFAULT, LATCHED
+from pppbot_lockstep.ros.runner import run_node
 from pppbot_nav.errors import MapSaverError
 from pppbot_nav.map_saving import (
     DEFAULT_FREE_THRESH,

@@ -13,7 +13,7 @@ Loads ``yaml_filename`` (a Nav2 map YAML and its image) at startup and publishes
 
 A relative file name is looked up in the working directory, then in ppp_bot's ``maps/``
 (``yaml_filename:=maze`` finds ``maps/maze.yaml``). As Nav2's, it is a lifecycle node
-(:class:`~pppbot_common.ros.lifecycle.ManagedNode`) that a lifecycle manager brings up
+(:class:`~pppbot_lockstep.ros.lifecycle.ManagedNode`) that a lifecycle manager brings up
 (``lifecycle_manager_localization``): *configure* loads ``yaml_filename`` — a file that
 cannot be loaded fails the transition with one line naming the file and the problem — and
 *activate* publishes it; an empty ``yaml_filename`` waits for ``~/load_map``.
@@ -32,11 +32,11 @@ from nav_msgs.srv import GetMap
 from pppbot_common.maps import MapFileError, load_map_image, read_map_metadata
 from pppbot_common.params import ParameterError, param
 from pppbot_common.resources import maps_directory
-from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.maps import grid_message
-from pppbot_common.ros.node_main import run_node
 from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_common.ros.qos import LATCHED
+from pppbot_lockstep.ros.lifecycle import ManagedNode
+from pppbot_lockstep.ros.runner import run_node
 from pppbot_nav.errors import MapLoadError
 
 

@@ -19,9 +19,9 @@ from nav2_msgs.action import NavigateToPose
 from rclpy.node import Node
 
 from pppbot_common.errors import TimeoutExpired
-from pppbot_common.ros.action_client import ActionClient
 from pppbot_common.ros.wait import send_goal
 from pppbot_common.se2 import quaternion_from_yaw
+from pppbot_lockstep.ros.action_client import ActionClient
 
 #: How long a goal may wait for the navigator's answer (s; resent meanwhile, see send_goal).
 GOAL_ANSWER_S = 30.0

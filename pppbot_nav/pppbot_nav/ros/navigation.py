@@ -23,7 +23,7 @@ from functools import partial
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 
-from pppbot_common.ros.node_main import run_nodes
+from pppbot_lockstep.ros.runner import run_nodes
 from pppbot_nav.errors import LifecycleError
 from pppbot_nav.lifecycle import VELOCITY_CHAIN, navigation_nodes
 from pppbot_nav.ros.behavior_server import BehaviorServer

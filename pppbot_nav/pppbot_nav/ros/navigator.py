@@ -26,6 +26,7 @@ controller and the behaviours do (and stop the robot when their goal ends or is 
 """
 from __future__ import annotations
 
+import functools
 import math
 import sys
 from dataclasses import dataclass
@@ -51,16 +52,15 @@ from rclpy.duration import Duration
 from rclpy.task import Future
 
 from pppbot_common.params import check_finite_range, param
-from pppbot_common.ros.action_client import ActionClient
-from pppbot_common.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stopped, check_running, stopped_end
-from pppbot_common.ros.lifecycle import ManagedNode
-from pppbot_common.ros.lockstep import Participant, create_timer
-from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters, fixed_parameters
-from pppbot_common.ros.tf_listener import TfListener
 from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_common.transforms import TransformError
 from pppbot_common.upright import UPRIGHT_STATUS
+from pppbot_lockstep.ros.action_client import ActionClient
+from pppbot_lockstep.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stopped, check_running, stopped_end
+from pppbot_lockstep.ros.lifecycle import ManagedNode
+from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
+from pppbot_lockstep.ros.tf_listener import TfListener
 from pppbot_nav.behaviors import Recovery
 from pppbot_nav.navigation_policy import FollowDecision, NavigationPolicy, PlanDecision, PolicySettings
 
@@ -154,13 +154,11 @@ class Navigator(ManagedNode):
         self.behaviors = {Recovery.SPIN: ActionClient(self, SpinAction, "spin"),
                           Recovery.BACKUP: ActionClient(self, BackUpAction, "backup"),
                           Recovery.WAIT: ActionClient(self, WaitAction, "wait")}
-        participant = Participant.current()
-        if participant is not None:
-            participant.require_when("the compute_path_to_pose server", self.planner.server_is_ready)
-            participant.require_when("the compute_path_through_poses server", self.planner_through.server_is_ready)
-            participant.require_when("the follow_path server", self.controller.server_is_ready)
-            for recovery, client in self.behaviors.items():
-                participant.require_when(f"the {recovery.value} server", client.server_is_ready)
+        self.port.require_when("the compute_path_to_pose server", self.planner.server_is_ready)
+        self.port.require_when("the compute_path_through_poses server", self.planner_through.server_is_ready)
+        self.port.require_when("the follow_path server", self.controller.server_is_ready)
+        for recovery, client in self.behaviors.items():
+            self.port.require_when(f"the {recovery.value} server", client.server_is_ready)
         self._active: tuple[ServerGoalHandle, Flow[None], _Progress] | None = None
         self._self_client = ActionClient(self, NavigateToPose, "navigate_to_pose")
         self.server = GoalServer(self, NavigateToPose, "navigate_to_pose", self._on_goal, accept=self.taking_goals)
@@ -172,7 +170,7 @@ class Navigator(ManagedNode):
         on_diagnostics = guarded(self, self._on_diagnostics, "DiagnosticArray")
         self.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
         # Ticks while a goal runs (an idle navigator makes no sync times in lockstep).
-        self.timer = create_timer(self, TICK_S, self._tick)
+        self.timer = self.step_timer(TICK_S, self._tick)
         self.timer.cancel()
         self.get_logger().info("bt_navigator: navigate_to_pose and goal_pose once active")
 
@@ -222,7 +220,7 @@ class Navigator(ManagedNode):
                                    + (f" through {len(goals) - 1} poses" if through else ""))
         flow: Flow[None] = Flow(self._navigate(handle, state), self._now_s,
                                 lambda value, error: self._ended(handle, state, error),
-                                check=lambda: self._check(handle))
+                                check=lambda: self._check(handle), port=self.port)
         self._active = (handle, flow, state)
         if previous is not None:
             previous[1].tick()  # it sees the preemption now and ends
@@ -437,7 +435,7 @@ class Navigator(ManagedNode):
         fb.distance_remaining = float(remaining)
         speed = state.speed if state.speed > 0.05 else 0.0
         fb.estimated_time_remaining = Duration(seconds=remaining / speed if speed else 0.0).to_msg()
-        handle.publish_feedback(fb)
+        self.port.send(functools.partial(handle.publish_feedback, fb))
 
     def _clear(self, client: Any) -> Step[None]:
         if not client.service_is_ready():

@@ -29,16 +29,16 @@ import numpy as np
 from geometry_msgs.msg import PoseStamped
 from nav2_msgs.action import ComputePathThroughPoses, ComputePathToPose
 from nav_msgs.msg import Path
-from rclpy.action import ActionServer
 from rclpy.action.server import ServerGoalHandle
 from rclpy.duration import Duration
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.lifecycle import ManagedNode
-from pppbot_common.ros.node_main import run_nodes
 from pppbot_common.ros.params import LiveParameters, declare_parameters, serve_live_parameters
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
 from pppbot_common.transforms import TransformError, compose
+from pppbot_lockstep.ros.lifecycle import ManagedNode
+from pppbot_lockstep.ros.node import StepActionServer
+from pppbot_lockstep.ros.runner import run_nodes
 from pppbot_nav.planner import errors
 from pppbot_nav.planner.plugin_settings import DEFAULT_PLANNER_TYPES, LIVE_PLANNER, PLANNER_TYPES
 from pppbot_nav.ros.costmap_node import CostmapNode
@@ -108,13 +108,13 @@ class PlannerServer(ManagedNode):
         self.plugins = {name: load_plugin(self, name, PLANNER_TYPES, DEFAULT_PLANNER_TYPES.get(name))
                         for name in p.planner_plugins}
         self.planners = {name: plugin.params.make() for name, plugin in self.plugins.items()}
-        self.costmap_node = CostmapNode("global_costmap")
+        self.costmap_node = CostmapNode("global_costmap", port=self.port)
         self.composed_nodes = [self.costmap_node]
         self.plan_pub = self.create_publisher(Path, "plan", 1)
-        self.server = ActionServer(self, ComputePathToPose, "compute_path_to_pose",
+        self.server = StepActionServer(self, ComputePathToPose, "compute_path_to_pose",
                                    lambda handle: self._execute(handle, ComputePathToPose, self.compute),
                                    goal_callback=self.gated())
-        self.through_server = ActionServer(self, ComputePathThroughPoses, "compute_path_through_poses",
+        self.through_server = StepActionServer(self, ComputePathThroughPoses, "compute_path_through_poses",
                                            lambda handle: self._execute(handle, ComputePathThroughPoses,
                                                                         self.compute_through),
                                            goal_callback=self.gated())

@@ -34,18 +34,18 @@ from geometry_msgs.msg import PoseStamped
 from nav2_msgs.action import SmoothPath
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Path
-from rclpy.action import ActionServer
 from rclpy.action.server import ServerGoalHandle
 from rclpy.duration import Duration
 
 from pppbot_common.maps import OccupancyGrid
 from pppbot_common.params import ParameterError, param
-from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.maps import grid_from_message
-from pppbot_common.ros.node_main import guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
+from pppbot_lockstep.ros.lifecycle import ManagedNode
+from pppbot_lockstep.ros.node import StepActionServer
+from pppbot_lockstep.ros.runner import guarded, run_nodes
 from pppbot_nav.errors import SmootherError, SmootherTimedOut
 from pppbot_nav.planner.simple_smoother import (
     SimpleSmootherSettings,
@@ -154,7 +154,7 @@ class SmootherServer(ManagedNode):
         self.plan_pub = self.create_publisher(Path, "plan_smoothed", 1)
         self.create_subscription(OccupancyGridMsg, self.params.costmap_topic,
                                  guarded(self, self._on_costmap, "OccupancyGrid"), LATCHED)
-        self.server = ActionServer(self, SmoothPath, "smooth_path", self._execute, goal_callback=self.gated())
+        self.server = StepActionServer(self, SmoothPath, "smooth_path", self._execute, goal_callback=self.gated())
         self.get_logger().info(f"smoother '{SIMPLE_SMOOTHER}' on {self.params.costmap_topic} once active")
 
     def destroy_node(self) -> None:

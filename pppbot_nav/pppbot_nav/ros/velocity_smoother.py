@@ -27,11 +27,10 @@ from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 
 from pppbot_common.params import ParameterError, from_values, param, parameter_fields, ros_name
-from pppbot_common.ros.lifecycle import ManagedNode
-from pppbot_common.ros.lockstep import at_step, count_deliveries, create_timer, destroy_timer, require_match
-from pppbot_common.ros.node_main import Warnings, guarded, run_nodes
 from pppbot_common.ros.params import LiveParameters, declare_parameters, serve_live_parameters
 from pppbot_common.ros.planar import stamp_seconds
+from pppbot_lockstep.ros.lifecycle import ManagedNode
+from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
 from pppbot_nav.errors import VelocitySmootherError
 from pppbot_nav.velocity_smoothing import (
     Feedback,
@@ -166,27 +165,26 @@ class VelocitySmoother(ManagedNode):
             else:
                 self.destroy_subscription(endpoint)
         if self.timer is not None:
-            destroy_timer(self, self.timer)
+            self.destroy_step_timer(self.timer)
         self.params = p
         msg_type = TwistStamped if p.enable_stamped_cmd_vel else Twist
         self.msg_type = msg_type
         self.output = self.create_publisher(msg_type, "cmd_vel_smoothed", 1)
-        require_match(self, self.output)
+        self.port.require_match(self, self.output)
         # Handled at a step in lockstep: the command's time is the step's,
         # whichever side of the step message the command arrives on.
-        self._input = self.create_subscription(msg_type, "cmd_vel",
-                                               at_step(self, guarded(self, self._on_command, "command")), 1)
-        count_deliveries(self, self._input)
+        self._input = self.create_subscription(msg_type, "cmd_vel", guarded(self, self._on_command, "command"), 1,
+                                               data_path=True, at_step=True, needs_publisher=False)
         self._endpoints = [self.output, self._input]
         if p.closed_loop():
-            odom = self.create_subscription(Odometry, p.odom_topic, guarded(self, self._on_odom, "Odometry"), 10)
-            count_deliveries(self, odom)
+            odom = self.create_subscription(Odometry, p.odom_topic, guarded(self, self._on_odom, "Odometry"), 10,
+                                            data_path=True, needs_publisher=False)
             self._endpoints.append(odom)
         # Runs from the start and is never stopped, as Nav2's: its periods keep one phase, so in
         # lockstep they fall on the same steps on every run (a timer restarted by the first command
         # would take that step's time as its phase).
         self._period_s = 1.0 / p.smoothing_frequency
-        self.timer = create_timer(self, self._period_s, self.tick)
+        self.timer = self.step_timer(self._period_s, self.tick)
 
     # ---------------------------------------------------------------- inputs
     def _now_s(self) -> float:

@@ -21,6 +21,7 @@ and ends canceled; a new goal preempts the running one, which aborts.
 """
 from __future__ import annotations
 
+import functools
 import sys
 from dataclasses import dataclass
 from typing import Any
@@ -33,12 +34,11 @@ from rclpy.action.server import ServerGoalHandle
 from rclpy.task import Future
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.action_client import ActionClient
-from pppbot_common.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stopped, check_running, stopped_end
-from pppbot_common.ros.lifecycle import ManagedNode
-from pppbot_common.ros.lockstep import Participant, create_timer
-from pppbot_common.ros.node_main import run_nodes
 from pppbot_common.ros.params import declare_parameters, fixed_parameters
+from pppbot_lockstep.ros.action_client import ActionClient
+from pppbot_lockstep.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stopped, check_running, stopped_end
+from pppbot_lockstep.ros.lifecycle import ManagedNode
+from pppbot_lockstep.ros.runner import run_nodes
 from pppbot_nav.waypoints import (
     WAIT_AT_WAYPOINT,
     Decision,
@@ -108,13 +108,11 @@ class WaypointFollower(ManagedNode):
         fixed_parameters(self, lambda: self.params, {"stop_on_failure"}, self._set_params)
         self.task: TaskExecutor | None = None
         self.navigator = ActionClient(self, NavigateToPose, "navigate_to_pose")
-        participant = Participant.current()
-        if participant is not None:
-            participant.require_when("the navigate_to_pose server", self.navigator.server_is_ready)
+        self.port.require_when("the navigate_to_pose server", self.navigator.server_is_ready)
         self._active: tuple[ServerGoalHandle, Flow[None], _Following] | None = None
         self.server = GoalServer(self, FollowWaypoints, "follow_waypoints", self._on_goal, accept=self.taking_goals)
         # Ticks while a goal runs (an idle follower makes no sync times in lockstep).
-        self.timer = create_timer(self, 1.0 / self.params.loop_rate, self._tick)
+        self.timer = self.step_timer(1.0 / self.params.loop_rate, self._tick)
         self.timer.cancel()
         self.get_logger().info(f"follow_waypoints once active ({TASK_EXECUTOR_NAME} at each waypoint)")
 
@@ -147,7 +145,7 @@ class WaypointFollower(ManagedNode):
         state = _Following(list(handle.request.poses))
         flow: Flow[None] = Flow(self._follow(handle, state), self._now_s,
                                 lambda value, error: self._ended(handle, state, error),
-                                check=lambda: self._check(handle))
+                                check=lambda: self._check(handle), port=self.port)
         self._active = (handle, flow, state)
         if previous is not None:
             previous[1].tick()  # it sees the preemption now and ends
@@ -176,7 +174,8 @@ class WaypointFollower(ManagedNode):
         return 1.0 / self.params.loop_rate
 
     def _feedback(self, handle: ServerGoalHandle, state: _Following) -> None:
-        handle.publish_feedback(FollowWaypoints.Feedback(current_waypoint=state.index))
+        feedback = FollowWaypoints.Feedback(current_waypoint=state.index)
+        self.port.send(functools.partial(handle.publish_feedback, feedback))
 
     # ------------------------------------------------------------ following
     def _follow(self, handle: ServerGoalHandle, state: _Following) -> Step[None]:

@@ -5,7 +5,7 @@ A camera is rendered only while someone subscribes to one of its topics (a point
 someone subscribes to it); the OpenGL context is made when the first frame is wanted. Frames are
 rendered and published from the camera thread (:mod:`pppbot_sim.camera_worker`), stamped with the
 sim time of the state they show, by a node of their own in a DDS participant of their own (see
-:class:`CameraPublisher`). They are published outside lockstep's counting: no lockstep
+:class:`CameraPublisher`): a plain rclpy node, outside lockstep's counting: no lockstep
 participant waits for them and they never make another round, so cameras cannot change what
 lidar, odometry or the controllers do.
 """
@@ -19,7 +19,6 @@ from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField
 
-from pppbot_common.ros.lockstep_counting import publish_uncounted
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_sim.camera_worker import CameraFrame, CameraWorker, FrameRequest
 from pppbot_sim.cameras import POINT_FIELDS, POINT_STEP, CameraKind, CameraSpec
@@ -79,10 +78,10 @@ class _CameraTopics:
         stamp = stamp_values(_ns(frame.stamp_s))
         pixels = frame.image if frame.image is not None else frame.depth
         if pixels is not None:
-            publish_uncounted(self.image, self.image_wire.serialize({**stamp, "data": pixels.reshape(-1).view("<B")}))
-        publish_uncounted(self.info, self.info_wire.serialize(stamp))
+            self.image.publish(self.image_wire.serialize({**stamp, "data": pixels.reshape(-1).view("<B")}))
+        self.info.publish(self.info_wire.serialize(stamp))
         if frame.points is not None and self.points is not None and self.points_wire is not None:
-            publish_uncounted(self.points, self.points_wire.serialize(
+            self.points.publish(self.points_wire.serialize(
                 {**stamp, "data": frame.points, "is_dense": frame.dense}))
 
 

@@ -17,9 +17,9 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from tf2_msgs.msg import TFMessage
 
-from pppbot_common.ros.lockstep import count_deliveries
-from pppbot_common.ros.node_main import Warnings, guarded
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
+from pppbot_lockstep.ros.node import subscribe
+from pppbot_lockstep.ros.runner import Warnings, guarded
 from pppbot_sim.gz_plugins import DiffDriveSpec, DiffDriveSystem, Flavor, Pose2D
 from pppbot_sim.simulation import Simulation
 
@@ -40,8 +40,9 @@ class HostedDiffDrive:
         self.command = command
         self.topic = topic
         self._warn = Warnings(node, 5.0)
-        self.subscription = node.create_subscription(Twist, topic, guarded(node, self._on_twist, "Twist"), 10)
-        count_deliveries(node, self.subscription)  # in lockstep a step waits for the commands sent before it
+        # In lockstep a step waits for the commands sent before it.
+        self.subscription = subscribe(node, Twist, topic, guarded(node, self._on_twist, "Twist"), 10, data_path=True,
+                                      needs_publisher=False)
         self.odom_pub = node.create_publisher(Odometry, spec.odom_topic, 10) if spec.publish_odom else None
         self.tf_pub = node.create_publisher(TFMessage, spec.tf_topic, 100) if spec.tf_topic else None
         odom = Odometry()

@@ -14,7 +14,7 @@ the physics loop, with a ``controller_manager`` node that lists and switches the
 (:mod:`pppbot_sim.ros.hosted`). ``controller_remappings`` are applied to those nodes, as
 gz_ros2_control applies its plugin's ``<ros><remapping>``: by default
 ``/diff_drive_base_controller/odom:=/odom``, where ppp_bot's odometry is read. With ``lockstep:=true`` time advances
-only when the lockstep participants have done their work (:mod:`pppbot_sim.ros.coordinator`);
+only when the lockstep participants have done their work (:mod:`pppbot_lockstep.ros.coordinator`);
 ``real_time_factor`` then caps the speed (0: as fast as they allow). Without lockstep it
 runs against the wall clock at ``real_time_factor``.
 """
@@ -36,31 +36,23 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, LaserScan
 from std_srvs.srv import Empty, Trigger
 
-from pppbot_common.lockstep import LockstepError
 from pppbot_common.params import ParameterError
-from pppbot_common.ros.lockstep import count_deliveries
-from pppbot_common.ros.node_main import Process, Warnings, guarded, run_nodes
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values, vector
 from pppbot_common.upright import UPRIGHT_STATUS, UprightWatch
-from pppbot_control.ros.controller_manager import ControllerManager
-from pppbot_control.ros.diff_drive_controller import DiffDriveController
 from pppbot_description.errors import DescriptionError
 from pppbot_description.urdf_model import RobotModel, parse_urdf
 from pppbot_description.xacro_model import read_robot_description
+from pppbot_lockstep.protocol import LockstepError
+from pppbot_lockstep.ros.coordinator import Coordinator, CoordinatorPort
+from pppbot_lockstep.ros.node import StepNode
+from pppbot_lockstep.ros.runner import Process, Warnings, guarded, run_nodes
 from pppbot_sim.controllers import controllers_file, read_plan
 from pppbot_sim.errors import SpawnError, WorldError
 from pppbot_sim.mj_build import SpawnPose
 from pppbot_sim.ros.camera_publisher import CameraPublisher
-from pppbot_sim.ros.coordinator import Coordinator
 from pppbot_sim.ros.gz_diff_drive import host_diff_drives
-from pppbot_sim.ros.hosted import (
-    HostedBroadcaster,
-    SimWheels,
-    controller_arguments,
-    drive_clock,
-    hosted_controller_manager,
-)
+from pppbot_sim.ros.hosted import Hosted, SimWheels, controller_arguments, host
 from pppbot_sim.ros.simulator_params import SimulatorParameters
 from pppbot_sim.runner import (
     CameraReading,
@@ -100,11 +92,16 @@ def set_stamp(target: TimeMsg, seconds: float) -> None:
     target.sec, target.nanosec = divmod(nanoseconds, 1_000_000_000)
 
 
-class Simulator(Node):
+class Simulator(StepNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("simulator", **kwargs)
         self.params = declare_parameters(self, SimulatorParameters)
         p = self.params
+        # In lockstep what this process publishes is counted (steps carry it, participants wait for
+        # it) and what its nodes receive on the data path too (time moves on once they have it).
+        self.lockstep_port = CoordinatorPort() if p.lockstep else None
+        if self.lockstep_port is not None:
+            self.port = self.lockstep_port
         world_file = find_world(p.world)
         spec, world = load_world(world_file, model_paths(world_file))
         urdf, urdf_source = read_robot_description(p.robot_description)
@@ -120,8 +117,10 @@ class Simulator(Node):
         self.collision_pub = self.create_publisher(PointStamped, "ground_truth/collisions", 100)
         self.scan_pubs = [self.create_publisher(LaserScan, lidar.spec.topic, 10) for lidar in self.sim.lidars]
         self.imu_pubs = [self.create_publisher(Imu, imu.spec.topic, 10) for imu in self.sim.imus]
+        # An external controller's wheel commands: in lockstep a step waits for those sent before it.
         self._commands_sub = self.create_subscription(JointState, "joint_commands",
-                                                      guarded(self, self.on_joint_commands, "JointState"), 10)
+                                                      guarded(self, self.on_joint_commands, "JointState"), 10,
+                                                      data_path=True, needs_publisher=False)
         self.create_service(Empty, "pause_physics", self._pause)
         self.create_service(Empty, "unpause_physics", self._unpause)
         self.create_service(Empty, "reset_world", self._reset)
@@ -153,14 +152,11 @@ class Simulator(Node):
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._next_diagnostics_s = 0.0
         self.coordinator = (Coordinator(self, p.expected_participants(), p.lockstep_timeout,
-                                        lambda text: self.get_logger().info(text)) if p.lockstep else None)
-        if self.coordinator is not None:
-            count_deliveries(self, self._commands_sub)  # an external controller's wheel commands
-        self.broadcasters: list[HostedBroadcaster] = []
-        self.controller_manager: ControllerManager | None = None
-        self.controllers = self._host_controllers(robot)
-        self.composed_nodes: list[Node] = [*self.controllers,
-                                           *([self.controller_manager] if self.controller_manager else [])]
+                                        lambda text: self.get_logger().info(text), self.lockstep_port)
+                            if self.lockstep_port is not None else None)
+        self.hosted = self._host_controllers(robot)
+        self.controllers, self.broadcasters = self.hosted.controllers, self.hosted.broadcasters
+        self.composed_nodes: list[Node] = self.hosted.nodes
         self.diff_drives = host_diff_drives(self, self.sim, p.cmd_vel_topic, self.runner.command)
         for hosted in self.diff_drives:
             d = hosted.spec
@@ -171,28 +167,26 @@ class Simulator(Node):
                 + f" at {d.odom_rate_hz:g} Hz")
         on_valid_update(self, lambda: self.params, self._apply)
 
-    def _host_controllers(self, robot: RobotModel) -> list[DiffDriveController]:
+    def _host_controllers(self, robot: RobotModel) -> Hosted:
         """The controllers of the robot's gz_ros2_control plugin, in this process, and the
         controller manager over them (see :mod:`.hosted`)."""
         path = controllers_file(robot)
         if path is None:
-            return []
+            return Hosted()
         plan = read_plan(path)
-        for name, kind in plan.unsupported:
-            self.get_logger().warning(f"controller '{name}' of type {kind} (in {path}) is not supported: left out")
-        wheels = SimWheels(self.runner)
         arguments = controller_arguments(plan, [r for r in self.params.controller_remappings if r])
-        controllers = [DiffDriveController(hosted=wheels, cli_args=arguments)
-                       if name == "diff_drive_base_controller" else
-                       DiffDriveController(hosted=wheels, cli_args=[*arguments, "-r", f"__node:={name}"])
-                       for name in plan.diff_drives]
-        self.broadcasters = [HostedBroadcaster() for _ in plan.broadcasters]
-        self.controller_manager = hosted_controller_manager(plan, robot, controllers, self.broadcasters, arguments)
-        if controllers:
+        hosted = host(plan, robot, SimWheels(self.runner), arguments, self.port)
+        for name, kind in hosted.left_out:
+            self.get_logger().warning(f"controller '{name}' of type {kind} (in {path}): no installed package hosts "
+                                      "that type (entry point group pppbot_sim.hosted_controllers): left out")
+        if hosted.controllers:
             self.sim.schedule.add(Event(EventKind.CONTROL), plan.update_rate_hz)
-            names = ", ".join(c.get_name() for c in controllers)
+            names = ", ".join(c.name for c in hosted.controllers)
             self.get_logger().info(f"controllers from {path} in this process at {plan.update_rate_hz:g} Hz: {names}")
-        return controllers
+        if hosted.manager is None and plan.controllers:
+            self.get_logger().warning("no installed package offers a controller_manager (entry point group "
+                                      "pppbot_sim.controller_managers): the controllers run, unlisted")
+        return hosted
 
     def destroy_node(self) -> None:
         self.cameras.close()
@@ -364,8 +358,7 @@ class Simulator(Node):
     def _update_controllers(self) -> None:
         now_ns = self.sim.time_ns
         for controller in self.controllers:
-            drive_clock(controller, now_ns)
-            controller.update()
+            controller.update(now_ns)
 
     def _publish_clock(self, again: bool = False) -> None:
         now_ns = self.sim.time_ns

@@ -39,13 +39,12 @@ from std_msgs.msg import Header
 from std_srvs.srv import Empty
 from tf2_msgs.msg import TFMessage
 
-from pppbot_common.ros.lockstep import at_step, create_timer, hold, require_match
 from pppbot_common.ros.maps import grid_message, map_metadata
-from pppbot_common.ros.node_main import Warnings, guarded
 from pppbot_common.ros.planar import transform_message
 from pppbot_common.ros.qos import SENSOR
-from pppbot_common.ros.scan_odometry import ScanOdometry
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
+from pppbot_lockstep.ros.runner import Warnings, guarded
+from pppbot_lockstep.ros.scan_odometry import ScanOdometry
 from pppbot_slam.async_localizer import AsyncLocalizer, LocalizerEvents
 from pppbot_slam.errors import LocalizerError, PoseGraphFileError, SessionStartError
 from pppbot_slam.localizer import LocalizedPose, Localizer
@@ -73,10 +72,11 @@ class SlamLocalization:
         self._diagnostics_lock = threading.Lock()
         p = node.params
         first = self._load(p.map_file_name, p.start_pose()) if p.map_file_name else None
-        self.worker = AsyncLocalizer(first, LocalizerEvents(localized=self._on_localized, warn=warn), hold=hold)
+        self.worker = AsyncLocalizer(first, LocalizerEvents(localized=self._on_localized, warn=warn),
+                                     hold=node.port.hold)
         self.scans = ScanOdometry(node, p.odom_frame, p.base_frame, self._queue, warn, p.tf_buffer_duration)
-        on_scan = guarded(node, at_step(node, self.on_scan), "LaserScan")
-        require_match(node, node.create_subscription(LaserScan, p.scan_topic, on_scan, SENSOR))
+        node.create_subscription(LaserScan, p.scan_topic, guarded(node, self.on_scan, "LaserScan"), SENSOR,
+                                 data_path=True, at_step=True)
         node.create_subscription(PoseWithCovarianceStamped, "initialpose",
                                  guarded(node, self.on_initial_pose, "PoseWithCovarianceStamped"), 10)
         node.create_service(SerializePoseGraph, "~/serialize_map", self._serialize)
@@ -85,8 +85,8 @@ class SlamLocalization:
         node.create_service(ClearQueue, "~/clear_queue", self._clear_queue)
         node.create_service(Reset, "~/reset", self._reset)
         node.create_service(Empty, "~/clear_localization_buffer", self._clear_buffer)
-        create_timer(node, p.transform_publish_period, self._publish_transform, wakes=False)
-        create_timer(node, p.map_update_interval, self._publish_status, wakes=False)
+        node.step_timer(p.transform_publish_period, self._publish_transform, wakes=False)
+        node.step_timer(p.map_update_interval, self._publish_status, wakes=False)
         self.worker.start()
         if first is not None:
             self._publish_map(first)

@@ -25,7 +25,7 @@ parameter ``map_save_name`` (saving) or ``map_file_name`` (loading). The algorit
 
 The work is :class:`pppbot_slam.async_mapper.AsyncMapper`'s three threads besides the
 executor's (scan processing, loop closing, map building); scans never wait for a loop
-search. In lockstep each piece of work is held for (:func:`pppbot_common.ros.lockstep.hold`):
+search. In lockstep each piece of work is held for (:meth:`pppbot_lockstep.ros.port.StepPort.hold`):
 a step is answered once its scan is processed, its loop search merged and its map
 published, so the map and the pose graph are the same on every run.
 """
@@ -43,7 +43,6 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from rclpy.duration import Duration
-from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 from slam_toolbox.srv import (
     Clear,
@@ -63,14 +62,14 @@ from visualization_msgs.msg import MarkerArray
 from pppbot_common.maps import MapFileError, OccupancyGrid, save_map
 from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.resources import maps_directory
-from pppbot_common.ros.lockstep import at_step, create_timer, hold, require_match
 from pppbot_common.ros.maps import grid_message, map_metadata
-from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import LiveParameters, declare_parameters, serve_live_parameters
 from pppbot_common.ros.planar import transform_message
 from pppbot_common.ros.qos import LATCHED, SENSOR
-from pppbot_common.ros.scan_odometry import ScanOdometry
 from pppbot_common.se2 import quaternion_from_yaw
+from pppbot_lockstep.ros.node import StepNode
+from pppbot_lockstep.ros.runner import Warnings, guarded, run_node
+from pppbot_lockstep.ros.scan_odometry import ScanOdometry
 from pppbot_slam.async_mapper import AsyncMapper, AsyncMapperEvents, KeyframeAdded, LoopsMerged
 from pppbot_slam.errors import LocalizerError, SessionStartError
 from pppbot_slam.mapper import LOST_KEYFRAMES, Mapper, MapperError, MapperSettings
@@ -247,7 +246,7 @@ NO_EFFECT = {
 }
 
 
-class Slam(Node):
+class Slam(StepNode):
     """The ROS side of :class:`~pppbot_slam.async_mapper.AsyncMapper`: scans and TF in, the map,
     pose, transform, graph and health out, and the services. In ``mode: localization`` the work is
     :class:`~pppbot_slam.ros.localization.SlamLocalization`'s (the same publishers)."""
@@ -286,10 +285,10 @@ class Slam(Node):
         events = AsyncMapperEvents(keyframe=self._on_keyframe, loops=self._on_loops, map_built=self._on_map,
                                    warn=self._warn)
         first = self._load(p.map_file_name, p.start_pose()) if p.map_file_name else Mapper(p.mapper_settings())
-        self.mapping = AsyncMapper(first, events, hold=hold, map_frame=p.map_frame)
+        self.mapping = AsyncMapper(first, events, hold=self.port.hold, map_frame=p.map_frame)
         self.scans = ScanOdometry(self, p.odom_frame, p.base_frame, self._queue, self._warn, p.tf_buffer_duration)
-        on_scan = guarded(self, at_step(self, self.on_scan), "LaserScan")
-        require_match(self, self.create_subscription(LaserScan, p.scan_topic, on_scan, SENSOR))
+        self.create_subscription(LaserScan, p.scan_topic, guarded(self, self.on_scan, "LaserScan"), SENSOR,
+                                 data_path=True, at_step=True)
         self.create_service(SaveMap, "~/save_map", self._save_map)
         self.create_service(SerializePoseGraph, "~/serialize_map", self._serialize)
         self.create_service(DeserializePoseGraph, "~/deserialize_map", self._deserialize)
@@ -297,8 +296,8 @@ class Slam(Node):
         self.create_service(ClearQueue, "~/clear_queue", self._clear_queue)
         self.create_service(Reset, "~/reset", self._reset)
         # map → odom is stamped ahead (transform_timeout): nobody waits for each one.
-        create_timer(self, p.transform_publish_period, self._publish_transform, wakes=False)
-        create_timer(self, p.map_update_interval, self.mapping.request_map)
+        self.step_timer(p.transform_publish_period, self._publish_transform, wakes=False)
+        self.step_timer(p.map_update_interval, self.mapping.request_map)
         self.mapping.start()
         self.get_logger().info(f"mapping: {p.scan_topic} with {p.odom_frame} → {p.base_frame}; map every "
                                f"{p.map_update_interval:g} s at {p.resolution} m")

@@ -37,6 +37,7 @@ POSE_COLOR = (255, 25, 0, 255)         # PoseWithCovariance arrow
 COVARIANCE_COLOR = (204, 51, 204, 90)  # covariance ellipse
 GOAL_COLOR = (255, 0, 255, 255)        # 2D Goal Pose
 TRAIL_COLOR = (255, 200, 0, 255)       # odometry trail
+FOOTPRINT_COLOR = (25, 255, 0, 255)    # Polygon (Nav2's footprint display)
 
 
 def stamp_seconds(stamp: Any) -> float:
@@ -104,6 +105,14 @@ def path(msg: Any, color: tuple[int, int, int, int], radius_m: float = 0.02) -> 
                       dtype=np.float32).reshape(-1, 3)
     return [frame_of(msg.header), rr.LineStrips3D([points] if len(points) > 1 else [], radii=radius_m,
                                                    colors=color)]
+
+
+def polygon(msg: Any, color: tuple[int, int, int, int], radius_m: float = 0.01, lift_m: float = 0.03) -> list[Any]:
+    """geometry_msgs/PolygonStamped (a costmap's footprint) as a closed line in its frame, ``lift_m``
+    up (above the costmaps)."""
+    points = np.array([[p.x, p.y, p.z + lift_m] for p in msg.polygon.points], dtype=np.float32).reshape(-1, 3)
+    closed = np.vstack([points, points[:1]]) if len(points) > 2 else points
+    return [frame_of(msg.header), rr.LineStrips3D([closed] if len(closed) > 1 else [], radii=radius_m, colors=color)]
 
 
 def particles(msg: Any, arrow_m: float = 0.15) -> list[Any]:

@@ -23,15 +23,15 @@ from typing import Any
 import foxglove
 from foxglove.websocket import Capability, ChannelView, Client, ClientChannel, ServerListener
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
 
 from pppbot_bag.definitions import type_definition
 from pppbot_common.errors import MessageTypeError
 from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.ros.messages import get_interface
-from pppbot_common.ros.node_main import Warnings, run_node
 from pppbot_common.ros.params import declare_parameters
 from pppbot_common.ros.qos import qos_matching_publishers
+from pppbot_lockstep.ros.node import StepNode
+from pppbot_lockstep.ros.runner import Warnings, run_node
 from pppbot_viz.errors import VizError
 
 #: what clients may publish by default: RViz's tools and the keyboard teleop's input
@@ -70,9 +70,9 @@ class _Topic:
     subscription: Any = None
 
 
-class FoxgloveBridge(Node):
-    def __init__(self) -> None:
-        super().__init__("foxglove_bridge")
+class FoxgloveBridge(StepNode):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("foxglove_bridge", **kwargs)
         self.params = p = declare_parameters(self, BridgeParameters)
         p.validate()
         self.offered = [re.compile(x) for x in p.topic_whitelist]

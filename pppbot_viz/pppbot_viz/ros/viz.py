@@ -3,7 +3,7 @@
 Shown (each when its topic exists): ``/map`` in map colours and the global and local costmaps
 in costmap colours (each logged only when it changed), ``/scan``, the TF tree with the robot
 model from ``/robot_description``, ``/plan`` and ``/local_plan``, ``/particle_cloud``,
-``/amcl_pose`` with its covariance, the ``/odom`` trail, ``/goal_pose`` and ``/initialpose``,
+``/amcl_pose`` with its covariance, the costmaps' footprints, the ``/odom`` trail, ``/goal_pose`` and ``/initialpose``,
 camera images (any sensor_msgs/Image or CompressedImage topic, found as it appears) and the
 SLAM pose graph (``/slam_toolbox/graph_visualization``).
 
@@ -27,12 +27,11 @@ from typing import Any, NamedTuple
 
 import rerun as rr
 import rerun.blueprint as rrb
-from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
+from geometry_msgs.msg import PolygonStamped, PoseStamped, PoseWithCovarianceStamped
 from nav2_msgs.msg import ParticleCloud
 from nav_msgs.msg import OccupancyGrid, Odometry
 from nav_msgs.msg import Path as PathMsg
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import CompressedImage, Image, LaserScan
 from std_msgs.msg import String
@@ -40,11 +39,12 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
 from pppbot_common.params import ParameterError, check_finite_range, param
-from pppbot_common.ros.node_main import Warnings, guarded, run_node
 from pppbot_common.ros.params import declare_parameters
 from pppbot_common.ros.qos import DEFAULT, LATCHED, SENSOR, lowered_for
-from pppbot_common.ros.tf_listener import TfListener
 from pppbot_common.transforms import TransformError
+from pppbot_lockstep.ros.node import StepNode
+from pppbot_lockstep.ros.runner import Warnings, guarded, run_node
+from pppbot_lockstep.ros.tf_listener import TfListener
 from pppbot_viz.ros import convert
 from pppbot_viz.viewer import grpc_url
 from pppbot_viz.visuals import ChangeFilter, RateLimit, Trail
@@ -137,9 +137,9 @@ class Subscribed(NamedTuple):
     subscription: Any
 
 
-class Viz(Node):
-    def __init__(self) -> None:
-        super().__init__("viz")
+class Viz(StepNode):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("viz", **kwargs)
         self.params = p = declare_parameters(self, VizParameters)
         p.validate()
         self.subscribed: dict[str, Subscribed] = {}
@@ -185,6 +185,10 @@ class Viz(Node):
                         lambda m: self._grid("costmaps/global", m, colormaps.RvizCostmap, 0.5, 0.01))
         self._subscribe(OccupancyGrid, "/local_costmap/costmap", LATCHED,
                         lambda m: self._grid("costmaps/local", m, colormaps.RvizCostmap, 0.6, 0.02))
+        for costmap in ("global_costmap", "local_costmap"):
+            self._subscribe(PolygonStamped, f"/{costmap}/published_footprint", DEFAULT, lambda m, c=costmap: self._log(
+                f"costmaps/{c.removesuffix('_costmap')}/footprint", m.header,
+                convert.polygon(m, convert.FOOTPRINT_COLOR), keep=True))
         self._subscribe(LaserScan, "/scan", SENSOR, self._scan)
         self._subscribe(TFMessage, "/tf", QoSProfile(depth=100), lambda m: self._tf(m, static=False))
         self._subscribe(TFMessage, "/tf_static", LATCHED_MANY, lambda m: self._tf(m, static=True))

@@ -21,14 +21,15 @@ from collections.abc import Callable, Generator
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import CancelResponse, GoalResponse
 from rclpy.action.client import ClientGoalHandle
 from rclpy.action.server import ServerGoalHandle
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.task import Future
 
-from pppbot_common.ros.lockstep import hold_for, in_lockstep
+from pppbot_lockstep.ros.node import StepActionServer, port_of
+from pppbot_lockstep.ros.port import FREE_RUNNING, StepPort
 
 T = TypeVar("T")
 
@@ -51,9 +52,11 @@ class GoalServer:
         self.action_type = action_type
         self._on_goal = on_goal
         self._accept = accept
-        self.server = ActionServer(node, action_type, name, execute_callback=self._never,
-                                   goal_callback=self._goal_response, cancel_callback=lambda _: CancelResponse.ACCEPT,
-                                   handle_accepted_callback=self._accepted, **kwargs)
+        self.port = port_of(node)
+        self.server = StepActionServer(node, action_type, name, execute_callback=self._never,
+                                       goal_callback=self._goal_response,
+                                       cancel_callback=lambda _: CancelResponse.ACCEPT,
+                                       handle_accepted_callback=self._accepted, **kwargs)
 
     def _goal_response(self, request: Any) -> GoalResponse:
         if self._accept is not None and not self._accept(request):
@@ -71,6 +74,10 @@ class GoalServer:
     def _never(handle: ServerGoalHandle) -> Any:
         raise RuntimeError("GoalServer goals end through finish()")
 
+    def publish_feedback(self, handle: ServerGoalHandle, feedback: Any) -> None:
+        """The goal's feedback, through the node's port (in lockstep, sent at the next step)."""
+        self.port.send(lambda: handle.publish_feedback(feedback))
+
     def finish(self, handle: ServerGoalHandle, end: GoalEnd, result: Any) -> None:
         """End the goal with ``end`` and send ``result``: the client's result request is answered."""
         def done(goal: ServerGoalHandle) -> Any:
@@ -83,6 +90,7 @@ class GoalServer:
                     goal.abort()
             return result
 
+        self.port.replied()  # the goal's new state and result go out: a round's work
         self.server.notify_execute(handle, done)
 
     def destroy(self) -> None:
@@ -140,8 +148,9 @@ class Flow(Generic[T]):
 
     def __init__(self, steps: Step[T], clock_s: Callable[[], float],
                  on_end: Callable[[T | None, BaseException | None], None],
-                 check: Callable[[], None] | None = None) -> None:
+                 check: Callable[[], None] | None = None, port: StepPort = FREE_RUNNING) -> None:
         self._steps = steps
+        self._port = port
         self._clock_s = clock_s
         self._on_end = on_end
         self._check = check
@@ -177,7 +186,7 @@ class Flow(Generic[T]):
     def _on_wake(self, future: Future) -> None:
         if self.ended or future is not self._waiting or self._sleep_until is None:
             return
-        if in_lockstep():
+        if self._port.joined:
             self._woken_s = self._clock_s()  # resumed by the first tick after this time
             return
         self._waiting = None
@@ -218,7 +227,7 @@ class Flow(Generic[T]):
                 item.wake.add_done_callback(self._on_wake)
         elif isinstance(item, Future):
             self._waiting = item
-            release = hold_for(item)
+            release = self._port.hold_for(item)
             item.add_done_callback(functools.partial(self._on_future_released, release))
         else:
             self._end(None, TypeError(f"a flow yields futures or Sleep, not {type(item).__name__}"))
@@ -240,10 +249,10 @@ def cancel_once_accepted(sent: Future) -> None:
     sent.add_done_callback(cancel)
 
 
-def hold_until(future: Any) -> Any:
-    """:func:`hold_for` ``future`` (a server's prompt answer), released when it is done. Returns
-    ``future``."""
-    release = hold_for(future)
+def hold_until(port: StepPort, future: Any) -> Any:
+    """``port``'s :meth:`~StepPort.hold_for` ``future`` (a server's prompt answer), released when it
+    is done. Returns ``future``."""
+    release = port.hold_for(future)
     future.add_done_callback(lambda _: release())
     return future
 
@@ -255,10 +264,10 @@ class Arrival:
     whether it arrived before or after the client's own timer of that step. ``clock_s`` reads
     the node's sim time."""
 
-    def __init__(self, future: Any, clock_s: Callable[[], float | None]) -> None:
+    def __init__(self, future: Any, clock_s: Callable[[], float | None], port: StepPort = FREE_RUNNING) -> None:
         self.future = future
         self._clock_s = clock_s
-        self._lockstep = in_lockstep()
+        self._lockstep = port.joined
         self.arrived_s: float | None = None
         future.add_done_callback(self._arrived)
 

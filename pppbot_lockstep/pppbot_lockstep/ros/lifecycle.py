@@ -16,8 +16,9 @@ the states of ``lifecycle_msgs`` when asked on ``~/change_state`` (by a lifecycl
 
 Subclasses implement :meth:`ManagedNode.configure`, :meth:`ManagedNode.activate`,
 :meth:`ManagedNode.deactivate` and :meth:`ManagedNode.cleanup` (each may do nothing). Their
-subscriptions, services and timers are made in ``__init__`` as before (so lockstep sees them
-from the start); their callbacks check :attr:`ManagedNode.active` where work must wait.
+subscriptions, services and timers are made in ``__init__`` (a lockstep participant's process
+joins once its data-path subscriptions hear their publishers); their callbacks check
+:attr:`ManagedNode.active` where work must wait.
 
 rclpy 7.1 raises out of the executor on a transition that is not valid from the current state
 (``activate`` while unconfigured): here the request is refused with ``success: false`` and a
@@ -31,10 +32,13 @@ from typing import Any
 from lifecycle_msgs.msg import State
 from lifecycle_msgs.srv import ChangeState
 from rclpy.action import GoalResponse
-from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.lifecycle import LifecycleNode, LifecyclePublisher, LifecycleState, TransitionCallbackReturn
+from rclpy.publisher import Publisher
 
 from pppbot_common.errors import PppbotError
 from pppbot_common.params import ParameterError
+from pppbot_lockstep.ros.node import StepNode
+from pppbot_lockstep.ros.port import FREE_RUNNING, StepPort
 
 #: What a configure may fail with: logged by name, the transition fails (other exceptions are
 #: errors: the node goes to errorprocessing and back to unconfigured).
@@ -45,12 +49,35 @@ CONFIGURE_FAILURES: tuple[type[BaseException], ...] = (PppbotError, ParameterErr
 RCLPY_CHANGE_STATE = "_LifecycleNodeMixin__change_state"
 
 
-class ManagedNode(LifecycleNode):
-    """A lifecycle node with Nav2's transitions (see the module's docstring)."""
+class ManagedPublisher(LifecyclePublisher):
+    """A lifecycle publisher (silent while its node is inactive) that sends through its node's step
+    port (:class:`~pppbot_lockstep.ros.node.StepPublisher`'s rules)."""
 
-    def __init__(self, node_name: str, **kwargs: Any) -> None:
+    _step_port: StepPort = FREE_RUNNING
+    _step_topic = ""
+    _asks_round = True
+
+    def attach(self, port: StepPort, asks_round: bool = True) -> None:
+        self._step_port = port
+        self._step_topic = self.topic_name
+        self._asks_round = asks_round
+
+    def publish(self, msg: Any) -> None:
+        if not self.is_activated:
+            return
+        if not self._step_port.counts:
+            Publisher.publish(self, msg)
+            return
+        self._step_port.publish(self, msg, self._step_topic, asks_round=self._asks_round)
+
+
+class ManagedNode(StepNode, LifecycleNode):
+    """A lifecycle node with Nav2's transitions (see the module's docstring), whose endpoints go
+    through its step port (:class:`~pppbot_lockstep.ros.node.StepNode`)."""
+
+    def __init__(self, node_name: str, *, port: StepPort | None = None, **kwargs: Any) -> None:
         self._managed_publishers = False  # the node's own (parameter events) are not managed
-        super().__init__(node_name, **kwargs)
+        super().__init__(node_name, port=port, **kwargs)
         self._managed_publishers = True
         self._service_change_state.callback = self._on_change_state
         #: Why the last configure failed (empty after a success).
@@ -79,11 +106,14 @@ class ManagedNode(LifecycleNode):
     def active(self) -> bool:
         return int(self._state_machine.current_state[0]) == State.PRIMARY_STATE_ACTIVE
 
-    def create_publisher(self, *args: Any, **kwargs: Any) -> Any:
+    def create_publisher(self, *args: Any, aside: bool = False, **kwargs: Any) -> Any:
         """Every publisher of a managed node is a lifecycle publisher: silent while inactive."""
         if not self._managed_publishers:
             return super().create_publisher(*args, **kwargs)
-        return self.create_lifecycle_publisher(*args, **kwargs)
+        publisher = self.create_lifecycle_publisher(*args, **kwargs)
+        publisher.__class__ = ManagedPublisher  # the same object, sending through the step port
+        publisher.attach(self._port(), asks_round=not aside)
+        return publisher
 
     def taking_goals(self, request: Any = None) -> bool:
         """Whether a goal may be accepted now: only while active (else a warning, as Nav2's

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from pppbot_control.limits import AxisLimits, SpeedLimiter
+from pppbot_common.limits import AxisLimits, SpeedLimiter
 
 NAN = math.nan
 

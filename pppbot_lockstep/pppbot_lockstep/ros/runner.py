@@ -4,7 +4,7 @@
 executor) on rclpy's EventsExecutor, which handles a message in about 15 µs where the
 Python executors take 150-550 µs (``benchmarks/stack_speed.py`` measures it). Callbacks
 run one at a time in the main thread: a node never blocks in a callback, it keeps state
-and acts on its timers (:func:`pppbot_common.ros.lockstep.create_timer`).
+and acts on its timers (:func:`pppbot_lockstep.ros.participant.create_timer`).
 
 The process owns SIGINT and SIGTERM (rclpy's own signal handling is off): a signal asks
 the loop to stop, and then, in this thread and in this order, the lockstep participant
@@ -43,9 +43,11 @@ from rclpy.signals import SignalHandlerOptions
 from pppbot_common.errors import ParameterFileError, PppbotError
 from pppbot_common.param_files import check_parameter_file, parameter_file_arguments
 from pppbot_common.process import STOP_SIGNALS, dump_stacks_on_signal
-from pppbot_common.ros.lockstep import Participant
 from pppbot_common.ros.unread_parameters import declared_names, warn_unread_parameters
 from pppbot_common.throttle import Throttle
+from pppbot_lockstep.ros.node import StepExecutor
+from pppbot_lockstep.ros.participant import Participant
+from pppbot_lockstep.ros.port import FREE_RUNNING
 
 N = TypeVar("N", bound=Node)
 
@@ -99,13 +101,19 @@ def spin_until_stopped(nodes: Sequence[Node], process: Process) -> int | None:
     return None
 
 
-def run_nodes(factories: Sequence[Callable[[], Node]], name: str, args: list[str] | None = None, *,
+#: What the runner makes a process's nodes with: a node class (or a function) that takes the
+#: process's step port as ``port=``.
+NodeFactory = Callable[..., Node]
+
+
+def run_nodes(factories: Sequence[NodeFactory], name: str, args: list[str] | None = None, *,
               fatal: tuple[type[BaseException], ...] = (PppbotError,),
               loop: Callable[[Sequence[Node], Process], int | None] = spin_until_stopped,
               lockstep: bool = True) -> int:
-    """Create the nodes (in order) in one process and run ``loop`` until stopped; the exit code
-    (the loop's, or 0). ``lockstep=False``: the process never takes part in lockstep (the
-    simulator, which runs it)."""
+    """Create the nodes (in order) in one process, each handed the process's step port
+    (``factory(port=...)``: the lockstep participant the parameters ``lockstep:=true`` ask for, else
+    the free-running port), and run ``loop`` until stopped; the exit code (the loop's, or 0).
+    ``lockstep=False``: the process never takes part in lockstep (the simulator, which runs it)."""
     stop_requested = take_stop_signals()
     if not _init(name, args, SignalHandlerOptions.NO):
         return 1
@@ -113,13 +121,15 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str, args: list[str
     participant: Participant | None = None
     try:
         participant = Participant.from_parameters(name) if lockstep else None
+        port = participant if participant is not None else FREE_RUNNING
         for factory in factories:
-            nodes.append(factory())
+            nodes.append(factory(port=port))
     except fatal as exc:
         print(f"[{name}] error: {exc}", file=sys.stderr)
         _teardown(None, nodes, participant)
         return 1
-    executor = EventsExecutor()
+    # In lockstep the executor tells the participant of every task it makes (work a step waits for).
+    executor = StepExecutor(participant) if participant is not None else EventsExecutor()
     share_clock(_with_composed(nodes))
     read_in_process = declared_names(_with_composed(nodes))
     for node in _with_composed(nodes):
@@ -210,11 +220,10 @@ def _teardown(executor: Any, nodes: list[Node], participant: Participant | None,
         node.destroy_node()
     if participant is not None:
         participant.node.destroy_node()
-    Participant.clear_current()
     rclpy.try_shutdown()
 
 
-def run_node(factory: Callable[[], N], name: str, args: list[str] | None = None,
+def run_node(factory: Callable[..., N], name: str, args: list[str] | None = None,
              spin: Callable[[N], None] | None = None,
              fatal: tuple[type[BaseException], ...] = (PppbotError,),
              signal_handlers: bool = True) -> int:

@@ -9,7 +9,7 @@ import pytest
 from rclpy.action.client import ClientGoalHandle
 from rclpy.task import Future
 
-from pppbot_common.ros.goals import Flow, GoalEnd, Stopped, check_running, stopped_end
+from pppbot_lockstep.ros.goals import Flow, GoalEnd, Stopped, check_running, stopped_end
 
 
 def handle(cancel: bool = False) -> Any:  # a ServerGoalHandle as far as these read it

@@ -16,10 +16,10 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 
-from pppbot_common.ros.node_main import Warnings
 from pppbot_common.ros.planar import stamp_seconds
-from pppbot_common.ros.tf_listener import TfListener
 from pppbot_common.transforms import TransformError
+from pppbot_lockstep.ros.runner import Warnings
+from pppbot_lockstep.ros.tf_listener import TfListener
 
 #: Scans wait for odometry to reach their stamps for at most this much scan time (s): the
 #: oldest is dropped once a pending scan is this much newer. While a node is busy, /tf

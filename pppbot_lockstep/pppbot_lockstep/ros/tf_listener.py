@@ -8,16 +8,18 @@ from __future__ import annotations
 
 import functools
 import math
+import weakref
 from collections.abc import Callable
+from typing import Any
 
 from rclpy.node import Node
 from tf2_msgs.msg import TFMessage
 
-from pppbot_common.ros.lockstep import in_step, require, require_match
-from pppbot_common.ros.node_main import Warnings, guarded
 from pppbot_common.ros.planar import planar_transforms
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.transforms import TransformBuffer
+from pppbot_lockstep.ros.node import port_of, subscribe
+from pppbot_lockstep.ros.runner import Warnings, guarded
 
 
 class TfListener:
@@ -32,12 +34,11 @@ class TfListener:
                  on_tf: Callable[[], None] | None = None, needs_static: bool = False) -> None:
         if not (math.isfinite(cache_s) and cache_s > 0):  # checked here too: a later listener only widens
             raise ValueError(f"cache_s must be a positive number of seconds, not {cache_s}")
-        shared = getattr(node.context, _ATTRIBUTE, None)
+        shared = _SHARED.get(node.context)
         if shared is None or not shared.alive():
-            shared = _Shared(node, warn, cache_s)
-            setattr(node.context, _ATTRIBUTE, shared)  # lives as long as the context, no longer
+            shared = _SHARED[node.context] = _Shared(node, warn, cache_s)  # as long as the context lives
         shared.buffer.cache_s = max(shared.buffer.cache_s, cache_s)
-        shared.add(node, on_tf, require(node, "the static transforms (/tf_static)") if needs_static else None)
+        shared.add(node, on_tf, port_of(node).require("the static transforms (/tf_static)") if needs_static else None)
         self.buffer = shared.buffer
 
 
@@ -54,8 +55,7 @@ class _Shared:
         self._on_tf: list[tuple[Node, Callable[[], None]]] = []
         self._static_waiting: list[Callable[[], None]] = []
         self._static_seen = False
-        require_match(owner, owner.create_subscription(TFMessage, "/tf", guarded(owner, self._dynamic, "TFMessage"),
-                                                       200))
+        subscribe(owner, TFMessage, "/tf", guarded(owner, self._dynamic, "TFMessage"), 200, data_path=True)
         owner.create_subscription(TFMessage, "/tf_static", guarded(owner, self._static, "TFMessage"), LATCHED)
 
     def alive(self) -> bool:
@@ -84,7 +84,7 @@ class _Shared:
         if not all(_exists(node) for node, _ in self._on_tf):  # a composed node destroyed before the owner
             self._on_tf = [(node, on_tf) for node, on_tf in self._on_tf if _exists(node)]
         for node, on_tf in self._on_tf:
-            in_step(node, on_tf)
+            port_of(node).in_step(on_tf)
 
     def _static(self, msg: TFMessage) -> None:
         self._store(msg, static=True)
@@ -98,6 +98,5 @@ def _exists(node: Node) -> bool:
     return bool(node.handle.pointer)
 
 
-#: The attribute of an rclpy context that holds its shared listener (a process's nodes share the
-#: default context).
-_ATTRIBUTE = "_pppbot_tf_listener"
+#: Each rclpy context's shared listener (a process's nodes share the default context).
+_SHARED: weakref.WeakKeyDictionary[Any, _Shared] = weakref.WeakKeyDictionary()

@@ -12,8 +12,8 @@ from rclpy.action import ActionClient, ActionServer
 from std_msgs.msg import String
 
 from pppbot_common.errors import PppbotError
-from pppbot_common.ros.lifecycle import ManagedNode
 from pppbot_common.ros.wait import change_state, send_goal, wait_until
+from pppbot_lockstep.ros.lifecycle import ManagedNode
 
 pytestmark = pytest.mark.ros
 

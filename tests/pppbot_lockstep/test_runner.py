@@ -13,7 +13,7 @@ from rclpy.node import Node
 
 from pppbot_common.errors import PppbotError
 from pppbot_common.process import block_stop_signals
-from pppbot_common.ros.node_main import Warnings, run_node
+from pppbot_lockstep.ros.runner import Warnings, run_node
 
 pytestmark = pytest.mark.ros
 
@@ -38,7 +38,7 @@ def test_a_real_error_is_raised():
 
 
 def test_a_fatal_error_at_start_is_one_line_and_exit_1(capsys):
-    def factory() -> Node:
+    def factory(port: object = None) -> Node:
         raise PppbotError("parameter 'x' = -1: must be positive")
 
     assert run_node(factory, "bad_start", [], signal_handlers=False) == 1
@@ -49,7 +49,7 @@ _STARTING_NODE = """
 import sys, time
 print("importing", flush=True)
 time.sleep(1.0)  # a node's imports: the launch may stop it meanwhile
-from pppbot_common.ros.node_main import take_stop_signals
+from pppbot_lockstep.ros.runner import take_stop_signals
 stop = take_stop_signals()
 sys.exit(0 if stop.is_set() else 3)
 """
@@ -73,8 +73,8 @@ def test_composed_nodes_share_one_clock_subscription_and_all_follow_clock():
     from rclpy.parameter import Parameter
     from rosgraph_msgs.msg import Clock
 
-    from pppbot_common.ros.node_main import share_clock
     from pppbot_common.ros.wait import wait_until
+    from pppbot_lockstep.ros.runner import share_clock
 
     rclpy.init()
     try:
@@ -113,10 +113,10 @@ def test_composed_nodes_share_one_tf_listener_and_each_hears_of_new_transforms()
     from rclpy.executors import SingleThreadedExecutor
     from tf2_msgs.msg import TFMessage
 
-    from pppbot_common.ros.node_main import Warnings
     from pppbot_common.ros.qos import LATCHED
-    from pppbot_common.ros.tf_listener import _ATTRIBUTE, TfListener
     from pppbot_common.ros.wait import wait_until
+    from pppbot_lockstep.ros.runner import Warnings
+    from pppbot_lockstep.ros.tf_listener import _SHARED, TfListener
 
     def transform(parent: str, child: str, x: float, sec: int = 0) -> TFMessage:
         t = TransformStamped()
@@ -160,7 +160,7 @@ def test_composed_nodes_share_one_tf_listener_and_each_hears_of_new_transforms()
         spin_until(has_static, "the static transform")
         late = Node("listening_late")
         told: list[bool] = []
-        getattr(late.context, _ATTRIBUTE).add(late, None, lambda: told.append(True))  # what needs_static registers
+        _SHARED[late.context].add(late, None, lambda: told.append(True))  # what needs_static registers
         assert told == [True]  # /tf_static had arrived: the late node is not left waiting
 
         def both_heard() -> bool:
@@ -180,14 +180,14 @@ def test_composed_nodes_share_one_tf_listener_and_each_hears_of_new_transforms()
             return heard[0] > before[0]
         spin_until(owner_heard_again, "the owner's node told of /tf after the other was destroyed")
         assert heard[1] == before[1]
-        assert [node for node, _ in getattr(late.context, _ATTRIBUTE)._on_tf] == [nodes[0]]
+        assert [node for node, _ in _SHARED[late.context]._on_tf] == [nodes[0]]
         executor.shutdown()
         for node in (nodes[0], late):
             node.destroy_node()
         again = Node("listening_again")
         assert TfListener(again, Warnings(again)).buffer is not listeners[0].buffer  # a new owner, a new buffer
         assert any(s.topic_name == "/tf" for s in again.subscriptions)
-        assert getattr(again.context, _ATTRIBUTE).owner is again
+        assert _SHARED[again.context].owner is again
         again.destroy_node()
         source.destroy_node()
     finally:

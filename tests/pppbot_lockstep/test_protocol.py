@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from pppbot_common.lockstep import AckOutcome, Barrier, Deliveries, LockstepError, Publications, StepTimers
+from pppbot_lockstep.protocol import AckOutcome, Barrier, Deliveries, LockstepError, Publications, StepTimers
 
 MS = 1_000_000
 

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from pppbot_control.kinematics import DiffDriveGeometry, Integration, Odometry, integrate, wrap_angle
+from pppbot_common.kinematics import DiffDriveGeometry, Integration, Odometry, integrate, wrap_angle
 
 PPP = DiffDriveGeometry(wheel_separation=0.35, wheel_radius=0.05)
 

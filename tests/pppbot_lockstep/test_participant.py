@@ -10,11 +10,8 @@ from typing import Any
 import pytest
 from builtin_interfaces.msg import Time as TimeMsg
 
-from pppbot_common.ros import lockstep
-from pppbot_common.ros.lockstep import Participant
-from pppbot_common.ros.lockstep_counting import OUTBOX
-from pppbot_common.ros.lockstep_requests import REQUESTS
 from pppbot_interfaces.msg import LockstepStatus, LockstepStep
+from pppbot_lockstep.ros.participant import Participant
 
 pytestmark = pytest.mark.ros
 
@@ -42,19 +39,28 @@ class Tasks:
                     result.send(None)
 
 
+class Answers(list[Any]):
+    """Stands in for the participant's /lockstep/ack publisher: what it answered."""
+
+    def publish(self, msg: Any) -> None:
+        self.append(msg)
+
+    def get_subscription_count(self) -> int:
+        return 0  # no simulator listens: no JOIN is sent (the tests take the participant as joined)
+
+
 @pytest.fixture
-def participant(ros_node: Any, monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[Participant, Tasks, list[Any]]]:
-    answers: list[Any] = []
-    monkeypatch.setattr(lockstep, "_ORIGINAL_PUBLISH", lambda publisher, msg: answers.append(msg))
-    p = Participant.for_node("p", ros_node)
+def participant(ros_node: Any) -> Iterator[tuple[Participant, Tasks, list[Any]]]:
+    answers = Answers()
+    p = Participant("p", ros_node)
+    p.ack_pub = answers  # type: ignore[assignment]
     tasks = Tasks()
     p.start(tasks, [])
-    p.joined = True
+    p._joined = True
     try:
         yield p, tasks, answers
     finally:
-        Participant.clear_current()
-        OUTBOX.send_all()
+        p.outbox.send_all()
 
 
 def step(seq: int, t_ns: int, timers: bool) -> LockstepStep:
@@ -122,7 +128,7 @@ def test_a_repeated_step_is_taken_once_and_a_new_simulator_counts_from_one(
 def test_a_step_before_the_listing_is_taken_when_the_listing_comes(
         participant: tuple[Participant, Tasks, list[Any]]) -> None:
     p, tasks, answers = participant
-    p.joined = False
+    p._joined = False
     p._on_step(step(1, 0, timers=False))  # steps and the status come on different topics
     tasks.run()
     assert answers == []
@@ -142,10 +148,10 @@ def test_a_request_kept_between_steps_is_handled_at_the_next_step_before_its_ans
     p._on_step(step(1, 50_000_000, timers=False))
     tasks.run()
     assert len(answers) == 1
-    assert REQUESTS.keep("/planner#requests", request)  # taken after the answer: kept
+    assert p.requests.keep("/planner#requests", request)  # taken after the answer: kept
     tasks.run()
     assert handled == []
     p._on_step(step(2, 100_000_000, timers=False))
-    assert not REQUESTS.keep("/planner#requests", request)  # while a step is handled: at once
+    assert not p.requests.keep("/planner#requests", request)  # while a step is handled: at once
     tasks.run()
     assert handled == [2] and len(answers) == 2  # handled at step 2, then step 2 answered

@@ -15,8 +15,8 @@ from rclpy.time import Time
 from sensor_msgs.msg import LaserScan
 from tf2_msgs.msg import TFMessage
 
-from pppbot_common.ros.node_main import Warnings
-from pppbot_common.ros.scan_odometry import ScanOdometry
+from pppbot_lockstep.ros.runner import Warnings
+from pppbot_lockstep.ros.scan_odometry import ScanOdometry
 
 
 def transform(parent: str, child: str, t_s: float, x: float) -> TransformStamped:

@@ -10,7 +10,7 @@ next sync time is the earliest timer any participant has due (or a sensor readin
 round, and whether another round is needed. :class:`StepTimers` is a participant's
 side: timers that fire on steps instead of on a clock, in a fixed order. Times are
 integer nanoseconds of sim time. The protocol on the wire is ``pppbot_interfaces/msg/
-Lockstep{Step,Ack,Status}``; the adapters are :mod:`pppbot_common.ros.lockstep` and the
+Lockstep{Step,Ack,Status}``; the adapters are :mod:`pppbot_lockstep.ros.participant` and the
 simulator node.
 """
 from __future__ import annotations
@@ -22,7 +22,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
-from pppbot_common.errors import LockstepError
+from pppbot_lockstep.errors import LockstepError
 
 
 class AckOutcome(enum.Enum):

@@ -10,7 +10,7 @@ starts, so every run starts the same way. A participant that does not answer wit
 ``lockstep_timeout`` wall seconds is named, and the simulator stops (the launch then stops
 the rest): a node that dies or hangs never leaves the stack waiting forever.
 
-The bookkeeping is :class:`pppbot_common.lockstep.Barrier`; this is its ROS adapter.
+The bookkeeping is :class:`pppbot_lockstep.protocol.Barrier`; this is its ROS adapter.
 """
 from __future__ import annotations
 
@@ -19,11 +19,15 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 
-from pppbot_common.lockstep import AckOutcome, Barrier, Publications
-from pppbot_common.ros.lockstep import (
+from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
+from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
+from pppbot_lockstep.errors import LockstepTimeout
+from pppbot_lockstep.protocol import AckOutcome, Barrier, Deliveries, Publications
+from pppbot_lockstep.ros.counting import Counters
+from pppbot_lockstep.ros.participant import (
     ACK_TOPIC,
-    DELIVERY_TIMEOUT_S,
     PROTOCOL_QOS,
     STATUS_QOS,
     STATUS_TOPIC,
@@ -31,11 +35,8 @@ from pppbot_common.ros.lockstep import (
     stamp_ns,
     time_msg,
 )
-from pppbot_common.ros.lockstep_counting import _ORIGINAL_PUBLISH, COUNTERS, Receiver, install_counting
-from pppbot_common.ros.node_main import Process
-from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
-from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
-from pppbot_sim.errors import LockstepTimeout
+from pppbot_lockstep.ros.port import StepPort
+from pppbot_lockstep.ros.runner import Process
 
 #: Rounds at one time before the simulator moves on anyway (participants echoing each other).
 MAX_ROUNDS = 50
@@ -52,24 +53,70 @@ SETTLE_TIMEOUT_S = 20.0
 STEP_REPEAT_S = 1.0
 
 
+class CoordinatorPort(StepPort):
+    """The step port of the simulator's process (its own node and the nodes it hosts: controllers):
+    what they publish is counted, so that steps carry it and participants wait for it, and what they
+    receive on the data path is counted, so that time moves on only once they have it; nothing is
+    held (the simulator's process is what steps wait on, not a participant)."""
+
+    counts = True
+
+    def __init__(self) -> None:
+        self.counters = Counters()
+        #: What this process's nodes (hosted controllers) receive from participants
+        self.deliveries = Deliveries()
+
+    def publish(self, publisher: Publisher, msg: Any, topic: str, *, asks_round: bool = True) -> None:
+        if asks_round:
+            self.counters.sent()
+        self.counters.published_on(topic)
+        Publisher.publish(publisher, msg)
+
+    def send(self, send: Callable[[], None], topic: str | None = None, *, asks_round: bool = True) -> None:
+        if asks_round:
+            self.counters.sent()
+        if topic is not None:
+            self.counters.published_on(topic)
+        send()
+
+    def request(self, send: Callable[..., Any], key: str, *args: Any) -> Any:
+        self.counters.sent()
+        self.counters.published_on(key)
+        return send(*args)
+
+    def replied(self) -> None:
+        self.counters.sent()  # a reply by one of this process's nodes may need another round too
+
+    def counted(self, node: Node, topic: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
+        counted = self.deliveries.add(topic)
+
+        def receive(msg: Any) -> None:
+            try:
+                callback(msg)
+            finally:
+                counted.received += 1
+        return receive
+
+
 class Coordinator:
-    def __init__(self, node: Node, expected: list[str], timeout_s: float, log: Callable[[str], None]) -> None:
+    def __init__(self, node: Node, expected: list[str], timeout_s: float, log: Callable[[str], None],
+                 port: CoordinatorPort) -> None:
         self.node = node
         self.barrier = Barrier(expected=set(expected))
         self.timeout_s = timeout_s
         self.log = log
+        self.port = port
         self.rounds = 0
         self.steps = 0
         self.extra_rounds = 0
         self.repeats = 0
-        install_counting()  # a reply by one of this process's nodes may need another round too
-        self.step_pub = node.create_publisher(LockstepStep, STEP_TOPIC, PROTOCOL_QOS)
+        # The protocol's own publishers: plain ones, not the port's (a step is not a round's work).
+        self.step_pub = node.create_publisher(LockstepStep, STEP_TOPIC, PROTOCOL_QOS, publisher_class=Publisher)
         self.publications = Publications()
-        #: What this process's nodes (hosted controllers) receive from participants (count_deliveries)
-        self.deliveries = Receiver.start(lambda: None).deliveries
+        self.deliveries = port.deliveries
         self.late_deliveries = 0
         self._step_wires: dict[tuple[str, ...], MessageTemplate] = {}
-        self.status_pub = node.create_publisher(LockstepStatus, STATUS_TOPIC, STATUS_QOS)
+        self.status_pub = node.create_publisher(LockstepStatus, STATUS_TOPIC, STATUS_QOS, publisher_class=Publisher)
         node.create_subscription(LockstepAck, ACK_TOPIC, self._on_ack, PROTOCOL_QOS)
         self._members_published: tuple[list[str], list[str]] | None = None
         #: (settled, graph nodes) each participant answered the current step with
@@ -186,13 +233,13 @@ class Coordinator:
             values: dict[str, Any] = {"seq": seq, **stamp_values(t_ns, "stamp"), "round": index,
                       "timers": timers and index == 0}
             # What was published before this step, participants' held sends included: they go out
-            # as the participants get the step (see pppbot_common.ros.lockstep_counting.Outbox).
-            totals = self.publications.totals(COUNTERS.published) if topics else []
+            # as the participants get the step (see pppbot_lockstep.ros.counting.Outbox).
+            totals = self.publications.totals(self.port.counters.published) if topics else []
             if topics:
                 values["published"] = totals
             wire = self._step_wire(topics).serialize(values)
             self.step_pub.publish(wire)
-            sends = COUNTERS.sends
+            sends = self.port.counters.sends
             self.rounds += 1
             self._wait_for_answers(process, seq, t_ns, wire)
             if not process.running():
@@ -200,7 +247,7 @@ class Coordinator:
             self._wait_for_deliveries(process, t_ns, totals)
             # Every message published before this step has been handled here by now; what was
             # sent during it makes another round (the senders' answers say so).
-            if not self.barrier.another_round() and COUNTERS.sends == sends:
+            if not self.barrier.another_round() and self.port.counters.sends == sends:
                 return
             self.extra_rounds += 1
         self.log(f"lockstep: still sending after {MAX_ROUNDS} rounds at t = {t_ns * 1e-9:.3f} s "
@@ -224,7 +271,7 @@ class Coordinator:
             if time.monotonic() > repeat:
                 repeat = time.monotonic() + STEP_REPEAT_S
                 self.repeats += 1
-                _ORIGINAL_PUBLISH(self.step_pub, wire)  # not a send of the round's (see _rounds)
+                self.step_pub.publish(wire)  # the protocol's own: not a send of the round's
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 missing = self.barrier.missing()
@@ -237,8 +284,13 @@ class Coordinator:
 
     def _wait_for_deliveries(self, process: Process, t_ns: int, totals: Sequence[int]) -> None:
         """Until this process has the messages published on its counted topics before the step
-        (``totals``; such as a command for a hosted controller), at most DELIVERY_TIMEOUT_S. What
-        participants sent in this step's round is handled in the next."""
+        (``totals``; such as a command for a hosted controller). What participants sent in this
+        step's round is handled in the next. Time never moves on without them: after
+        ``timeout_s`` the run stops, naming what did not come.
+
+        Raises:
+            LockstepTimeout: a message published before the step did not come within ``timeout_s``.
+        """
         deliveries = self.deliveries
         if not deliveries.subscriptions:
             return
@@ -246,19 +298,17 @@ class Coordinator:
         if t_ns == 0:
             deliveries.rebase()  # time holds at its start: discovery may have lost messages
             return
-        deadline = time.monotonic() + DELIVERY_TIMEOUT_S
+        start = time.monotonic()
         lacking = deliveries.lacking()
         if lacking:
             self.late_deliveries += 1
         while lacking and process.running():
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                self.log("lockstep: going on at t = {:.3f} s without messages published before the answers: {}".format(
-                    t_ns * 1e-9, ", ".join(f"{topic} ({expected - received} of {expected})"
-                                           for topic, received, expected in lacking)))
-                deliveries.rebase()
-                return
-            process.spin_once(min(remaining, 0.05))
+            waited = time.monotonic() - start
+            if waited > self.timeout_s:
+                raise LockstepTimeout(f"lockstep: at t = {t_ns * 1e-9:.3f} s the simulator's process did not get "
+                                      f"messages published before the step within lockstep_timeout = "
+                                      f"{self.timeout_s:g} s: {_lacking_text(lacking)}; stopping")
+            process.spin_once(0.05)
             lacking = deliveries.lacking()
 
     def next_wakeup_ns(self) -> int | None:
@@ -268,3 +318,7 @@ class Coordinator:
     def active(self) -> bool:
         """Whether anyone is waited for (without participants, time runs freely)."""
         return bool(self.barrier.members or self.barrier.joining)
+
+
+def _lacking_text(lacking: Sequence[tuple[str, int, int]]) -> str:
+    return ", ".join(f"{topic} ({expected - received} of {expected})" for topic, received, expected in lacking)

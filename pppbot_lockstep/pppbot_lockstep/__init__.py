@@ -1,0 +1,1 @@
+"""pppbot_lockstep: how pppbot's nodes run, and lockstep."""

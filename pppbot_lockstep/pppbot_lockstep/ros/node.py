@@ -1,0 +1,242 @@
+"""The seam between pppbot's nodes and lockstep: :class:`StepNode`, the node base class whose
+endpoints go through the node's step port (:mod:`pppbot_lockstep.ros.port`).
+
+Every pppbot node is a :class:`StepNode` (a lifecycle node a
+:class:`~pppbot_lockstep.ros.lifecycle.ManagedNode`). The node runner hands it its process's port
+(``port=``); without one (a node made by a test, a tool) it runs freely. What the node makes
+itself goes through the port; rclpy is extended, never changed:
+
+* publishers are :class:`StepPublisher` (rclpy's ``publisher_class`` argument);
+* a subscription made with ``data_path=True`` counts what it receives (a step is handled only
+  once every message published before it is here) and, in lockstep, is reliable; with
+  ``at_step=True`` each message is handled at the next step;
+* clients are :class:`StepClient` and services :class:`StepService` (the instances rclpy makes,
+  given the subclass's class: rclpy's ``create_client`` and ``create_service`` take no class);
+* action servers are :class:`StepActionServer` (:class:`~pppbot_lockstep.ros.goals.GoalServer`
+  makes them) and action clients :class:`~pppbot_lockstep.ros.action_client.ActionClient`;
+* :meth:`StepNode.step_timer` makes a timer on sim time, fired by steps in lockstep.
+
+What rclpy makes for itself in a node (its parameter services, ``/parameter_events``, the
+``/clock`` subscription) is left as rclpy makes it, and so is every plain rclpy node.
+:class:`StepExecutor` tells the port of each task the process's executor makes, so a participant
+answers a step only once the work it set off has run.
+"""
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.action import ActionServer
+from rclpy.client import Client
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.service import Service
+
+from pppbot_lockstep.ros.port import FREE_RUNNING, StepPort, Timer
+from pppbot_lockstep.ros.requests import KeptRequest, action_key, counted_service, request_key
+
+
+def port_of(node: Node) -> StepPort:
+    """The step port ``node`` sends through (a plain rclpy node's: the free-running one)."""
+    port = getattr(node, "port", None)
+    return port if isinstance(port, StepPort) else FREE_RUNNING
+
+
+class StepPublisher(Publisher):
+    """A publisher whose messages go through its node's step port: counted on its topic and, in
+    lockstep, held (serialized) until the next step."""
+
+    _step_port: StepPort = FREE_RUNNING
+    _step_topic = ""
+    _asks_round = True
+
+    def attach(self, port: StepPort, asks_round: bool = True) -> None:
+        """Send through ``port``; ``asks_round=False``: nobody in lockstep reacts to these messages at
+        the time they are sent (a wheel's transform), so they ask for no further round."""
+        self._step_port = port
+        self._step_topic = self.topic_name
+        self._asks_round = asks_round
+
+    def publish(self, msg: Any) -> None:
+        """Publish ``msg`` (a message or its serialized bytes) through the node's port."""
+        port = self._step_port
+        if not port.counts:
+            super().publish(msg)
+            return
+        port.publish(self, msg, self._step_topic, asks_round=self._asks_round)
+
+
+class StepClient(Client):
+    """A service client whose requests go through its node's step port (counted on the server's
+    key, held in lockstep until the next step: the caller then gets a held future)."""
+
+    _step_port: StepPort = FREE_RUNNING
+    _step_key = ""
+
+    def attach(self, port: StepPort) -> None:
+        self._step_port = port
+        self._step_key = request_key(self.service_name)
+
+    def call_async(self, request: Any) -> Any:
+        port = self._step_port
+        if not port.counts:
+            return super().call_async(request)
+        return port.request(functools.partial(Client.call_async, self), self._step_key, request)
+
+
+class StepService(Service):
+    """A service whose requests, in lockstep, wait for the next step (the port's ``serve`` keeps them
+    as :class:`~pppbot_lockstep.ros.requests.KeptRequest`, answered when handled) and whose
+    replies count as a round's work."""
+
+    _step_port: StepPort = FREE_RUNNING
+
+    def send_response(self, response: Any, header: Any) -> None:
+        if isinstance(response, KeptRequest):
+            response.header = header  # answered when the request is handled, at the next step
+            return
+        self._step_port.replied()
+        super().send_response(response, header)
+
+
+class StepActionServer(ActionServer):
+    """An action server whose goal, cancel and result requests, in lockstep, wait for the next step
+    and whose replies count as a round's work."""
+
+    def __init__(self, node: Node, action_type: Any, action_name: str, *args: Any, **kwargs: Any) -> None:
+        super().__init__(node, action_type, action_name, *args, **kwargs)
+        self._step_port = port_of(node)
+        self._step_key = action_key(node, action_name)
+        self._step_counted = self._step_port.count_requests(node, self._step_key)
+
+    async def execute(self, taken_data: Any) -> None:
+        """rclpy's, with the requests in ``taken_data`` handled now or kept for the next step."""
+        port = self._step_port
+        requests = {kind: taken_data[kind] for kind in ("goal", "cancel", "result") if kind in taken_data}
+        if not port.counts or not requests:
+            await super().execute(taken_data)
+            return
+        rest = {kind: value for kind, value in taken_data.items() if kind not in requests}
+        if rest:
+            await super().execute(rest)  # expired goals: the server's own bookkeeping
+
+        async def handle() -> None:
+            port.replied()
+            await ActionServer.execute(self, requests)
+
+        if not port.take_requests(self._step_counted, self._step_key, handle, len(requests)):
+            await handle()
+
+
+class StepNode(Node):
+    """A node whose endpoints go through ``port`` (its process's, from the node runner; none: it
+    runs freely). Takes rclpy Node's arguments after its name."""
+
+    def __init__(self, node_name: str, *, port: StepPort | None = None, **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        #: what this node's endpoints send and time through (see the module's docstring)
+        self.port: StepPort = port or FREE_RUNNING
+
+    def create_publisher(self, msg_type: Any, topic: str, qos_profile: QoSProfile | int, *,
+                         aside: bool = False, **kwargs: Any) -> Publisher:
+        """rclpy's, through the node's port; ``aside=True``: messages nobody in lockstep reacts to at
+        their time (counted for delivery, asking no further round)."""
+        kwargs.setdefault("publisher_class", StepPublisher)
+        publisher = super().create_publisher(msg_type, topic, qos_profile, **kwargs)
+        if isinstance(publisher, StepPublisher):
+            publisher.attach(self._port(), asks_round=not aside)
+        return publisher
+
+    def create_subscription(self, msg_type: Any, topic: str, callback: Callable[[Any], None],
+                            qos_profile: QoSProfile | int, *, data_path: bool = False, at_step: bool = False,
+                            needs_publisher: bool = True, what: str = "", **kwargs: Any) -> Any:
+        """rclpy's. ``data_path=True``: a subscription on lockstep's data path (what the simulator and
+        the participants publish as the run goes on): its receptions are counted, in lockstep it is
+        reliable, and the process joins once it hears every publisher and at least one
+        (``needs_publisher=False``: none may come, such as a teleop input; ``what`` says what it
+        waits for). ``at_step=True``: each message is handled at the next step (one that makes
+        the node send)."""
+        port = self._port()
+        if at_step:
+            callback = port.at_step(callback)
+        if data_path:
+            callback = port.counted(self, self.resolve_topic_name(topic), callback)
+            if port.counts:
+                qos_profile = _reliable(qos_profile if isinstance(qos_profile, QoSProfile)
+                                        else QoSProfile(depth=qos_profile))
+        subscription = super().create_subscription(msg_type, topic, callback, qos_profile, **kwargs)
+        if data_path and needs_publisher:
+            port.require_match(self, subscription, what)
+        return subscription
+
+    def create_client(self, srv_type: Any, srv_name: str, **kwargs: Any) -> Client:
+        client = super().create_client(srv_type, srv_name, **kwargs)
+        client.__class__ = StepClient  # the same object, with the subclass's call_async
+        assert isinstance(client, StepClient)
+        client.attach(self._port())
+        return client
+
+    def create_service(self, srv_type: Any, srv_name: str, callback: Callable[[Any, Any], Any],
+                       **kwargs: Any) -> Service:
+        service = super().create_service(srv_type, srv_name, callback, **kwargs)
+        port = self._port()
+        key = request_key(service.service_name)
+        if port.counts and counted_service(key):
+            service.__class__ = StepService  # the same object, with the subclass's send_response
+            assert isinstance(service, StepService)
+            service._step_port = port
+            service.callback = port.serve(self, key, callback,
+                                          lambda request: KeptRequest(service, callback, request))
+        return service
+
+    def step_timer(self, period_s: float, callback: Callable[[], object], *, wakes: bool = True) -> Timer:
+        """A periodic timer on sim time: fired by lockstep's steps in lockstep (``wakes=False``: at the
+        first step at or after its deadline, without making one), else an rclpy timer on the node's
+        clock."""
+        return self._port().create_timer(self, period_s, callback, wakes)
+
+    def destroy_step_timer(self, timer: Timer) -> None:
+        self._port().destroy_timer(self, timer)
+
+    def _port(self) -> StepPort:
+        # rclpy's Node.__init__ makes its own endpoints (parameter services, /parameter_events)
+        # before this node has a port: those stay rclpy's.
+        return getattr(self, "port", FREE_RUNNING)
+
+
+def subscribe(node: Node, msg_type: Any, topic: str, callback: Callable[[Any], None], qos_profile: QoSProfile | int,
+              **lockstep: Any) -> Any:
+    """``node.create_subscription``, with :meth:`StepNode.create_subscription`'s ``lockstep`` keywords
+    (``data_path``, ``at_step``, ...) when ``node`` is a :class:`StepNode`; for a plain rclpy node (a
+    test's, a tool's) an ordinary one."""
+    if isinstance(node, StepNode):
+        return node.create_subscription(msg_type, topic, callback, qos_profile, **lockstep)
+    return node.create_subscription(msg_type, topic, callback, qos_profile)
+
+
+def _reliable(qos: QoSProfile) -> QoSProfile:
+    """``qos`` made reliable: in lockstep no data-path message may be lost (the simulator's and the
+    participants' publishers are reliable; a step waits for what a best-effort reader would drop)."""
+    if qos.reliability == ReliabilityPolicy.RELIABLE:
+        return qos
+    return QoSProfile(history=qos.history, depth=qos.depth, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=qos.durability)
+
+
+class StepExecutor(_rclpy.EventsExecutor):
+    """rclpy's EventsExecutor telling ``port`` of every task it makes (a future's callback, an
+    action's goal): a participant answers a step once those have run."""
+
+    def __init__(self, port: StepPort, context: Any = None) -> None:
+        import rclpy
+        context = context or rclpy.get_default_context()
+        super().__init__(context)
+        self._step_port = port
+        context.on_shutdown(self.wake)  # as rclpy.experimental.EventsExecutor does
+
+    def create_task(self, callback: Any, *args: Any, **kwargs: Any) -> Any:
+        self._step_port.task_created()
+        return super().create_task(callback, *args, **kwargs)
