@@ -27,10 +27,14 @@ setup(
         ],
         # The controllers the simulator hosts in its process, by ros2_control type (pppbot_sim.hosting).
         'pppbot_sim.hosted_controllers': [
-            'diff_drive_controller/DiffDriveController = pppbot_control.hosting:diff_drive_controller',
+            'diff_drive_controller/DiffDriveController = pppbot_control.ros.hosting:diff_drive_controller',
         ],
         'pppbot_sim.controller_managers': [
-            'controller_manager = pppbot_control.hosting:controller_manager',
+            'controller_manager = pppbot_control.ros.hosting:controller_manager',
+        ],
+        # Nodes the simulator's process runs beside it (launch_sim's use_composition).
+        'pppbot_sim.hosted_nodes': [
+            'twist_mux = pppbot_control.ros.twist_mux:TwistMuxNode',
         ],
     },
 )

@@ -23,5 +23,9 @@ setup(
         'console_scripts': [
             'robot_state_publisher = pppbot_description.ros.robot_state_publisher:main',
         ],
+        # The simulator's process runs it beside the simulator (launch_sim's use_composition).
+        'pppbot_sim.hosted_nodes': [
+            'robot_state_publisher = pppbot_description.ros.robot_state_publisher:RobotStatePublisher',
+        ],
     },
 )

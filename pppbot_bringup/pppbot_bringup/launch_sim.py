@@ -16,14 +16,26 @@ from __future__ import annotations
 import enum
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import yaml
 from pppbot_viz.viewer import ViewerKind
 
+from pppbot_bringup.node_specs import (
+    NAVIGATION_ENDPOINTS,
+    Beside,
+    Probes,
+    Resolver,
+    VizPlan,
+    joystick_nodes,
+    ros_args,
+    simulator_spec,
+    twist_mux_inputs,
+    viz_nodes,
+)
 from pppbot_bringup.parameter_files import (
     NOT_IN_PPP_BOTS_BRINGUP,
     PARAMETER_FILES,
@@ -81,9 +93,10 @@ class LaunchArgs:
     use_collision_monitor: bool = _arg(True, "the collision_monitor between the velocity_smoother and twist_mux: "
                                              "stops the robot short of what the lidar sees in its way (false: "
                                              "leave it out)")
-    use_composition: bool = _arg(True, "map_server and amcl in one process (localization), the navigation nodes "
-                                       "in another (navigation), as Nav2's bringup composes its servers "
-                                       "(false: a process each)")
+    use_composition: bool = _arg(True, "robot_state_publisher and twist_mux in the simulator's process, map_server "
+                                       "and amcl in one (localization), the navigation nodes in another "
+                                       "(navigation), as Nav2's bringup composes its servers (false: a process "
+                                       "each)")
     slam_params_file: str = _arg("", "the slam node's parameters; default config/mapper_params_online_async.yaml")
     params_file: str = _arg("", "Nav2's parameters for localization and navigation (Nav2's bringup argument); "
                                 "default config/nav2_params.yaml")
@@ -193,48 +206,6 @@ class LaunchArgs:
 ARGUMENTS = [Argument(f.name, f.default.value if isinstance(f.default, enum.Enum) else f.default,
                       f.metadata["description"], f.metadata["choices"]) for f in fields(LaunchArgs)]
 
-Resolver = Callable[[str, str], str]
-
-
-class Probes(Protocol):
-    """Readiness from the ROS graph (:class:`pppbot_bringup.ros.graph_probe.GraphProbe`)."""
-
-    def first_message(self, topic: str, type_name: str, latched: bool) -> Callable[[], bool]:
-        """True once a message came on ``topic``."""
-
-    def endpoints(self, node: str, publishes: Sequence[str] = (), subscribes: Sequence[str] = (),
-                  action_servers: Sequence[str] = ()) -> Callable[[], bool]:
-        """True once ``node`` publishes, subscribes and serves every one of these names."""
-
-    def joined(self, participant: str) -> Callable[[], bool]:
-        """True once the simulator lists ``participant`` on /lockstep/status."""
-
-    def lifecycle_active(self, node: str) -> Callable[[], bool]:
-        """True once lifecycle node ``node`` says it is active."""
-
-
-@dataclass(frozen=True)
-class Endpoints:
-    """What a navigation node has once it is up, as its own process: ``description`` says it."""
-
-    description: str
-    action_servers: tuple[str, ...] = ()
-    subscribes: tuple[str, ...] = ()
-
-
-def _serving(action: str) -> Endpoints:
-    return Endpoints(f"its {action} action server", action_servers=(f"/{action}",))
-
-
-#: Each node of lifecycle_manager_navigation's, and how its readiness shows.
-NAVIGATION_ENDPOINTS = {
-    "controller_server": _serving("follow_path"), "smoother_server": _serving("smooth_path"),
-    "planner_server": _serving("compute_path_to_pose"), "behavior_server": _serving("spin"),
-    "velocity_smoother": Endpoints("its /cmd_vel_nav subscription", subscribes=("/cmd_vel_nav",)),
-    "collision_monitor": Endpoints("its /cmd_vel_smoothed subscription", subscribes=("/cmd_vel_smoothed",)),
-    "bt_navigator": _serving("navigate_to_pose"), "waypoint_follower": _serving("follow_waypoints")}
-
-
 @dataclass(frozen=True)
 class Plan:
     nodes: list[NodeSpec]
@@ -248,100 +219,6 @@ class Plan:
     start_info: list[str] = field(default_factory=list)
     #: information worth reading once, not at every start (an optional tool that is absent), key → text
     once: dict[str, str] = field(default_factory=dict)
-
-
-#: Scans a view recording without a live view keeps per second (of 10): a fifth of the size.
-RECORDING_SCAN_HZ = 2.0
-
-
-@dataclass(frozen=True)
-class VizPlan:
-    """Where the live view runs: the rerun server's ports, the page's, the viewer and rerun's
-    settings directory."""
-
-    grpc_port: int
-    web_port: int
-    page_port: int
-    native: bool
-    state_dir: Path
-
-
-def viz_nodes(viz: VizPlan | None, recording: Path | None, resolve: Resolver, probes: Probes, level: str,
-              after: tuple[str, ...]) -> list[NodeSpec]:
-    """The live view: the rerun server (gRPC and the web viewer's files, 127.0.0.1 only), the
-    native viewer when asked for, and the viz node that streams to the server and serves the
-    page; with ``recording``, the viz node also writes the stream to that ``.rrd`` file. Without
-    ``viz``, only the viz node writing ``recording``."""
-    from pppbot_viz import viewer
-    nodes: list[NodeSpec] = []
-    params: dict[str, Any] = {}
-    if viz is not None:
-        env = viewer.viewer_environment(viz.state_dir)
-        nodes.append(NodeSpec("rerun", viewer.server_command(viz.grpc_port, viz.web_port), env=env,
-                              ready=ReadyCheck(f"listening on 127.0.0.1:{viz.grpc_port}",
-                                               lambda: viewer.listening(viz.grpc_port)
-                                               and viewer.listening(viz.web_port))))
-        if viz.native:
-            nodes.append(NodeSpec("rerun_viewer", viewer.native_viewer_command(viz.grpc_port), env=env,
-                                  after=("rerun",)))
-        params.update(rerun_port=viz.grpc_port, rerun_web_port=viz.web_port, port=viz.page_port, announce=False,
-                      images_while_watched=not viz.native)
-        after = ("rerun", *after)
-    if recording is not None:
-        params["recording_path"] = str(recording)
-        if viz is None:  # a recording only (the evaluation's): every scan would be most of the file
-            params["scan_max_rate_hz"] = RECORDING_SCAN_HZ
-    nodes.append(NodeSpec("viz", [resolve("pppbot_viz", "viz"), *ros_args(level, params)],
-                          after=after, pppbot_node=True,
-                          ready=ReadyCheck("its subscriptions", probes.endpoints(
-                              "viz", publishes=("/goal_pose", "/initialpose"), subscribes=("/map", "/scan")))))
-    return nodes
-
-
-def twist_mux_inputs(params_file: Path) -> tuple[str, ...]:
-    """The topics twist_mux subscribes (its ``topics`` and ``locks`` entries' ``topic``), fully
-    qualified, from its parameter file (the ``twist_mux`` or ``/**`` section).
-
-    Raises:
-        ArgumentError: the file cannot be read or has no such section.
-    """
-    try:
-        document = yaml.safe_load(params_file.read_text())
-        section = next(document[key]["ros__parameters"] for key in ("twist_mux", "/twist_mux", "/**")
-                       if key in document)
-        entries = [*section.get("topics", {}).values(), *section.get("locks", {}).values()]
-        return tuple(sorted({"/" + str(entry["topic"]).lstrip("/") for entry in entries}))
-    except (OSError, yaml.YAMLError, TypeError, KeyError, AttributeError, StopIteration) as exc:
-        raise ArgumentError(f"{params_file}: not a twist_mux parameter file with topics.<name>.topic entries "
-                            f"({type(exc).__name__}: {exc})") from exc
-
-
-def ros_args(log_level: str, params: dict[str, Any] | None = None, params_file: Path | None = None,
-             remaps: dict[str, str] | None = None, sim_time: bool = True) -> list[str]:
-    args = ["--ros-args", "--log-level", log_level]
-    if params_file is not None:
-        args += ["--params-file", str(params_file)]
-    all_params = {"use_sim_time": True} if sim_time else {}
-    all_params.update(params or {})
-    for name, value in all_params.items():
-        text = str(value).lower() if isinstance(value, bool) else str(value)
-        args += ["-p", f"{name}:={text}"]
-    for old, new in (remaps or {}).items():
-        args += ["-r", f"{old}:={new}"]
-    return args
-
-
-def joystick_nodes(joy_config: Path, resolve: Any, level: str) -> list[NodeSpec]:
-    """ppp_bot's joystick.launch.py: joy_node, and teleop_twist_joy named ``teleop_node`` (its section
-    of joystick.yaml) publishing into twist_mux's teleop input. Neither is required: a missing
-    joystick is said once and the rest runs."""
-    return [
-        NodeSpec("joy_node", [resolve("pppbot_control", "joy_node"), *ros_args(level, params_file=joy_config)],
-                 after=("simulator",), pppbot_node=True),
-        NodeSpec("teleop_node", [resolve("pppbot_control", "teleop_node"), *ros_args(
-            level, params_file=joy_config, remaps={"__node": "teleop_node", "cmd_vel": "/cmd_vel_teleop"})],
-            after=("twist_mux",), pppbot_node=True),
-    ]
 
 
 def controllers_file(given: str = "") -> Path:
@@ -428,19 +305,27 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                 ReadyCheck(f"{description} (joined lockstep)", probes.joined(name), timeout_s=check.timeout_s))
 
     mux_config = parameter_file(args.twist_mux_params, config / "twist_mux.yaml", "twist_mux_params")
-    mux_params, mux_ready = participant("twist_mux", "its inputs", ReadyCheck("its inputs", probes.endpoints(
-        "twist_mux", publishes=(robot.command_topic,), subscribes=twist_mux_inputs(mux_config))))
-    # A participant too: its wheel transforms are on /tf, which the data path counts.
-    rsp_params, rsp_ready = participant("robot_state_publisher", "/robot_description", ReadyCheck(
-        "/robot_description", probes.first_message("/robot_description", "std_msgs/msg/String", True)))
-    nodes = [
-        NodeSpec("robot_state_publisher", [resolve("pppbot_description", "robot_state_publisher"),
-                                           *ros_args(level, {"robot_description": urdf_file, **rsp_params})],
-                 after=("simulator",), required=True, pppbot_node=True, ready=rsp_ready),
-        NodeSpec("twist_mux", [resolve("pppbot_control", "twist_mux"), *ros_args(
-            level, mux_params, params_file=mux_config, remaps={"cmd_vel_out": robot.command_topic})],
-            after=("simulator",), required=True, pppbot_node=True, ready=mux_ready),
-    ]
+    rsp_check = ReadyCheck("/robot_description", probes.first_message("/robot_description", "std_msgs/msg/String",
+                                                                      True))
+    mux_check = ReadyCheck("twist_mux's inputs", probes.endpoints(
+        "twist_mux", publishes=(robot.command_topic,), subscribes=twist_mux_inputs(mux_config)))
+    composed = args.use_composition
+    # What the rest starts after: the robot's description is up (in the simulator's process, composed).
+    base = "simulator" if composed else "robot_state_publisher"
+    nodes: list[NodeSpec] = []
+    if not composed:
+        # Participants too: twist_mux passes commands on; the wheel transforms are on /tf, which the
+        # data path counts.
+        mux_params, mux_ready = participant("twist_mux", "its inputs", mux_check)
+        rsp_params, rsp_ready = participant("robot_state_publisher", "/robot_description", rsp_check)
+        nodes += [
+            NodeSpec("robot_state_publisher", [resolve("pppbot_description", "robot_state_publisher"),
+                                               *ros_args(level, {"robot_description": urdf_file, **rsp_params})],
+                     after=("simulator",), required=True, pppbot_node=True, ready=rsp_ready),
+            NodeSpec("twist_mux", [resolve("pppbot_control", "twist_mux"), *ros_args(
+                level, mux_params, params_file=mux_config, remaps={"cmd_vel_out": robot.command_topic})],
+                after=("simulator",), required=True, pppbot_node=True, ready=mux_ready),
+        ]
     if args.record:
         bag = Path(args.bag_path or time.strftime("rosbag2_%Y_%m_%d-%H_%M_%S"))
         if bag.exists():
@@ -488,7 +373,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                       **{f"amcl:{k}": v for k, v in amcl_params.items()}, **extra}
             nodes.append(NodeSpec("localization", [resolve("pppbot_nav", "localization"), *ros_args(
                 level, scoped, params_file=nav2_params)],
-                after=("robot_state_publisher",), required=True, pppbot_node=True, ready=localized))
+                after=(base,), required=True, pppbot_node=True, ready=localized))
         else:
             # Each its own process, unconfigured until lifecycle_manager_localization (its own
             # process too, as Nav2's bringup starts it) brings them up; localized is its readiness.
@@ -499,7 +384,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
             extra, localized = participant("amcl", "an initial pose", amcl_ready)
             nodes.append(NodeSpec("amcl", [resolve("pppbot_nav", "amcl"), *ros_args(
                 level, {**amcl_params, **extra}, params_file=nav2_params)],
-                after=("robot_state_publisher",), required=True, pppbot_node=True,
+                after=(base,), required=True, pppbot_node=True,
                 ready=ReadyCheck("its /amcl_pose publisher", probes.endpoints("amcl", publishes=("/amcl_pose",)))))
             nodes.append(manager_spec("lifecycle_manager_localization", LOCALIZATION_NODES, nav2_params, localized))
         start_info.append(f"localizing on {map_file}")
@@ -516,7 +401,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
             ReadyCheck("a first /map", probes.first_message("/map", "nav_msgs/msg/OccupancyGrid", True)))
         nodes.append(NodeSpec("slam_toolbox", [resolve("pppbot_slam", "slam"), *ros_args(
             level, slam_params_lockstep, params_file=slam_params)],
-            after=("robot_state_publisher",), required=True, pppbot_node=True, ready=slam_ready))
+            after=(base,), required=True, pppbot_node=True, ready=slam_ready))
     localizer = (("localization" if args.use_composition else "lifecycle_manager_localization") if args.localization
                  else "slam_toolbox" if args.use_slam else None)
     if args.navigation.enabled(args.localization):
@@ -570,11 +455,8 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
         simulator_params["cmd_vel_topic"] = robot.simulator_cmd_vel_topic
     if lockstep:
         simulator_params.update(lockstep=True, lockstep_participants=[*participants, *extra_participants])
-    nodes.insert(0, NodeSpec("simulator", [resolve("pppbot_sim", "simulator"),
-                                           *ros_args(level, simulator_params, sim_time=False)],
-                             ready=ReadyCheck("a first /clock",
-                                              probes.first_message("/clock", "rosgraph_msgs/msg/Clock", False)),
-                             required=True, pppbot_node=True))
+    beside = Beside(urdf_file, mux_config, robot.command_topic, rsp_check, mux_check) if composed else None
+    nodes.insert(0, simulator_spec(resolve, probes, level, simulator_params, beside))
     once: dict[str, str] = {}
     if args.use_rviz:
         if rviz is None:
@@ -583,10 +465,10 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                                 "(said once; use_rviz:=false says it is not wanted)")
         else:
             nodes.append(NodeSpec("rviz2", [rviz, "-d", str(config / "ppp_bot.rviz"), *ros_args(level)],
-                                  after=("robot_state_publisher",)))
+                                  after=(base,)))
     info: list[str] = []
     if viz is not None or view_recording is not None:
-        nodes += viz_nodes(viz, view_recording, resolve, probes, level, after=("robot_state_publisher",))
+        nodes += viz_nodes(viz, view_recording, resolve, probes, level, after=(base,))
     if viz is not None:
         viewer = "a native viewer window and " if viz.native else ""
         moved = f"; port {args.viz_port} was taken" if args.viz_port and viz.page_port != args.viz_port else ""
@@ -594,7 +476,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                     "(2D Goal Pose / 2D Pose Estimate: a button, then two clicks on the map)")
     if args.use_joystick:
         nodes += joystick_nodes(parameter_file(args.joy_params, config / "joystick.yaml", "joy_params"), resolve,
-                                level)
+                                level, after="simulator" if composed else "twist_mux")
         info.append("joystick: hold the enable button (6) and move the left stick; turbo: button 7")
     if args.use_teleop:
         if terminal:

@@ -6,6 +6,7 @@ then SIGTERM after a timeout, then SIGKILL.
 """
 from __future__ import annotations
 
+import contextlib
 import faulthandler
 import os
 import re
@@ -15,7 +16,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
 from pppbot_common.errors import TimeoutExpired
@@ -71,6 +72,29 @@ def dump_stacks_on_signal() -> None:
             return
         except (AttributeError, ValueError, OSError):  # no file descriptor (captured, closed)
             continue
+
+
+@contextlib.contextmanager
+def exit_if_stuck(timeout_s: float) -> Iterator[None]:
+    """Within the block, a process stuck for ``timeout_s`` prints every thread's stack to stderr and
+    exits with status 1 (from C: it works while the main thread is stuck in a binding call that
+    holds the GIL, where no Python signal handler can run). Where stderr has no file descriptor
+    (a test's captured output) it does nothing."""
+    armed = False
+    for stream in (sys.stderr, sys.__stderr__):
+        if stream is None:
+            continue
+        try:
+            faulthandler.dump_traceback_later(timeout_s, exit=True, file=stream)
+            armed = True
+            break
+        except (AttributeError, ValueError, OSError):
+            continue
+    try:
+        yield
+    finally:
+        if armed:
+            faulthandler.cancel_dump_traceback_later()
 
 
 def group_stacks(pgid: int, timeout_s: float = 15.0, max_processes: int = 4, max_chars: int = 6000) -> str:

@@ -50,7 +50,7 @@ class EvalConfig:
     goal_distance: float = 2.0
     start: Triple = (0.0, 0.0, 0.0)
     min_success_rate: float = 0.98
-    view: bool = True
+    view: bool = False
     json: bool = False
     log_level: str = "info"
 

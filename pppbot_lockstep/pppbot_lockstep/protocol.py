@@ -19,7 +19,7 @@ import enum
 import heapq
 import itertools
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from pppbot_lockstep.errors import LockstepError
@@ -245,15 +245,45 @@ class Publications:
         #: Per participant, its last cumulative count per topic; their sums over participants.
         self._last: dict[str, dict[str, int]] = {}
         self._others: dict[str, int] = {}
+        #: Per participant, the topics it counts.
+        self._counting: dict[str, frozenset[str]] = {}
 
     def want(self, topics: Sequence[str]) -> None:
-        """Participants count receptions on ``topics`` (from the next step on)."""
+        """This process counts receptions on ``topics`` too (from the next step on)."""
         self._wanted.update(t for t in topics if t)
 
     def joined(self, name: str, topics: Sequence[str]) -> None:
-        """``name`` (re)joined: a new process counts from zero."""
+        """``name`` (re)joined, counting ``topics``: a new process counts from zero."""
         self._last[name] = {}
+        self.counting(name, topics)
+
+    def counting(self, name: str, topics: Sequence[str]) -> None:
+        """``name`` counts receptions on ``topics`` (from the next step on)."""
+        self._counting[name] = frozenset(t for t in topics if t)
         self.want(topics)
+
+    def left(self, name: str) -> None:
+        """``name`` left: it counts nothing any more."""
+        self._counting.pop(name, None)
+
+    def counted_by(self, own: Collection[str] = ()) -> list[int]:
+        """Per topic of :attr:`topics`: how many lockstep processes count it, the simulator's (which
+        counts ``own``) among them only when a participant counts it too.
+
+        A participant holds what it sends on a topic some other process counts until its next step
+        (the others then handle it in the next round, in the same order on every machine): where
+        ``counted_by`` minus its own count is above zero. What only the simulator's process counts
+        (it waits for it after the answers anyway), only the sender itself or nobody goes out at once.
+        """
+        counts = []
+        for topic in self.topics:
+            participants = sum(topic in counting for counting in self._counting.values())
+            counts.append(participants + (1 if participants and topic in own else 0))
+        return counts
+
+    def others(self) -> dict[str, int]:
+        """Per topic: what the participants have published on it in all, as they last reported."""
+        return dict(self._others)
 
     def next_topics(self) -> tuple[str, ...]:
         """The counted topics for the step starting now (sorted; they only grow)."""
@@ -296,6 +326,12 @@ class Deliveries:
     def __init__(self) -> None:
         self.subscriptions: list[Counted] = []
         self.totals: dict[str, int] = {}
+
+    def expect_own(self, topic: str) -> None:
+        """This process sent one more message on ``topic`` (not held: only it counts the topic) and
+        handles it in the step at hand."""
+        if topic in self.totals:
+            self.totals[topic] += 1
 
     def add(self, topic: str, catch_up: bool = False) -> Counted:
         counted = Counted(topic, catch_up=catch_up)

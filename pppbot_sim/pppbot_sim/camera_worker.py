@@ -5,13 +5,16 @@ camera is due and hands it to :meth:`CameraWorker.submit`; the worker renders it
 OpenGL context and its own copy of the model, turns it into what the camera publishes
 (:func:`produce`) and gives the :class:`CameraFrame` to ``deliver``. The physics loop never
 waits for it. A camera whose previous frame is still waiting when the next is due keeps only
-the newer one (the older is skipped); skips are reported per camera, at most once a minute.
+the newer one (the older is skipped); skips are reported per camera, at most once a minute. In
+lockstep (``every_frame``) nothing is skipped: the physics loop waits for the renderer instead,
+so every frame the camera's rate asks for in sim time is rendered, however busy the machine.
 
 What is reproducible: a frame is rendered from the state at its stamp and its noise comes from a
 generator seeded by (seed, camera, frame number), so a frame stamped t is the same in every
 run with the same seed (on the same OpenGL implementation), however busy the machine; which
-frames are skipped is not. The thread runs at a lower CPU priority (``nice``) than the physics
-loop, and so do the renderer's own threads (Mesa's llvmpipe starts them from this one).
+frames are skipped is not (none are with ``every_frame``). The thread runs at a lower CPU
+priority (``nice``) than the physics loop, and so do the renderer's own threads (Mesa's
+llvmpipe starts them from this one).
 
 The OpenGL context is made when the first frame is asked for (it takes about 130 MB and 0.2 s
 with Mesa's software renderer); if it cannot be made, ``failed`` says why and the worker stops.
@@ -140,9 +143,11 @@ class CameraWorker:
 
     def __init__(self, model: mujoco.MjModel, bindings: Sequence[CameraBinding], seed: int,
                  deliver: Callable[[CameraFrame], None], log: Callable[[str], None], *,
-                 backend: str | None = None, nice: int = RENDER_NICE,
+                 backend: str | None = None, nice: int = RENDER_NICE, every_frame: bool = False,
                  make_renderer: Callable[..., SceneRenderer] = SceneRenderer) -> None:
         self.bindings = list(bindings)
+        #: never skip a frame: :meth:`submit` waits for the camera's previous frame to be taken
+        self.every_frame = every_frame
         self.seed = seed
         self.deliver = deliver
         self.log = log
@@ -165,8 +170,12 @@ class CameraWorker:
     # ------------------------------------------------------------ the caller's side
     def submit(self, request: FrameRequest) -> bool:
         """Render ``request`` when the thread is free; an older request of the same camera still
-        waiting is skipped. False when the worker has stopped (see :attr:`failed`)."""
+        waiting is skipped (with :attr:`every_frame`: waited for, until the thread takes it). False
+        when the worker has stopped (see :attr:`failed`)."""
         with self._cond:
+            while self.every_frame and request.index in self._pending and self.failed is None \
+                    and not self._stopping:
+                self._cond.wait()
             if self.failed is not None or self._stopping:
                 return False
             self.asked[request.index] += 1
@@ -226,6 +235,7 @@ class CameraWorker:
                     index = min(self._pending, key=lambda i: self._pending[i].state.stamp_s)
                     request = self._pending.pop(index)
                     self._busy = True
+                    self._cond.notify_all()  # a submit waiting for this camera's turn (every_frame)
                 try:
                     frame = produce(renderer, self.bindings[index], index, request, self.seed)
                     self.deliver(frame)

@@ -7,14 +7,18 @@ type the robot's controllers file names (``diff_drive_controller/DiffDriveContro
 * group :data:`CONTROLLERS`: one entry per controller type, named by that type, whose object is a
   :data:`ControllerFactory` (a :class:`HostRequest` in, a :class:`HostedController` out);
 * group :data:`MANAGERS`: an entry ``controller_manager`` whose object is a
-  :data:`ManagerFactory`: the ROS node that lists and switches the hosted controllers.
+  :data:`ManagerFactory`: the ROS node that lists and switches the hosted controllers;
+* group :data:`NODES`: nodes the simulator's process runs beside it when asked to
+  (``simulator --host robot_state_publisher``, what ``launch_sim`` does with
+  ``use_composition:=true``), their topics in-process and, in lockstep, on its step port.
 
 A package registers into them in its ``setup.py``; ``pppbot_control`` does::
 
     entry_points={
         "pppbot_sim.hosted_controllers": [
-            "diff_drive_controller/DiffDriveController = pppbot_control.hosting:diff_drive_controller"],
-        "pppbot_sim.controller_managers": ["controller_manager = pppbot_control.hosting:controller_manager"],
+            "diff_drive_controller/DiffDriveController = pppbot_control.ros.hosting:diff_drive_controller"],
+        "pppbot_sim.controller_managers": ["controller_manager = pppbot_control.ros.hosting:controller_manager"],
+        "pppbot_sim.hosted_nodes": ["twist_mux = pppbot_control.ros.twist_mux:TwistMuxNode"],
     }
 
 The simulator imports none of them by name: the interface is this module's Protocols. A hosted
@@ -36,6 +40,10 @@ CONTROLLERS = "pppbot_sim.hosted_controllers"
 #: the entry-point group of the controller manager (name: ``controller_manager``)
 MANAGERS = "pppbot_sim.controller_managers"
 MANAGER = "controller_manager"
+#: the entry-point group of nodes the simulator's process can run beside it (name: the node's
+#: executable, ``robot_state_publisher``; object: its node class, made with ``port=`` and rclpy's
+#: Node arguments), as a component container loads components
+NODES = "pppbot_sim.hosted_nodes"
 
 
 class JointIO(Protocol):
@@ -154,3 +162,17 @@ def manager_factory() -> ManagerFactory | None:
     """
     point = registered(MANAGERS).get(MANAGER)
     return None if point is None else load(point)
+
+
+def node_factories(names: Sequence[str]) -> list[Callable[..., Any]]:
+    """The node classes of the :data:`NODES` entries ``names``, in order.
+
+    Raises:
+        SpawnError: a name no installed package registers, or an entry that does not load.
+    """
+    found = registered(NODES)
+    unknown = [name for name in names if name not in found]
+    if unknown:
+        raise SpawnError(f"no installed package offers node(s) {', '.join(unknown)} to the simulator's process "
+                         f"(entry point group {NODES}: {', '.join(sorted(found)) or 'none'})")
+    return [load(found[name]) for name in names]

@@ -32,12 +32,12 @@ RUNS = 12
 #: loaded machine a node still importing when the stop comes can need more, and any escalation
 #: fails the test anyway; a node that hangs is still named.
 ESCALATION = ("sigterm_timeout:=20", "sigkill_timeout:=30")
-#: Processes of a localization + navigation bringup without teleop and RViz: map_server and amcl
-#: composed, and the navigation nodes (the default), or each its own (``use_composition:=false``,
-#: every fourth run).
-NODES = ("simulator", "robot_state_publisher", "twist_mux", "localization", "navigation")
-SEPARATE_NODES = (*NODES[:3], "map_server", "amcl", "lifecycle_manager_localization", *NAVIGATION_NODES,
-                  "lifecycle_manager_navigation")
+#: Processes of a localization + navigation bringup without teleop and RViz: robot_state_publisher
+#: and twist_mux in the simulator's, map_server and amcl composed, and the navigation nodes (the
+#: default), or each its own (``use_composition:=false``, every fourth run).
+NODES = ("simulator", "localization", "navigation")
+SEPARATE_NODES = ("simulator", "robot_state_publisher", "twist_mux", "map_server", "amcl",
+                  "lifecycle_manager_localization", *NAVIGATION_NODES, "lifecycle_manager_navigation")
 
 
 #: The interpreter's own frames, left out of a native stack (the Python stack is printed beside it).

@@ -28,7 +28,7 @@ def test_defaults_are_ppp_bots():
     assert (v.world, v.localization, v.use_teleop, v.use_rviz, v.headless) == ("cones", False, True, True, True)
     assert (v.real_time_factor, v.log_level, v.navigation) == (1.0, "info", NavigationMode.AUTO)
     # z:= not given: the simulator puts the robot down on what lies beneath it
-    assert math.isnan(v.z) and "-p z:=nan " in " ".join(fake_plan()[0].nodes[0].cmd) + " "
+    assert math.isnan(v.z) and "-p simulator:z:=nan " in " ".join(fake_plan()[0].nodes[0].cmd) + " "
 
 
 def test_the_arguments_are_the_dataclass_fields_with_their_defaults():
@@ -104,7 +104,7 @@ def test_ppp_bots_argument_names_and_files_are_taken(tmp_path):
     nodes = {n.name: " ".join(n.cmd) for n in fake_plan("localization:=true", f"params_file:={nav2}",
                                                          f"twist_mux_params:={mux}")[0].nodes}
     assert f"--params-file {nav2}" in nodes["localization"] and f"--params-file {nav2}" in nodes["navigation"]
-    assert f"--params-file {mux}" in nodes["twist_mux"]
+    assert f"--params-file {mux}" in nodes["simulator"]  # twist_mux runs in the simulator's process
 
 
 def test_use_joystick_starts_joy_and_teleop_twist_joy_into_the_teleop_input(tmp_path):
@@ -170,27 +170,40 @@ def fake_plan(*argv: str, terminal: bool = False, rviz: str | None = None, extra
 def test_plan_follows_ppp_bots_order_and_wiring():
     p, probes = fake_plan("world:=maze", "real_time_factor:=3", terminal=True, rviz="/usr/bin/rviz2")
     names = [n.name for n in p.nodes]
-    # The controllers run in the simulator's process (the robot's gz_ros2_control plugin names them).
-    assert names == ["simulator", "robot_state_publisher", "twist_mux", "slam_toolbox", "rviz2", "teleop_keyboard"]
+    # The controllers run in the simulator's process (the robot's gz_ros2_control plugin names them),
+    # and so do robot_state_publisher and twist_mux (composed, as Nav2 composes its servers).
+    assert names == ["simulator", "slam_toolbox", "rviz2", "teleop_keyboard"]
     by_name = {n.name: n for n in p.nodes}
-    assert by_name["robot_state_publisher"].after == ("simulator",)
-    assert by_name["twist_mux"].after == ("simulator",)
-    assert set(by_name["teleop_keyboard"].after) == {"simulator", "robot_state_publisher", "twist_mux",
-                                                     "slam_toolbox"}
+    assert set(by_name["teleop_keyboard"].after) == {"simulator", "slam_toolbox"}
     slam = " ".join(by_name["slam_toolbox"].cmd)
     assert slam.startswith("/bin/pppbot_slam/slam ") and "mapper_params_online_async.yaml" in slam
-    assert "use_sim_time:=true" in slam and by_name["slam_toolbox"].after == ("robot_state_publisher",)
+    assert "use_sim_time:=true" in slam and by_name["slam_toolbox"].after == ("simulator",)
     assert ("/map", "nav_msgs/msg/OccupancyGrid", True) in probes
     assert by_name["teleop_keyboard"].terminal and not by_name["simulator"].terminal
     sim = " ".join(by_name["simulator"].cmd)
-    assert "world:=" in sim and "maze.sdf" in sim and "real_time_factor:=3.0" in sim and "use_sim_time" not in sim
+    assert sim.startswith("/bin/pppbot_sim/simulator --host robot_state_publisher --host twist_mux --ros-args ")
+    assert "simulator:world:=" in sim and "maze.sdf" in sim and "simulator:real_time_factor:=3.0" in sim
+    assert "simulator:use_sim_time" not in sim
     assert "lockstep" not in " ".join(" ".join(n.cmd) for n in p.nodes)  # wall-clock time by default
-    assert "-p cameras:=true" in sim  # rendered while someone watches
-    assert "-p cameras:=false" in " ".join(fake_plan("cameras:=false")[0].nodes[0].cmd)
+    assert "-p simulator:cameras:=true" in sim  # rendered while someone watches
+    assert "-p simulator:cameras:=false" in " ".join(fake_plan("cameras:=false")[0].nodes[0].cmd)
     assert all(n.env is None for n in p.nodes)
+    # Each hosted node's parameters and remappings scoped to it; their clock the simulator's.
+    assert "-p robot_state_publisher:robot_description:=/tmp/robot.urdf" in sim
+    assert "-r twist_mux:cmd_vel_out:=/diff_drive_base_controller/cmd_vel_unstamped" in sim
+    assert "twist_mux:use_sim_time:=false" in sim and "config/twist_mux.yaml" in sim
+    assert ("/robot_description", "std_msgs/msg/String", True) in probes
+    assert by_name["simulator"].ready.description == "a first /clock, /robot_description, twist_mux's inputs"
+    # A process each (use_composition:=false): ppp_bot's launch files' order and wiring.
+    apart = fake_plan("world:=maze", "use_composition:=false", terminal=True)[0]
+    assert [n.name for n in apart.nodes] == ["simulator", "robot_state_publisher", "twist_mux", "slam_toolbox",
+                                             "teleop_keyboard"]
+    by_name = {n.name: n for n in apart.nodes}
+    assert by_name["robot_state_publisher"].after == ("simulator",) and by_name["twist_mux"].after == ("simulator",)
+    assert by_name["slam_toolbox"].after == ("robot_state_publisher",)
+    assert "--host" not in by_name["simulator"].cmd and "-p world:=" in " ".join(by_name["simulator"].cmd)
     mux = " ".join(by_name["twist_mux"].cmd)
     assert "-r cmd_vel_out:=/diff_drive_base_controller/cmd_vel_unstamped" in mux and "use_sim_time:=true" in mux
-    assert ("/robot_description", "std_msgs/msg/String", True) in probes
     assert all(n.required for n in p.nodes if n.name not in ("rviz2", "teleop_keyboard"))
     # Readiness from the graph, never from log text: twist_mux once it has its output and inputs.
     assert probes.endpoints_asked["twist_mux"] == {
@@ -199,7 +212,7 @@ def test_plan_follows_ppp_bots_order_and_wiring():
 
 
 def test_twist_mux_inputs_come_from_its_parameter_file(tmp_path):
-    from pppbot_bringup.launch_sim import twist_mux_inputs
+    from pppbot_bringup.node_specs import twist_mux_inputs
 
     good = tmp_path / "mux.yaml"
     good.write_text("/**:\n  ros__parameters:\n    topics:\n      a: {topic: /x/in, timeout: 0.5, priority: 1}\n"
@@ -213,7 +226,7 @@ def test_twist_mux_inputs_come_from_its_parameter_file(tmp_path):
 
 def test_plan_without_terminal_rviz_or_mapping_says_so():
     p, _ = fake_plan("use_slam:=false")
-    assert [n.name for n in p.nodes][-1] == "twist_mux"
+    assert [n.name for n in p.nodes][-1] == "simulator"
     info = " ".join(p.start_info)  # information, not warnings: nothing to act on
     assert "run ./pppbot teleop in another terminal" in info
     assert "rviz2 is not on PATH" not in info and p.notes == []
@@ -233,7 +246,7 @@ def test_localization_serves_the_worlds_map_and_starts_amcl_at_the_spawn_pose_in
     for scoped in ("amcl:set_initial_pose:=true", "amcl:initial_pose.x:=1.5", "amcl:initial_pose.yaw:=0.5",
                    "amcl:seed:=0"):  # the launch's seed: AMCL's particles are the same on every run
         assert scoped in both
-    assert by_name["localization"].after == ("robot_state_publisher",) and by_name["localization"].required
+    assert by_name["localization"].after == ("simulator",) and by_name["localization"].required
     assert by_name["navigation"].after == ("localization",)
     # A process each: the same parameters, unscoped.
     p, probes = fake_plan("world:=maze", "localization:=true", "x:=1.5", "yaw:=0.5", "use_composition:=false")
@@ -284,19 +297,22 @@ def test_lockstep_makes_the_data_path_participants_and_tells_the_simulator_whom_
     p, probes = fake_plan("lockstep:=true", "real_time_factor:=0", "localization:=true", "navigation:=true",
                           extra_participants=("pppbot_eval",))
     by_name = {n.name: " ".join(n.cmd) for n in p.nodes}
-    # robot_state_publisher too: its wheel transforms are on /tf, which lockstep counts.
     # The planner, controller_server and navigator composed in one process: one participant.
-    # map_server and amcl composed likewise.
-    participants = ["twist_mux", "robot_state_publisher", "localization", "navigation"]
+    # map_server and amcl composed likewise; robot_state_publisher and twist_mux run in the
+    # simulator's process, on its side of lockstep.
+    participants = ["localization", "navigation"]
     for name in participants:
         assert "lockstep:=true" in by_name[name] and f"lockstep_name:={name}" in by_name[name]
+    sim = by_name["simulator"]
+    assert "simulator:lockstep:=true" in sim and "simulator:real_time_factor:=0.0" in sim
+    assert f"simulator:lockstep_participants:={[*participants, 'pppbot_eval']}" in sim
+    # A process each: robot_state_publisher too (its wheel transforms are on /tf, which lockstep
+    # counts), twist_mux, amcl; map_server is not on the data path: never waited for.
     apart = {n.name: " ".join(n.cmd) for n in fake_plan("lockstep:=true", "localization:=true",
                                                         "use_composition:=false")[0].nodes}
-    assert "lockstep_name:=amcl" in apart["amcl"]
-    assert "lockstep" not in apart["map_server"]  # not on the data path: never waited for
-    sim = by_name["simulator"]
-    assert "lockstep:=true" in sim and "real_time_factor:=0.0" in sim
-    assert f"lockstep_participants:={[*participants, 'pppbot_eval']}" in sim
+    for name in ("twist_mux", "robot_state_publisher", "amcl"):
+        assert f"lockstep_name:={name}" in apart[name]
+    assert "lockstep" not in apart["map_server"]
     # A participant is ready once the simulator lists it as joined (not at a first message).
     assert probes.joins == participants
     assert ("/clock", "rosgraph_msgs/msg/Clock", False) in probes
@@ -398,7 +414,7 @@ def test_slam_params_file_replaces_the_default_and_must_exist(tmp_path):
 def test_live_view_runs_on_localhost_with_its_own_settings(tmp_path):
     from pppbot_viz.viewer import ViewerKind
 
-    from pppbot_bringup.launch_sim import VizPlan
+    from pppbot_bringup.node_specs import VizPlan
 
     probes = FakeProbes()
     viz = VizPlan(grpc_port=4001, web_port=4002, page_port=4003, native=False, state_dir=tmp_path / "rerun")
@@ -415,7 +431,7 @@ def test_live_view_runs_on_localhost_with_its_own_settings(tmp_path):
                                     "XDG_DATA_HOME": str(tmp_path / "rerun" / "data"), "RUST_LOG": "warn"}
     node = " ".join(by_name["viz"].cmd)
     assert node.startswith("/bin/pppbot_viz/viz ") and "-p rerun_port:=4001" in node and "-p port:=4003" in node
-    assert by_name["viz"].after == ("rerun", "robot_state_publisher") and not by_name["viz"].required
+    assert by_name["viz"].after == ("rerun", "simulator") and not by_name["viz"].required
     assert probes.endpoints_asked["viz"]["publishes"] == ("/goal_pose", "/initialpose")
     assert "-p announce:=false" in node and "-p images_while_watched:=true" in node  # the launch prints the URL
     assert p.info == ["live view: http://127.0.0.1:4003/ <- open it in a browser (2D Goal Pose / 2D Pose Estimate: "
@@ -434,7 +450,7 @@ def test_live_view_runs_on_localhost_with_its_own_settings(tmp_path):
 
 
 def test_a_view_recording_alone_is_the_viz_node_writing_a_file_without_a_server(tmp_path):
-    from pppbot_bringup.launch_sim import VizPlan
+    from pppbot_bringup.node_specs import VizPlan
 
     p = plan(values("world:=maze", "use_viz:=false"), ROOT / "worlds" / "maze.sdf", Path("/tmp/robot.urdf"),
              lambda pkg, exe: f"/bin/{pkg}/{exe}", FakeProbes(), False, None, view_recording=tmp_path / "view.rrd")
@@ -444,7 +460,7 @@ def test_a_view_recording_alone_is_the_viz_node_writing_a_file_without_a_server(
     assert f"-p recording_path:={tmp_path / 'view.rrd'}" in " ".join(node.cmd)
     assert "-p scan_max_rate_hz:=2.0" in " ".join(node.cmd)
     assert not any("rerun_port" in arg or arg.startswith("port:=") for arg in node.cmd)
-    assert node.after == ("robot_state_publisher",)
+    assert node.after == ("simulator",)
     # with the live view as well: one viz node streams to the server and writes the file
     both = plan(values("world:=maze"), ROOT / "worlds" / "maze.sdf", Path("/tmp/robot.urdf"),
                 lambda pkg, exe: f"/bin/{pkg}/{exe}", FakeProbes(), False, None,

@@ -29,7 +29,7 @@ def test_end_to_end_headless_drive_record_and_clean_sigint(ros_node, spawn, tmp_
                     "real_time_factor:=2.0", "record:=true", f"bag_path:={bag}"], name="launch_sim")
     launch.wait_for_output(r"ppp_bot is up in 'empty'", 60)
     pids = [int(p) for p in re.findall(r"process started with pid \[(\d+)\]", launch.output)]
-    assert len(pids) == 5  # simulator (with the controller), bag_record, robot_state_publisher, twist_mux, slam
+    assert len(pids) == 3  # simulator (with the controller, robot_state_publisher and twist_mux), bag_record, slam
     truths: list[Odometry] = []
     ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
     pub = ros_node.create_publisher(Twist, "/cmd_vel_teleop", 10)
@@ -42,11 +42,9 @@ def test_end_to_end_headless_drive_record_and_clean_sigint(ros_node, spawn, tmp_
     wait_until(lambda: (pub.publish(forward), math.hypot(truths[-1].pose.pose.position.x - start.x,
                                                          truths[-1].pose.pose.position.y - start.y) > 0.5)[1],
                30, "the robot to drive 0.5 m", node=ros_node)
-    t0 = time.monotonic()
     os.kill(launch.pid, signal.SIGINT)
     assert launch.wait(15) == 0
-    assert time.monotonic() - t0 < 15
-    assert launch.output.count("process has finished cleanly") == 5, \
+    assert launch.output.count("process has finished cleanly") == 3, \
         "\n".join(line for line in launch.output.splitlines() if "[launch]" in line or "process has" in line)
     for pid in pids:
         stat = Path(f"/proc/{pid}/stat")
@@ -155,7 +153,7 @@ def test_in_a_terminal_the_teleop_drives_and_ctrl_c_ends_everything(ros_node):
         assert proc.wait(timeout=20) == 0
         screen.read_until("teleop_keyboard-1]: process has finished cleanly", 5)
         text = screen.read_rest()
-        assert text.count("process has finished cleanly") == 5  # with slam_toolbox
+        assert text.count("process has finished cleanly") == 3  # simulator (rsp, twist_mux in it), slam, teleop
         assert (log_dir / "simulator-1.log").read_text().count("lidar 'laser'") == 1
     finally:
         stop_process_group(proc)

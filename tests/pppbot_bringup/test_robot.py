@@ -11,7 +11,8 @@ import yaml
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import OccupancyGrid, Odometry
 
-from pppbot_bringup.launch_sim import LaunchArgs, controllers_file, plan, twist_mux_inputs
+from pppbot_bringup.launch_sim import LaunchArgs, controllers_file, plan
+from pppbot_bringup.node_specs import twist_mux_inputs
 from pppbot_bringup.paths import config_directory
 from pppbot_bringup.robot import (
     MUX_OWN_OUTPUT,
@@ -85,8 +86,8 @@ def test_the_plan_wires_the_users_robot(tmp_path: Path) -> None:
     p = plan(LaunchArgs.parse(["world:=empty", "localization:=false"]), ROOT / "worlds" / "empty.sdf",
              tmp_path / "robot.urdf", lambda pkg, exe: f"/bin/{pkg}/{exe}", _Probes(), False, None, robot=robot)
     nodes = {n.name: " ".join(n.cmd) for n in p.nodes}
-    assert "-r cmd_vel_out:=/my_bot/cmd_vel" in nodes["twist_mux"]
-    assert "-p z:=nan " in nodes["simulator"] + " " and "cmd_vel_topic" not in nodes["simulator"]
+    assert "-r twist_mux:cmd_vel_out:=/my_bot/cmd_vel" in nodes["simulator"]  # twist_mux in its process
+    assert "-p simulator:z:=nan " in nodes["simulator"] + " " and "cmd_vel_topic" not in nodes["simulator"]
     slam_file = tmp_path / "mapper_params_online_async.yaml"
     assert f"--params-file {slam_file}" in nodes["slam_toolbox"]
     slam = yaml.safe_load(p.files[slam_file])["slam_toolbox"]["ros__parameters"]

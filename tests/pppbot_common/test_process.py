@@ -4,6 +4,7 @@ from __future__ import annotations
 import os
 import shlex
 import signal
+import subprocess
 import sys
 import textwrap
 
@@ -114,3 +115,24 @@ def test_a_child_that_prints_nothing_in_time_is_reported_with_where_it_is():
 def test_the_stop_ladder_is_ros2_launchs_one_definition_for_every_stopper():
     ladder = StopTimeouts(2.0, 3.0).ladder()
     assert ladder == ((signal.SIGINT, 2.0), (signal.SIGTERM, 3.0), (signal.SIGKILL, KILL_WAIT_S))
+
+
+_STUCK = """
+import sys, time
+from pppbot_common.process import exit_if_stuck
+with exit_if_stuck(0.5):
+    pass  # done in time: nothing happens
+print("first block done", flush=True)
+with exit_if_stuck(0.5):
+    time.sleep(60)  # stuck (as in a binding call that never returns)
+"""
+
+
+def test_a_process_stuck_in_its_end_prints_its_stack_and_exits():
+    """exit_if_stuck: a block that finishes in time changes nothing; one that hangs ends the process
+    with status 1 and every thread's stack on stderr, naming where it hung."""
+    proc = subprocess.run([sys.executable, "-c", _STUCK], capture_output=True, text=True, timeout=30)
+    assert proc.stdout == "first block done\n"
+    assert proc.returncode == 1
+    assert "Timeout (0:00:00.500000)!" in proc.stderr
+    assert 'File "<string>", line 8' in proc.stderr  # the sleep in the second block

@@ -20,9 +20,10 @@ TOPIC = "/outbox_test"
 
 @pytest.fixture
 def participant(ros_node: Any) -> Iterator[Participant]:
-    """A participant holding what its nodes send (time runs)."""
+    """A participant holding what its nodes send (time runs) on a topic another participant counts."""
     p = Participant("outbox_test", ros_node)
     p.outbox.holding = True
+    p.outbox.held_topics = frozenset({TOPIC})
     try:
         yield p
     finally:
@@ -76,6 +77,28 @@ def test_held_messages_are_counted_at_once_and_go_out_in_order_with_the_next_ste
     answer_and_step(participant)
     wait_until(lambda: len(got) >= 3, 10, "the message held after the answer", node=ros_node)
     assert got == ["a", "b", "c"]
+
+
+def test_what_nobody_else_counts_goes_out_at_once_in_a_step_and_right_after_the_answer_outside_one(
+        ros_node: Any, participant: Participant, node: StepNode) -> None:
+    counters, outbox = participant.counters, participant.outbox
+    outbox.held_topics = frozenset()  # only the simulator's process counts the topic (a hosted twist_mux's input)
+    got: list[str] = []
+    pub = node.create_publisher(String, TOPIC, 10)
+    ros_node.create_subscription(String, TOPIC, lambda m: got.append(m.data), 10)
+    wait_until(lambda: pub.get_subscription_count() > 0, 10, "the subscription matched", node=ros_node)
+    sends = counters.sends
+    pub.publish(String(data="before the step"))  # between steps (a message came in): held until the answer
+    with outbox.lock:
+        outbox.in_step = True  # a step came
+    pub.publish(String(data="in the step"))  # out at once
+    wait_until(lambda: got == ["in the step"], 10, "the message sent in the step", node=ros_node)
+    assert counters.sends == sends  # no round asked: the simulator's process waits for it after the answers
+    with outbox.lock:
+        outbox.seal()  # the answer, then what waited for it
+    outbox.send_with_answer()
+    wait_until(lambda: len(got) == 2, 10, "the message sent before the step", node=ros_node)
+    assert got == ["in the step", "before the step"] and counters.published[TOPIC] == 2
 
 
 def test_a_held_request_gets_a_future_that_completes_with_the_reply(

@@ -155,3 +155,44 @@ def test_a_request_kept_between_steps_is_handled_at_the_next_step_before_its_ans
     assert not p.requests.keep("/planner#requests", request)  # while a step is handled: at once
     tasks.run()
     assert handled == [2] and len(answers) == 2  # handled at step 2, then step 2 answered
+
+
+def answered(answers: list[Any]) -> Any:
+    """The last answer, as a message (the participant sends a DONE serialized, from its template)."""
+    from rclpy.serialization import deserialize_message
+
+    from pppbot_interfaces.msg import LockstepAck
+    last = answers[-1]
+    return deserialize_message(last, LockstepAck) if isinstance(last, bytes) else last
+
+
+def test_what_only_it_counts_goes_out_at_once_and_is_handled_before_the_answer(
+        participant: tuple[Participant, Tasks, list[Any]]) -> None:
+    """A chain of nodes in one process is one round: the participant's own message is handled
+    before it answers; what another participant counts is held for the next round."""
+    p, tasks, answers = participant
+    own = p.deliveries.add("/cmd_vel_nav")  # one of its nodes (the velocity smoother) counts it
+    went: list[str] = []
+
+    def tick() -> None:
+        p.outbox.send(lambda: went.append("own"), "/cmd_vel_nav")
+        p.outbox.send(lambda: went.append("held"), "/tf")
+
+    p.timers.create(0.05, tick)
+    at_05 = step(1, 50_000_000, timers=True)
+    at_05.topics, at_05.published, at_05.counted_by = ["/cmd_vel_nav", "/tf"], [0, 0], [1, 1]
+    p._on_step(at_05)
+    tasks.run()
+    assert went == ["own"]  # only it counts /cmd_vel_nav; another participant counts /tf
+    assert answers == []  # its own message is on its way to its own node
+    own.received += 1  # it came: the smoother handled it
+    p._on_delivery()
+    tasks.run()
+    assert len(answers) == 1 and answered(answers).sent  # the held transform asks for another round
+    assert list(answered(answers).published) == [1, 1]  # both counted
+    again = step(2, 50_000_000, timers=False)
+    again.topics, again.published, again.counted_by = ["/cmd_vel_nav", "/tf"], [1, 1], [1, 1]
+    p._on_step(again)
+    assert went == ["own", "held"]  # the next step sends what was held
+    tasks.run()
+    assert len(answers) == 2 and not answered(answers).sent

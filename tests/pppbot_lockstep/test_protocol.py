@@ -156,3 +156,20 @@ def test_deliveries_rebase_gives_up_on_lost_messages_and_extras_never_block():
     scan.received += 5  # from a publisher outside lockstep
     deliveries.expect(["/scan"], [4])
     assert deliveries.lacking() == []
+
+
+def test_counted_by_says_who_else_counts_a_topic_so_a_sender_knows_what_to_hold():
+    pubs = Publications()
+    pubs.joined("navigation", ["/cmd_vel_nav", "/tf"])
+    pubs.joined("eval", ["/tf"])
+    pubs.want(["/cmd_vel", "/joint_states"])  # the simulator's own nodes (twist_mux, robot_state_publisher)
+    assert pubs.next_topics() == ("/cmd_vel", "/cmd_vel_nav", "/joint_states", "/tf")
+    # /cmd_vel and /joint_states: only the simulator's process counts them (nobody holds them);
+    # /cmd_vel_nav: navigation alone (it handles its own at once); /tf: two participants.
+    assert pubs.counted_by({"/cmd_vel", "/joint_states"}) == [0, 1, 0, 2]
+    # A topic the simulator's process counts besides a participant: that participant holds it too.
+    assert pubs.counted_by({"/cmd_vel_nav"}) == [0, 2, 0, 2]
+    pubs.left("eval")
+    assert pubs.counted_by() == [0, 1, 0, 1]
+    pubs.counting("navigation", ["/tf"])  # its counted topics as its answer last said them
+    assert pubs.counted_by() == [0, 0, 0, 1]

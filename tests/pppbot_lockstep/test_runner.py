@@ -6,6 +6,7 @@ import signal
 import subprocess
 import sys
 import threading
+from collections.abc import Sequence
 
 import pytest
 import rclpy
@@ -43,6 +44,28 @@ def test_a_fatal_error_at_start_is_one_line_and_exit_1(capsys):
 
     assert run_node(factory, "bad_start", [], signal_handlers=False) == 1
     assert capsys.readouterr().err == "[bad_start] error: parameter 'x' = -1: must be positive\n"
+
+
+def test_without_lockstep_the_parameter_node_goes_only_once_the_nodes_exist():
+    """The node that reads the lockstep parameters is the process's first: destroyed before the
+    process's own nodes exist, it would take the process's DDS participant with it (and a new one
+    would be made), and a participant destroyed during discovery can hang Fast DDS for good."""
+    seen: list[list[str]] = []
+
+    def factory(port: object = None) -> Node:
+        node = Node("made_after_the_probe")
+        seen.append(node.get_node_names())
+        return node
+
+    def loop(nodes: Sequence[Node], process: object) -> int:
+        seen.append(nodes[0].get_node_names())
+        return 0
+
+    from pppbot_lockstep.ros.runner import run_nodes
+
+    assert run_nodes([factory], "probe_kept", [], loop=loop) == 0
+    assert "_lockstep_probe_kept" in seen[0]  # the process's participant was never let go
+    assert "_lockstep_probe_kept" not in seen[1]  # and the probe is gone once the nodes exist
 
 
 _STARTING_NODE = """

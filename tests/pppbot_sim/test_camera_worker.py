@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from pppbot_common.ros.wait import wait_until
 from pppbot_sim.camera_worker import CameraBinding, CameraFrame, CameraWorker, FrameRequest
 from pppbot_sim.cameras import CameraKind, CameraSpec, PixelFormat
 from pppbot_sim.render import CameraView, RenderState, RenderUnavailable
@@ -97,6 +98,36 @@ def test_a_renderer_behind_skips_frames_and_says_so(collected: Collected, monkey
     # 4 asked (3 when the first came before the renderer was up, which resets the counts)
     assert re.match(r"camera 'cam': skipped 2 of [34] frame\(s\) in the last ", collected.logged[0])
     assert "cameras:=false" in collected.logged[0]  # and what to do about it
+
+
+def test_in_lockstep_a_renderer_behind_holds_the_caller_and_every_frame_comes(collected: Collected) -> None:
+    """every_frame (lockstep): a frame asked for while the camera's previous one still waits makes the
+    caller (the physics loop) wait its turn; no frame is skipped, however slow the renderer."""
+    gate = threading.Semaphore(0)
+    renderer = StandInRenderer(None, [], None, gate)
+    w = worker(collected, make_renderer=lambda *args: renderer, every_frame=True)
+    submitted: list[int] = []
+
+    def physics() -> None:
+        for i in range(4):
+            w.submit(FrameRequest(0, state(0.1 * i, 1.0 + i)))
+            submitted.append(i)
+
+    loop = threading.Thread(target=physics)
+    try:
+        loop.start()
+        assert renderer.entered.wait(10)  # frame 0 renders (held at the gate) while the loop asks for more
+        # (without every_frame the loop would ask for all four now and frames 1 and 2 be skipped)
+        assert wait_until(lambda: len(submitted) >= 2, 10, "frame 1 asked for")
+        gate.release(4)
+        loop.join(10)
+        assert w.wait_idle(10)
+    finally:
+        gate.release(4)
+        w.close()
+    assert submitted == [0, 1, 2, 3]
+    assert [f.stamp_s for f in collected.frames] == pytest.approx([0.0, 0.1, 0.2, 0.3])
+    assert collected.logged == []
 
 
 def test_no_backend_stops_the_cameras_with_the_reason(collected: Collected) -> None:

@@ -38,8 +38,8 @@ class Joints:
 
 
 def test_pppbot_control_registers_the_diff_drive_and_the_controller_manager() -> None:
-    assert registered(CONTROLLERS)[DIFF_DRIVE].value == "pppbot_control.hosting:diff_drive_controller"
-    assert registered(MANAGERS)["controller_manager"].value == "pppbot_control.hosting:controller_manager"
+    assert registered(CONTROLLERS)[DIFF_DRIVE].value == "pppbot_control.ros.hosting:diff_drive_controller"
+    assert registered(MANAGERS)["controller_manager"].value == "pppbot_control.ros.hosting:controller_manager"
 
 
 def test_an_entry_point_that_does_not_load_is_named() -> None:

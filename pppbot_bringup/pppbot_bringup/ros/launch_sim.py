@@ -20,15 +20,8 @@ from typing import Any
 
 from pppbot_viz.errors import VizError
 
-from pppbot_bringup.launch_sim import (
-    ARGUMENTS,
-    LaunchArgs,
-    VizPlan,
-    controllers_file,
-    parameter_file,
-    plan,
-    twist_mux_inputs,
-)
+from pppbot_bringup.launch_sim import ARGUMENTS, LaunchArgs, controllers_file, parameter_file, plan
+from pppbot_bringup.node_specs import VizPlan, twist_mux_inputs
 from pppbot_bringup.notices import first_time
 from pppbot_bringup.paths import checkout_root, config_directory, log_root
 from pppbot_bringup.robot import load_description, robot_facts

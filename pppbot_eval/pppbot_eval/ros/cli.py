@@ -474,10 +474,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="navigation: the spawn pose in the world, also AMCL's initial pose (default 0 0 0)")
     parser.add_argument("--min-success-rate", type=float, default=0.98,
                         help="navigation: the report is ok from this success rate on (default 0.98)")
-    parser.add_argument("--view", action=argparse.BooleanOptionalAction, default=True,
+    parser.add_argument("--view", action=argparse.BooleanOptionalAction, default=False,
                         help="save the live view of the run (map, scan, robot, plans, particles, SLAM graph, "
                              "on sim time) as a rerun recording, view.rrd beside the plots: open it with "
-                             "./pppbot env rerun view.rrd (default; --no-view saves the CPU it costs)")
+                             "./pppbot view view.rrd (off by default: it costs CPU and disk)")
     parser.add_argument("--json", action="store_true", help="print the report as one JSON object on the last line")
     parser.add_argument("--log-level", default="info", choices=("debug", "info", "warn", "error", "fatal"),
                         help="log level of the stack's nodes (default info; their output goes to the log "

@@ -14,17 +14,19 @@ The bookkeeping is :class:`pppbot_lockstep.protocol.Barrier`; this is its ROS ad
 """
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
 from rclpy.node import Node
 from rclpy.publisher import Publisher
+from rclpy.serialization import serialize_message
 
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_interfaces.msg import LockstepAck, LockstepStatus, LockstepStep
 from pppbot_lockstep.errors import LockstepTimeout
-from pppbot_lockstep.protocol import AckOutcome, Barrier, Deliveries, Publications
+from pppbot_lockstep.protocol import AckOutcome, Barrier, Deliveries, Publications, StepTimers
 from pppbot_lockstep.ros.counting import Counters
 from pppbot_lockstep.ros.participant import (
     ACK_TOPIC,
@@ -35,7 +37,7 @@ from pppbot_lockstep.ros.participant import (
     stamp_ns,
     time_msg,
 )
-from pppbot_lockstep.ros.port import StepPort
+from pppbot_lockstep.ros.port import StepPort, Timer
 from pppbot_lockstep.ros.runner import Process
 
 #: Rounds at one time before the simulator moves on anyway (participants echoing each other).
@@ -54,34 +56,60 @@ STEP_REPEAT_S = 1.0
 
 
 class CoordinatorPort(StepPort):
-    """The step port of the simulator's process (its own node and the nodes it hosts: controllers):
-    what they publish is counted, so that steps carry it and participants wait for it, and what they
-    receive on the data path is counted, so that time moves on only once they have it; nothing is
-    held (the simulator's process is what steps wait on, not a participant)."""
+    """The step port of the simulator's process (its own node and the nodes it hosts: controllers,
+    robot_state_publisher, twist_mux): what they publish is counted, so that steps carry it and
+    participants wait for it; what they receive on the data path is counted, so that time moves
+    on only once they have it; their step timers fire at sync times, before the step goes out.
+    Between rounds everything goes out at once; during a round (:attr:`holding`) what they send on
+    a topic a participant counts is held until the next step, as a participant holds it."""
 
     counts = True
 
     def __init__(self) -> None:
         self.counters = Counters()
-        #: What this process's nodes (hosted controllers) receive from participants
+        #: What this process's nodes receive from participants
         self.deliveries = Deliveries()
+        self.timers = StepTimers()
+        #: Per topic, what this process has sent on it (its held sends not yet)
+        self.released: dict[str, int] = {}
+        self.holding = False
+        #: The topics a participant counts (sends on them are held during a round)
+        self.held_topics: frozenset[str] = frozenset()
+        self._held: list[tuple[Callable[[], None], str | None]] = []
 
-    def publish(self, publisher: Publisher, msg: Any, topic: str, *, asks_round: bool = True) -> None:
-        if asks_round:
-            self.counters.sent()
-        self.counters.published_on(topic)
-        Publisher.publish(publisher, msg)
-
-    def send(self, send: Callable[[], None], topic: str | None = None, *, asks_round: bool = True) -> None:
-        if asks_round:
-            self.counters.sent()
+    def _out(self, send: Callable[[], None], topic: str | None, asks_round: bool) -> None:
         if topic is not None:
             self.counters.published_on(topic)
+        if self.holding and (topic is None or topic in self.held_topics):
+            if asks_round:
+                self.counters.sent()
+            self._held.append((send, topic))
+            return
+        self._released(send, topic)
+
+    def _released(self, send: Callable[[], None], topic: str | None) -> None:
         send()
+        if topic is not None:
+            self.released[topic] = self.released.get(topic, 0) + 1
+
+    def release_held(self) -> None:
+        """Send what was held in the last round (its counts are in the step about to go out)."""
+        held, self._held = self._held, []
+        for send, topic in held:
+            self._released(send, topic)
+
+    def publish(self, publisher: Publisher, msg: Any, topic: str, *, asks_round: bool = True) -> None:
+        if self.holding and topic in self.held_topics and not isinstance(msg, bytes):
+            msg = serialize_message(msg)  # held: its sender may change the message meanwhile
+        self._out(functools.partial(Publisher.publish, publisher, msg), topic, asks_round)
+
+    def send(self, send: Callable[[], None], topic: str | None = None, *, asks_round: bool = True) -> None:
+        self._out(send, topic, asks_round)
 
     def request(self, send: Callable[..., Any], key: str, *args: Any) -> Any:
         self.counters.sent()
         self.counters.published_on(key)
+        self.released[key] = self.released.get(key, 0) + 1
         return send(*args)
 
     def replied(self) -> None:
@@ -96,6 +124,19 @@ class CoordinatorPort(StepPort):
             finally:
                 counted.received += 1
         return receive
+
+    def create_timer(self, node: Node, period_s: float, callback: Callable[[], object], wakes: bool = True) -> Timer:
+        return self.timers.create(period_s, callback, wakes)
+
+    def fire_timers(self, t_ns: int, warn: Callable[[str], None]) -> None:
+        """Run this process's step timers due by ``t_ns``, in their order."""
+        for timer in self.timers.advance(t_ns):
+            if timer.canceled:
+                continue
+            try:
+                timer.callback()
+            except Exception as exc:  # noqa: BLE001 - one failing timer must not stop the simulation
+                warn(f"a timer callback failed: {type(exc).__name__}: {exc}")
 
 
 class Coordinator:
@@ -114,6 +155,8 @@ class Coordinator:
         self.step_pub = node.create_publisher(LockstepStep, STEP_TOPIC, PROTOCOL_QOS, publisher_class=Publisher)
         self.publications = Publications()
         self.deliveries = port.deliveries
+        #: Per topic, what participants have sent that is out (not held for a step): this process waits for it
+        self._others_sent: dict[str, int] = {}
         self.late_deliveries = 0
         self._step_wires: dict[tuple[str, ...], MessageTemplate] = {}
         self.status_pub = node.create_publisher(LockstepStatus, STATUS_TOPIC, STATUS_QOS, publisher_class=Publisher)
@@ -137,6 +180,7 @@ class Coordinator:
             if name in self.barrier.members or name in self.barrier.joining:
                 self.log(f"lockstep: '{name}' leaves")
             self.barrier.leave(name)
+            self.publications.left(name)
             self.publish_status(self.barrier.stamp_ns)
         elif msg.kind == LockstepAck.DONE:
             outcome = self.barrier.ack(name, msg.seq, msg.sent, stamp_ns(msg.next_wakeup))
@@ -145,7 +189,8 @@ class Coordinator:
             elif outcome is AckOutcome.COUNTED:
                 self._readiness[name] = (bool(msg.settled), int(msg.graph_nodes))
                 self.publications.report(name, msg.published)
-                self.publications.want(msg.counted_topics)
+                if msg.counted_topics:  # sent when they changed
+                    self.publications.counting(name, msg.counted_topics)
 
     def publish_status(self, t_ns: int, force: bool = False) -> None:
         """Who is waited for: members, and joiners (waited for from the next step on; an answer of
@@ -220,36 +265,58 @@ class Coordinator:
             self._rounds(process, t_ns, timers=timers)
 
     def _rounds(self, process: Process, t_ns: int, timers: bool) -> None:
-        """Steps at ``t_ns`` until nobody sends (the first with ``timers``) or the process stops."""
+        """Steps at ``t_ns`` until nobody sends (the first with ``timers``) or the process stops.
+
+        Before each step this process sends what it held in the last round and, before the first,
+        runs its timers due; then it waits until its own nodes have what it published (a hosted
+        robot_state_publisher the joint states), so the step's totals hold what they sent in turn.
+        After the answers it waits for what participants sent it at once (a command for twist_mux);
+        what they hold for the next round (on topics a participant counts) comes with the next step.
+        """
+        port = self.port
         for index in range(MAX_ROUNDS):
             before = set(self.barrier.members)
             seq, _ = self.barrier.start_step(t_ns)
             if self.barrier.members != before:
                 self.publish_status(t_ns)  # a joiner learns it is waited for before its first step
-            if not self.barrier.members:
-                return
+            port.holding = False
+            port.release_held()
+            if index == 0 and timers:
+                port.fire_timers(t_ns, self.log)
             self.publications.want(self.deliveries.topics())
             topics = self.publications.next_topics()
+            self._drain(process, t_ns)
+            if not self.barrier.members:
+                return
+            counted_by = self.publications.counted_by(self.deliveries.topics()) if topics else []
+            port.held_topics = frozenset(t for t, n in zip(topics, counted_by, strict=True) if n > 0)
+            step_others = self.publications.others()
             values: dict[str, Any] = {"seq": seq, **stamp_values(t_ns, "stamp"), "round": index,
-                      "timers": timers and index == 0}
+                                      "timers": timers and index == 0}
             # What was published before this step, participants' held sends included: they go out
             # as the participants get the step (see pppbot_lockstep.ros.counting.Outbox).
-            totals = self.publications.totals(self.port.counters.published) if topics else []
             if topics:
-                values["published"] = totals
+                values["published"] = self.publications.totals(port.counters.published)
+                values["counted_by"] = counted_by
             wire = self._step_wire(topics).serialize(values)
+            port.holding = True
             self.step_pub.publish(wire)
-            sends = self.port.counters.sends
+            sends = port.counters.sends
             self.rounds += 1
             self._wait_for_answers(process, seq, t_ns, wire)
             if not process.running():
                 return
-            self._wait_for_deliveries(process, t_ns, totals)
-            # Every message published before this step has been handled here by now; what was
-            # sent during it makes another round (the senders' answers say so).
-            if not self.barrier.another_round() and self.port.counters.sends == sends:
+            # Participants sent at once what no other participant counts: here by now, as they
+            # answered; what they hold (on topics a participant counts) comes with the next step.
+            others = self.publications.others()
+            self._others_sent = {t: others.get(t, 0) if n == 0 else step_others.get(t, 0)
+                                 for t, n in zip(topics, counted_by, strict=True)}
+            self._drain(process, t_ns)
+            if not self.barrier.another_round() and port.counters.sends == sends:
+                port.holding = False
                 return
             self.extra_rounds += 1
+        port.holding = False
         self.log(f"lockstep: still sending after {MAX_ROUNDS} rounds at t = {t_ns * 1e-9:.3f} s "
                  f"({', '.join(self.barrier.senders()) or 'the simulator'}); time moves on")
         return
@@ -258,9 +325,10 @@ class Coordinator:
         """The step's template for these counted topics (they change only as participants join)."""
         wire = self._step_wires.get(topics)
         if wire is None:
-            fields = ["seq", *stamp_fields("stamp"), "round", "timers"] + (["published"] if topics else [])
+            fields = ["seq", *stamp_fields("stamp"), "round", "timers"] + (["published", "counted_by"] if topics
+                                                                            else [])
             wire = self._step_wires[topics] = MessageTemplate(
-                LockstepStep(topics=list(topics), published=[0] * len(topics)), fields)
+                LockstepStep(topics=list(topics), published=[0] * len(topics), counted_by=[0] * len(topics)), fields)
         return wire
 
     def _wait_for_answers(self, process: Process, seq: int, t_ns: int, wire: Any) -> None:
@@ -282,37 +350,44 @@ class Coordinator:
                 return
             process.spin_once(min(remaining, 0.2))
 
-    def _wait_for_deliveries(self, process: Process, t_ns: int, totals: Sequence[int]) -> None:
-        """Until this process has the messages published on its counted topics before the step
-        (``totals``; such as a command for a hosted controller). What participants sent in this
-        step's round is handled in the next. Time never moves on without them: after
+    def _drain(self, process: Process, t_ns: int) -> None:
+        """Until this process's nodes have what was sent them: what participants sent that is out
+        (:attr:`_others_sent`) and what this process sent, including what its nodes send as they get
+        it (a hosted twist_mux passing a command on). Time never moves on without them: after
         ``timeout_s`` the run stops, naming what did not come.
 
         Raises:
-            LockstepTimeout: a message published before the step did not come within ``timeout_s``.
+            LockstepTimeout: a message did not come within ``timeout_s``.
         """
         deliveries = self.deliveries
         if not deliveries.subscriptions:
             return
-        deliveries.expect(self.publications.topics, totals)
-        if t_ns == 0:
-            deliveries.rebase()  # time holds at its start: discovery may have lost messages
-            return
+        topics = self.publications.topics
+        released = self.port.released
         start = time.monotonic()
-        lacking = deliveries.lacking()
-        if lacking:
-            self.late_deliveries += 1
-        while lacking and process.running():
-            waited = time.monotonic() - start
-            if waited > self.timeout_s:
+        waited = False
+        while True:
+            deliveries.expect(topics, [self._others_sent.get(t, 0) + released.get(t, 0) for t in topics])
+            if t_ns == 0:
+                deliveries.rebase()  # time holds at its start: discovery may have lost messages
+                return
+            lacking = deliveries.lacking()
+            if not lacking or not process.running():
+                return
+            if time.monotonic() - start > self.timeout_s:
                 raise LockstepTimeout(f"lockstep: at t = {t_ns * 1e-9:.3f} s the simulator's process did not get "
                                       f"messages published before the step within lockstep_timeout = "
                                       f"{self.timeout_s:g} s: {_lacking_text(lacking)}; stopping")
+            if not waited:
+                waited = True
+                self.late_deliveries += 1
             process.spin_once(0.05)
-            lacking = deliveries.lacking()
 
     def next_wakeup_ns(self) -> int | None:
-        return self.barrier.next_wakeup_ns()
+        """The next sync time a timer asks for: a participant's, or one of this process's nodes'."""
+        due = [t for t in (self.barrier.next_wakeup_ns(), self.port.timers.next_wakeup_ns())
+               if t is not None and t > self.barrier.stamp_ns]
+        return min(due) if due else None
 
     @property
     def active(self) -> bool:

@@ -69,7 +69,7 @@ class HeldFuture(rclpy.task.Future):
 
 
 class Outbox:
-    """In lockstep, what a participant sends goes out when the next step comes.
+    """In lockstep, what a participant sends to other processes goes out when the next step comes.
 
     Steps carry how many messages were published on each counted topic before them, and a
     participant handles a step once its subscriptions have that many. That only works if no
@@ -79,33 +79,57 @@ class Outbox:
     what participants send while their timers run would reach the others before or after their
     own timers ran, depending on the machine's load.
 
-    So, once time runs (:attr:`holding`), every send is held (counted at once, so the answer
-    reports it and another round follows); the answer seals what is held (:meth:`seal`); the
-    next step sends what was sealed (:meth:`send_sealed`), before the participant waits for
-    that step's messages. Everything sent in one round is thus handled in the next, by
-    everyone, in the same order on every machine. A message is serialized when it is held, so
-    its sender may reuse it; a request is copied and its caller gets a :class:`HeldFuture`.
-    Replies (a service's, an action's goal response and result) are not held: the client's
-    steps wait for them, and a paused simulation still gets its answers.
+    So, once time runs (:attr:`holding`), a send on a topic another process counts
+    (:attr:`held_topics`, from the step) is held (counted at once, so the answer reports it and
+    another round follows); the answer seals what is held (:meth:`seal`); the next step sends
+    what was sealed (:meth:`send_sealed`), before the participant waits for that step's messages.
+    Everything one participant sends another in one round is thus handled in the next, by
+    everyone, in the same order on every machine. What nobody else counts goes out at once while
+    the participant is in a step (:attr:`in_step`, from its arrival until the answer): to the
+    simulator's process, which waits for it after the answers, or to the participant itself, which
+    handles it before answering (``on_own`` says which topics it counts), so a chain of nodes in one
+    process takes one round; sent outside a step, it goes out right after the next answer.
+    A message is serialized when it is held, so its sender may reuse it; a request is always held,
+    copied, and its caller gets a :class:`HeldFuture`. Replies (a service's, an action's goal
+    response and result) are not held: the client's steps wait for them, and a paused simulation
+    still gets its answers.
     """
 
-    def __init__(self, counters: Counters) -> None:
+    def __init__(self, counters: Counters, on_own: Callable[[str], None] | None = None) -> None:
         self.counters = counters
         self.holding = False
+        #: from a step's arrival until its answer: sends nobody else counts go out at once
+        self.in_step = False
+        #: the topics another lockstep process counts (held), and those this process counts
+        self.held_topics: frozenset[str] = frozenset()
+        self.own_topics: frozenset[str] = frozenset()
         self.lock = threading.Lock()
-        self._held: list[Callable[[], None]] = []
+        self._on_own = on_own
+        #: (send, whether it may go out with the answer: nobody else counts its topic)
+        self._held: list[tuple[Callable[[], None], bool]] = []
         self._sealed: list[Callable[[], None]] = []
+        self._with_answer: list[Callable[[], None]] = []
 
-    def send(self, send: Callable[[], None], topic: str | None = None, *, asks_round: bool = True) -> None:
-        """Count ``send`` (on ``topic``, when given) and do it now, or at the next step while holding."""
+    def send(self, send: Callable[[], None], topic: str | None = None, *, asks_round: bool = True,
+             hold: bool = False) -> None:
+        """Count ``send`` (on ``topic``, when given) and do it now, or later when held (see the
+        class; ``hold``: until the next step, while holding)."""
         with self.lock:
-            if asks_round:
-                self.counters.sent()
             if topic is not None:
                 self.counters.published_on(topic)
-            if self.holding:
-                self._held.append(send)
-                return
+            if not self.holding:
+                if asks_round:
+                    self.counters.sent()  # at time 0 everything goes out at once, and asks for a round
+            else:
+                others = hold or topic is None or topic in self.held_topics
+                if not others and self.in_step:
+                    if topic in self.own_topics and self._on_own is not None:
+                        self._on_own(topic)  # handled before the answer
+                else:
+                    if asks_round and (others or topic in self.own_topics):
+                        self.counters.sent()
+                    self._held.append((send, not others))
+                    return
         send()
 
     def request(self, send: Callable[[], Any], key: str) -> Any:
@@ -116,16 +140,27 @@ class Outbox:
             self.send(lambda: None, key)
             return send()
         held = HeldFuture()
-        self.send(lambda: held.follow(send), key)
+        self.send(lambda: held.follow(send), key, hold=True)
         return held
 
     def seal(self) -> None:
-        """What is held so far goes out at the next step (call with :attr:`lock` held, as the
-        answer reads the counts)."""
-        self._sealed.extend(self._held)
+        """The answer: what is held for others goes out at the next step, the rest right after the
+        answer (:meth:`send_with_answer`); the step's handling ends (call with :attr:`lock` held, as
+        the answer reads the counts)."""
+        for send, with_answer in self._held:
+            (self._with_answer if with_answer else self._sealed).append(send)
         self._held = []
+        self.in_step = False
+
+    def send_with_answer(self) -> None:
+        """Send what nobody else counts, held since the step's answer was sealed (call after the answer)."""
+        with self.lock:
+            ready, self._with_answer = self._with_answer, []
+        for send in ready:
+            send()
 
     def send_sealed(self) -> None:
+        """The next step came: send what was held for it."""
         with self.lock:
             sealed, self._sealed = self._sealed, []
         for send in sealed:
@@ -135,7 +170,8 @@ class Outbox:
         """Stop holding; send everything held, in order (the participant leaves)."""
         with self.lock:
             self.holding = False
-            held, self._sealed, self._held = self._sealed + self._held, [], []
+            held = self._with_answer + self._sealed + [send for send, _ in self._held]
+            self._with_answer, self._sealed, self._held = [], [], []
         for send in held:
             send()
 

@@ -103,9 +103,9 @@ class Participant(StepPort):
         self.node = node
         self.timers = StepTimers()
         self.counters = Counters()
-        self.outbox = Outbox(self.counters)
         self.requests = Requests()
         self.deliveries = Deliveries()
+        self.outbox = Outbox(self.counters, on_own=self.deliveries.expect_own)
         self._joined = False
         self._executor: Any = None
         self._nodes: list[Node] = []
@@ -132,13 +132,20 @@ class Participant(StepPort):
         self._timers_due = False
         self.ack_pub = node.create_publisher(LockstepAck, ACK_TOPIC, PROTOCOL_QOS)
         self._step_topics: tuple[str, ...] = ()
+        self._holding_key: tuple[tuple[str, ...], tuple[int, ...], tuple[str, ...]] | None = None
+        self._awaiting_own = False  # an answer waits for a message this process sent itself
         node.create_subscription(LockstepStep, STEP_TOPIC, self._on_step, PROTOCOL_QOS)
         node.create_subscription(LockstepStatus, STATUS_TOPIC, self._on_status, STATUS_QOS)
 
     @classmethod
-    def from_parameters(cls, default_name: str) -> Participant | None:
+    def from_parameters(cls, default_name: str, spare: list[Node]) -> Participant | None:
         """The process's participant when its parameters say ``lockstep:=true`` (else None). Its node
         is hidden (``_lockstep_<name>``) and belongs to the default context.
+
+        Without lockstep the node that read the parameters goes to ``spare``, for the caller to
+        destroy once its own nodes exist: the last node of a context takes the context's DDS
+        participant with it, and a participant destroyed while discovery is under way can hang
+        Fast DDS for good (its ``set_listener`` waits for a discovery callback that waits for it).
 
         Raises:
             LockstepError: ``lockstep_name`` is empty.
@@ -147,7 +154,7 @@ class Participant(StepPort):
         enabled = bool(node.declare_parameter("lockstep", False).value)
         name = str(node.declare_parameter("lockstep_name", default_name).value)
         if not enabled:
-            node.destroy_node()
+            spare.append(node)
             return None
         try:
             return cls(name, node)
@@ -297,6 +304,9 @@ class Participant(StepPort):
         a step still waits for once it has waited :data:`DELIVERY_WARN_S`."""
         if self._waiting_step is not None:
             self._try_step()
+        elif self._awaiting_own and not self.deliveries.lacking():
+            self._awaiting_own = False
+            self._post_idle_check()
         if self._waiting_step is None:  # a kept request may be this step's, waited for
             self.requests.overdue(self._executor.create_task)
         if self._joined or self.ack_pub.get_subscription_count() == 0:
@@ -316,6 +326,9 @@ class Participant(StepPort):
     def _on_delivery(self) -> None:
         if self._waiting_step is not None:
             self._try_step()
+        elif self._awaiting_own:
+            self._awaiting_own = False
+            self._post_idle_check()
 
     def _on_status(self, msg: LockstepStatus) -> None:
         listed = self.name in msg.participants
@@ -351,8 +364,11 @@ class Participant(StepPort):
         if msg.seq <= self._last_seq:
             return  # a repeat, for a participant that missed it
         self._last_seq = msg.seq
+        with self.outbox.lock:
+            self.outbox.in_step = True  # until the answer: what nobody else counts goes out at once
         self.outbox.send_sealed()  # what this process sent in the last round (see Outbox)
         self._step_topics = tuple(msg.topics)
+        self._update_held_topics(tuple(msg.counted_by))
         self.deliveries.expect(msg.topics, msg.published)
         if stamp_ns(msg.stamp) == 0:
             self.deliveries.rebase()  # time holds at its start: discovery may have lost messages
@@ -360,6 +376,21 @@ class Participant(StepPort):
             self.requests.leave_step(time_runs=True)  # requests taken until it is handled wait for it
         self._waiting_step, self._waiting_since = msg, time.monotonic()
         self._try_step()
+
+    def _update_held_topics(self, counted_by: tuple[int, ...]) -> None:
+        """The topics whose sends are held (another process counts them) and those this process
+        counts, from the step (they change only as subscriptions are made)."""
+        own = tuple(self.deliveries.topics())
+        key = (self._step_topics, counted_by, own)
+        if key == self._holding_key:
+            return
+        self._holding_key = key
+        mine = set(own)
+        with self.outbox.lock:
+            self.outbox.held_topics = frozenset(
+                topic for topic, count in zip(self._step_topics, counted_by, strict=False)
+                if count - (topic in mine) > 0)
+            self.outbox.own_topics = frozenset(mine)
 
     def _try_step(self) -> None:
         """Handle the waiting step once every message published before it is here; say what it waits
@@ -386,7 +417,7 @@ class Participant(StepPort):
         # The step's time for timers (re)started now, before the timers run (a goal's).
         self.timers.now_ns = max(self.timers.now_ns, t_ns)
         if t_ns > 0:
-            self.outbox.holding = True  # from now on sends go out at the next step (at time 0 they need no order)
+            self.outbox.holding = True  # from now on sends are held (at time 0 they need no order)
         self._run_deferred()
         self.requests.enter_step(self._run_request)
         timers_due = msg.timers and t_ns > self._timers_ns
@@ -468,6 +499,9 @@ class Participant(StepPort):
         with self._lock:
             if self._pending_seq is None or self._holds > 0:
                 return
+            if self.deliveries.lacking():  # what it sent itself, on its way to its own nodes
+                self._awaiting_own = True
+                return
             timers_due = self._timers_due
             if not timers_due:
                 seq, self._pending_seq = self._pending_seq, None
@@ -490,10 +524,12 @@ class Participant(StepPort):
             self._counted_topics = counted_topics
             self._send(LockstepAck(kind=LockstepAck.DONE, participant=self.name, published=published,
                                    counted_topics=counted_topics, **_message_values(values)))
+            self.outbox.send_with_answer()
             return
         if published:
             values["published"] = published
         self.ack_pub.publish(self._done_wire(len(published)).serialize(values))
+        self.outbox.send_with_answer()
 
     def _done_wire(self, topics: int) -> MessageTemplate:
         """DONE's template for a step with ``topics`` counted topics."""

@@ -42,7 +42,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from pppbot_common.errors import ParameterFileError, PppbotError
 from pppbot_common.param_files import check_parameter_file, parameter_file_arguments
-from pppbot_common.process import STOP_SIGNALS, dump_stacks_on_signal
+from pppbot_common.process import STOP_SIGNALS, dump_stacks_on_signal, exit_if_stuck
 from pppbot_common.ros.unread_parameters import declared_names, warn_unread_parameters
 from pppbot_common.throttle import Throttle
 from pppbot_lockstep.ros.node import StepExecutor
@@ -118,16 +118,19 @@ def run_nodes(factories: Sequence[NodeFactory], name: str, args: list[str] | Non
     if not _init(name, args, SignalHandlerOptions.NO):
         return 1
     nodes: list[Node] = []
+    spare: list[Node] = []  # destroyed once the process's own nodes hold its DDS participant
     participant: Participant | None = None
     try:
-        participant = Participant.from_parameters(name) if lockstep else None
+        participant = Participant.from_parameters(name, spare) if lockstep else None
         port = participant if participant is not None else FREE_RUNNING
         for factory in factories:
             nodes.append(factory(port=port))
     except fatal as exc:
         print(f"[{name}] error: {exc}", file=sys.stderr)
-        _teardown(None, nodes, participant)
+        _teardown(None, [*spare, *nodes], participant)
         return 1
+    for node in spare:
+        node.destroy_node()
     # In lockstep the executor tells the participant of every task it makes (work a step waits for).
     executor = StepExecutor(participant) if participant is not None else EventsExecutor()
     share_clock(_with_composed(nodes))
@@ -210,17 +213,25 @@ def share_clock(nodes: Sequence[Node]) -> None:
             source.attach_clock(clock)
 
 
+#: Wall seconds a process's end may take (its nodes, then its DDS participant, destroyed) before it
+#: prints its stacks and exits with status 1 all the same.
+FINI_TIMEOUT_S = 15.0
+
+
 def _teardown(executor: Any, nodes: list[Node], participant: Participant | None,
               process: Process | None = None) -> None:
-    if executor is not None:
-        executor.shutdown(timeout_sec=1.0)
-    if process is not None:
-        process.install_signal_handlers()  # the executor's shutdown put the default handlers back
-    for node in reversed(nodes):
-        node.destroy_node()
-    if participant is not None:
-        participant.node.destroy_node()
-    rclpy.try_shutdown()
+    # Fast DDS (2.14) can hang for good destroying a participant while discovery is under way (its
+    # set_listener waits for a discovery callback that waits for it): the process ends regardless.
+    with exit_if_stuck(FINI_TIMEOUT_S):
+        if executor is not None:
+            executor.shutdown(timeout_sec=1.0)
+        if process is not None:
+            process.install_signal_handlers()  # the executor's shutdown put the default handlers back
+        for node in reversed(nodes):
+            node.destroy_node()
+        if participant is not None:
+            participant.node.destroy_node()
+        rclpy.try_shutdown()
 
 
 def run_node(factory: Callable[..., N], name: str, args: list[str] | None = None,

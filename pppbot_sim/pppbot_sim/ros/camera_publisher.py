@@ -102,8 +102,10 @@ class CameraPublisher:
     """
 
     def __init__(self, node: Node, sim: Simulation, seed: int, enabled: bool,
-                 warn: Callable[[str, str], None], error: Callable[[str], None]) -> None:
+                 warn: Callable[[str, str], None], error: Callable[[str], None], *, every_frame: bool = False) -> None:
         self.sim = sim
+        #: render every frame, waiting for the renderer (lockstep), instead of skipping what it cannot keep up with
+        self.every_frame = every_frame
         self.seed = seed
         #: why the cameras are off although asked for (no OpenGL backend), if known at the start
         self.unavailable = refused_backend() if enabled and sim.cameras else None
@@ -152,7 +154,7 @@ class CameraPublisher:
         """Render ``reading``'s frame in the camera thread (made at the first frame)."""
         if self.worker is None:
             self.worker = CameraWorker(self.sim.model, self.sim.cameras, self.seed, self._deliver,
-                                       lambda text: self._warn("camera", text))
+                                       lambda text: self._warn("camera", text), every_frame=self.every_frame)
         self.worker.submit(FrameRequest(reading.index, reading.state, self.topics[reading.index].wants_points()))
 
     def _deliver(self, frame: CameraFrame) -> None:

@@ -20,10 +20,11 @@ runs against the wall clock at ``real_time_factor``.
 """
 from __future__ import annotations
 
+import argparse
 import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,11 +33,14 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.utilities import remove_ros_args
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, LaserScan
 from std_srvs.srv import Empty, Trigger
 
 from pppbot_common.params import ParameterError
+from pppbot_common.ros.driven_clock import DrivenClock
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values, vector
 from pppbot_common.upright import UPRIGHT_STATUS, UprightWatch
@@ -46,9 +50,11 @@ from pppbot_description.xacro_model import read_robot_description
 from pppbot_lockstep.protocol import LockstepError
 from pppbot_lockstep.ros.coordinator import Coordinator, CoordinatorPort
 from pppbot_lockstep.ros.node import StepNode
+from pppbot_lockstep.ros.port import StepPort
 from pppbot_lockstep.ros.runner import Process, Warnings, guarded, run_nodes
 from pppbot_sim.controllers import controllers_file, read_plan
 from pppbot_sim.errors import SpawnError, WorldError
+from pppbot_sim.hosting import node_factories
 from pppbot_sim.mj_build import SpawnPose
 from pppbot_sim.ros.camera_publisher import CameraPublisher
 from pppbot_sim.ros.gz_diff_drive import host_diff_drives
@@ -135,9 +141,11 @@ class Simulator(StepNode):
         self._viewer_synced = 0.0
         self.published_s = 0.0
         self._clock_ns = -1  # the time of the last /clock
+        self._driven: list[DrivenClock] = []  # the clocks of the nodes run beside it
         self._published_since_sync = False  # a reading or a controller's odometry, since the last sync
         self._warn = Warnings(self, WARN_PERIOD_S)
-        self.cameras = CameraPublisher(self, self.sim, p.seed, p.cameras, self._warn, self.get_logger().error)
+        self.cameras = CameraPublisher(self, self.sim, p.seed, p.cameras, self._warn, self.get_logger().error,
+                                       every_frame=p.lockstep)
         for line in self.cameras.describe():
             (self.get_logger().error if line.startswith("cameras off:") else self.get_logger().info)(line)
         self.runner = PhysicsRunner(self.sim, p.command_timeout, p.paused,
@@ -360,10 +368,23 @@ class Simulator(StepNode):
         for controller in self.controllers:
             controller.update(now_ns)
 
+    def drive_clocks(self, nodes: Sequence[Node]) -> None:
+        """``nodes`` (run in this process beside it: ``--host``) are on the simulation's time from now
+        on, set with every /clock (not from /clock: in lockstep their timers and callbacks then see
+        the time of the step they run in, on every machine)."""
+        for node in nodes:
+            if node.get_parameter("use_sim_time").value:  # its own /clock subscription would race the setting
+                node.set_parameters([Parameter("use_sim_time", value=False)])
+        self._driven = [DrivenClock(node) for node in nodes]
+        for clock in self._driven:
+            clock.set(self.sim.time_ns)
+
     def _publish_clock(self, again: bool = False) -> None:
         now_ns = self.sim.time_ns
         if now_ns != self._clock_ns or again:
             self._clock_ns = now_ns
+            for clock in self._driven:
+                clock.set(now_ns)
             self.clock_pub.publish(self._clock_wire.serialize(stamp_values(now_ns, "clock")))
 
     def _publish_joints(self, reading: JointStatesReading) -> None:
@@ -511,6 +532,7 @@ class Simulator(StepNode):
 def _spin(nodes: Sequence[Node], process: Process) -> int | None:
     simulator = nodes[0]
     assert isinstance(simulator, Simulator)
+    simulator.drive_clocks(nodes[1:])
     try:
         simulator.run(process)
     except LockstepError as exc:
@@ -520,7 +542,27 @@ def _spin(nodes: Sequence[Node], process: Process) -> int | None:
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_nodes([Simulator], "simulator", args, loop=_spin, lockstep=False,
+    """``simulator [--host NODE ...] --ros-args ...``: ``--host`` runs a node registered in
+    :data:`pppbot_sim.hosting.NODES` (``robot_state_publisher``, ``twist_mux``) in this process, on
+    the simulator's clock and step port: its topics in-process, as a component container runs
+    components (give its parameters and remappings scoped to it: ``-p twist_mux:...``)."""
+    parser = argparse.ArgumentParser(prog="simulator", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--host", action="append", default=[], metavar="NODE",
+                        help="run this node in the simulator's process (repeatable)")
+    options = parser.parse_args(remove_ros_args(args if args is not None else sys.argv)[1:])
+    try:
+        hosted = node_factories(options.host)
+    except SpawnError as exc:
+        parser.error(str(exc))
+    made: list[Simulator] = []
+
+    def simulator(port: StepPort) -> Simulator:
+        made.append(Simulator(port=port))
+        return made[0]
+
+    def beside(factory: Callable[..., Node]) -> Callable[..., Node]:
+        return lambda port: factory(port=made[0].port)  # the simulator's port (its lockstep's, when on)
+    return run_nodes([simulator, *(beside(f) for f in hosted)], "simulator", args, loop=_spin, lockstep=False,
                      fatal=(ParameterError, DescriptionError, WorldError, SpawnError, LockstepError))
 
 
