@@ -189,6 +189,16 @@ def test_lost_answers_are_asked_again_and_the_state_decides(ros_node, process):
     assert is_active(ros_node)
 
 
+def test_a_manager_on_sim_time_does_not_follow_the_clock(ros_node, process):
+    """Nav2's params files give every node use_sim_time: true; the manager never reads its clock, so
+    it takes no /clock (100 messages a sim second, in an executor of its own, for nothing)."""
+    _, _, manager = process
+    m = manager(use_sim_time=True)
+    assert "/clock" not in [s.topic_name for s in m.subscriptions]
+    assert "/clock" not in [s.topic_name for s in m._calls.subscriptions]
+
+
+@pytest.mark.ros
 def test_node_names_must_be_names(ros_node):
     with pytest.raises(ParameterError, match="node_names"):
         LifecycleManager("lifecycle_manager_bad", parameter_overrides=[Parameter("node_names", value=["a", "a"])])
