@@ -245,26 +245,29 @@ class Publications:
         #: Per participant, its last cumulative count per topic; their sums over participants.
         self._last: dict[str, dict[str, int]] = {}
         self._others: dict[str, int] = {}
-        #: Per participant, the topics it counts.
+        #: Per participant, the topics it counts, and those it is quiet on (handling sends nothing).
         self._counting: dict[str, frozenset[str]] = {}
+        self._quiet: dict[str, frozenset[str]] = {}
 
     def want(self, topics: Sequence[str]) -> None:
         """This process counts receptions on ``topics`` too (from the next step on)."""
         self._wanted.update(t for t in topics if t)
 
-    def joined(self, name: str, topics: Sequence[str]) -> None:
+    def joined(self, name: str, topics: Sequence[str], quiet: Sequence[str] = ()) -> None:
         """``name`` (re)joined, counting ``topics``: a new process counts from zero."""
         self._last[name] = {}
-        self.counting(name, topics)
+        self.counting(name, topics, quiet)
 
-    def counting(self, name: str, topics: Sequence[str]) -> None:
-        """``name`` counts receptions on ``topics`` (from the next step on)."""
+    def counting(self, name: str, topics: Sequence[str], quiet: Sequence[str] = ()) -> None:
+        """``name`` counts receptions on ``topics`` (from the next step on), quiet on ``quiet``."""
         self._counting[name] = frozenset(t for t in topics if t)
+        self._quiet[name] = frozenset(quiet) & self._counting[name]
         self.want(topics)
 
     def left(self, name: str) -> None:
         """``name`` left: it counts nothing any more."""
         self._counting.pop(name, None)
+        self._quiet.pop(name, None)
 
     def counted_by(self, own: Collection[str] = ()) -> list[int]:
         """Per topic of :attr:`topics`: how many lockstep processes count it, the simulator's (which
@@ -279,6 +282,18 @@ class Publications:
         for topic in self.topics:
             participants = sum(topic in counting for counting in self._counting.values())
             counts.append(participants + (1 if participants and topic in own else 0))
+        return counts
+
+    def reacted_by(self, own: Collection[str] = ()) -> list[int]:
+        """Per topic of :attr:`topics`: how many of the processes :meth:`counted_by` counts react to
+        it (are not quiet on it; the simulator's process reacts to what it counts). A held send asks
+        for another round at its time only where a process other than its sender reacts."""
+        counts = []
+        for topic in self.topics:
+            participants = sum(topic in counting for counting in self._counting.values())
+            reacting = sum(topic in counting and topic not in self._quiet.get(name, frozenset())
+                           for name, counting in self._counting.items())
+            counts.append(reacting + (1 if participants and topic in own else 0))
         return counts
 
     def others(self) -> dict[str, int]:
@@ -317,6 +332,8 @@ class Counted:
     #: What it received beyond a step's total came from outside lockstep (a server's requests from a
     #: command line): taken as published before, so the next counted one is still waited for.
     catch_up: bool = False
+    #: Handling a message sends nothing (a recording, a state timers read): see LockstepAck.quiet_topics.
+    quiet: bool = False
 
 
 class Deliveries:
@@ -333,8 +350,8 @@ class Deliveries:
         if topic in self.totals:
             self.totals[topic] += 1
 
-    def add(self, topic: str, catch_up: bool = False) -> Counted:
-        counted = Counted(topic, catch_up=catch_up)
+    def add(self, topic: str, catch_up: bool = False, quiet: bool = False) -> Counted:
+        counted = Counted(topic, catch_up=catch_up, quiet=quiet)
         self.subscriptions.append(counted)
         return counted
 
@@ -344,6 +361,11 @@ class Deliveries:
 
     def topics(self) -> list[str]:
         return sorted({c.topic for c in self.subscriptions})
+
+    def quiet_topics(self) -> list[str]:
+        """The topics every subscription of this process on which is quiet."""
+        loud = {c.topic for c in self.subscriptions if not c.quiet}
+        return sorted({c.topic for c in self.subscriptions} - loud)
 
     def expect(self, topics: Sequence[str], totals: Sequence[int]) -> None:
         """A step's totals. A subscription that learns its topic's total for the first time takes

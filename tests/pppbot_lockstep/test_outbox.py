@@ -101,6 +101,34 @@ def test_what_nobody_else_counts_goes_out_at_once_in_a_step_and_right_after_the_
     assert got == ["in the step", "before the step"] and counters.published[TOPIC] == 2
 
 
+def test_a_send_only_quiet_processes_count_is_held_without_asking_for_a_round(
+        ros_node: Any, participant: Participant, node: StepNode) -> None:
+    """Another participant only records the topic (quiet): the message still waits for the next step,
+    but that can be the next sync time's: the answer asks for no round at this one."""
+    counters, outbox = participant.counters, participant.outbox
+    outbox.quiet_topics = frozenset({TOPIC})  # held (the fixture), and nobody else reacts to it
+    got: list[str] = []
+    pub = node.create_publisher(String, TOPIC, 10)
+    ros_node.create_subscription(String, TOPIC, lambda m: got.append(m.data), 10)
+    wait_until(lambda: pub.get_subscription_count() > 0, 10, "the subscription matched", node=ros_node)
+    sends = counters.sends
+    with outbox.lock:
+        outbox.in_step = True
+    pub.publish(String(data="recorded by another"))
+    assert counters.sends == sends and counters.published[TOPIC] == 1  # counted, no round asked
+    with outbox.lock:
+        outbox.seal()
+    outbox.send_with_answer()
+    assert got == []  # not with the answer: with the next step
+    outbox.send_sealed()
+    wait_until(lambda: got == ["recorded by another"], 10, "the held message, with the next step", node=ros_node)
+    outbox.quiet_topics = frozenset()
+    pub.publish(String(data="reacted to"))  # a reacting participant counts it again: a round is asked
+    assert counters.sends == sends + 1
+    answer_and_step(participant)
+    wait_until(lambda: len(got) == 2, 10, "the second message", node=ros_node)
+
+
 def test_a_held_request_gets_a_future_that_completes_with_the_reply(
         ros_node: Any, participant: Participant, node: StepNode) -> None:
     calls: list[int] = []

@@ -173,3 +173,28 @@ def test_counted_by_says_who_else_counts_a_topic_so_a_sender_knows_what_to_hold(
     assert pubs.counted_by() == [0, 1, 0, 1]
     pubs.counting("navigation", ["/tf"])  # its counted topics as its answer last said them
     assert pubs.counted_by() == [0, 0, 0, 1]
+
+
+def test_reacted_by_leaves_out_who_only_records_a_topic():
+    """A quiet subscription (an evaluation recording /tf) counts a topic without reacting to it: a
+    send there is held for the next step but asks for no round of its own."""
+    pubs = Publications()
+    pubs.joined("navigation", ["/cmd_vel_nav", "/tf"])
+    pubs.joined("eval", ["/amcl_pose", "/tf"], quiet=["/amcl_pose", "/tf"])
+    pubs.want(["/cmd_vel"])
+    assert pubs.next_topics() == ("/amcl_pose", "/cmd_vel", "/cmd_vel_nav", "/tf")
+    assert pubs.counted_by({"/cmd_vel"}) == [1, 0, 1, 2]
+    assert pubs.reacted_by({"/cmd_vel"}) == [0, 0, 1, 1]  # the eval only records /amcl_pose and /tf
+    pubs.counting("eval", ["/amcl_pose", "/tf"], quiet=["/amcl_pose"])  # now something of it reacts to /tf
+    assert pubs.reacted_by() == [0, 0, 1, 2]
+    pubs.left("navigation")
+    assert pubs.reacted_by() == [0, 0, 0, 1]
+
+
+def test_a_topic_is_quiet_only_where_every_subscription_of_the_process_is():
+    deliveries = Deliveries()
+    deliveries.add("/tf", quiet=True)
+    deliveries.add("/amcl_pose", quiet=True)
+    deliveries.add("/tf")  # a transform listener of another node of the process, which reacts
+    assert deliveries.topics() == ["/amcl_pose", "/tf"]
+    assert deliveries.quiet_topics() == ["/amcl_pose"]

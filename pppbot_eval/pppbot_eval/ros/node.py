@@ -82,15 +82,17 @@ class EvalNode:
         self.upright = UprightWatch()
         node = self.node
         self.cmd_pub = node.create_publisher(Twist, "/cmd_vel_teleop", DEFAULT)
+        # What it hears it records (its timer acts on it): quiet subscriptions, no round of their own.
         if not navigates:
             port.require_match(node, self.cmd_pub)  # the route driver's commands
-        node.create_subscription(Odometry, "/ground_truth/odom", self._on_truth, 100, data_path=True)
+        node.create_subscription(Odometry, "/ground_truth/odom", self._on_truth, 100, data_path=True, quiet=True)
         if estimate.topic is not None:
-            node.create_subscription(Odometry, estimate.topic, self._on_estimate, 100, data_path=True)
+            node.create_subscription(Odometry, estimate.topic, self._on_estimate, 100, data_path=True, quiet=True)
         else:
-            node.create_subscription(TFMessage, "/tf", self._on_tf, 200, data_path=True)
+            node.create_subscription(TFMessage, "/tf", self._on_tf, 200, data_path=True, quiet=True)
             node.create_subscription(TFMessage, "/tf_static", self._keep_edges, LATCHED)
-        node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100, data_path=True)
+        node.create_subscription(PointStamped, "/ground_truth/collisions", self._on_collision, 100, data_path=True,
+                                 quiet=True)
         if wants_map:
             node.create_subscription(OccupancyGridMsg, "/map", self._on_map, LATCHED)
             node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 10)
@@ -99,7 +101,7 @@ class EvalNode:
             self.initial_pose_pub = node.create_publisher(PoseWithCovarianceStamped, "/initialpose", DEFAULT)
             port.require_match(node, self.initial_pose_pub)
             node.create_subscription(PoseWithCovarianceStamped, "/amcl_pose", self._on_amcl_pose, LATCHED,
-                                     data_path=True)
+                                     data_path=True, quiet=True)
             self.global_client = node.create_client(Empty, "/reinitialize_global_localization")
         self._recoveries = 0  # of the current navigation goal, from its feedback
         #: Servers the run needs before it starts, by name (a request sent before its server is

@@ -73,15 +73,17 @@ class CoordinatorPort(StepPort):
         #: Per topic, what this process has sent on it (its held sends not yet)
         self.released: dict[str, int] = {}
         self.holding = False
-        #: The topics a participant counts (sends on them are held during a round)
+        #: The topics a participant counts (sends on them are held during a round), and those of
+        #: them no participant reacts to (held without asking for another round)
         self.held_topics: frozenset[str] = frozenset()
+        self.quiet_topics: frozenset[str] = frozenset()
         self._held: list[tuple[Callable[[], None], str | None]] = []
 
     def _out(self, send: Callable[[], None], topic: str | None, asks_round: bool) -> None:
         if topic is not None:
             self.counters.published_on(topic)
         if self.holding and (topic is None or topic in self.held_topics):
-            if asks_round:
+            if asks_round and topic not in self.quiet_topics:
                 self.counters.sent()
             self._held.append((send, topic))
             return
@@ -115,8 +117,9 @@ class CoordinatorPort(StepPort):
     def replied(self) -> None:
         self.counters.sent()  # a reply by one of this process's nodes may need another round too
 
-    def counted(self, node: Node, topic: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
-        counted = self.deliveries.add(topic)
+    def counted(self, node: Node, topic: str, callback: Callable[[Any], None], quiet: bool = False) \
+            -> Callable[[Any], None]:
+        counted = self.deliveries.add(topic)  # the simulator's process reacts to all it counts
 
         def receive(msg: Any) -> None:
             try:
@@ -173,7 +176,7 @@ class Coordinator:
             if name not in self.barrier.members and name not in self.barrier.joining:
                 self.log(f"lockstep: '{name}' joins")
             self.barrier.join(name)
-            self.publications.joined(name, msg.counted_topics)
+            self.publications.joined(name, msg.counted_topics, msg.quiet_topics)
             # Listed at once (waited for from the next step on); asked again, it missed the status.
             self.publish_status(self.barrier.stamp_ns, force=True)
         elif msg.kind == LockstepAck.LEAVE:
@@ -190,7 +193,7 @@ class Coordinator:
                 self._readiness[name] = (bool(msg.settled), int(msg.graph_nodes))
                 self.publications.report(name, msg.published)
                 if msg.counted_topics:  # sent when they changed
-                    self.publications.counting(name, msg.counted_topics)
+                    self.publications.counting(name, msg.counted_topics, msg.quiet_topics)
 
     def publish_status(self, t_ns: int, force: bool = False) -> None:
         """Who is waited for: members, and joiners (waited for from the next step on; an answer of
@@ -288,8 +291,12 @@ class Coordinator:
             self._drain(process, t_ns)
             if not self.barrier.members:
                 return
-            counted_by = self.publications.counted_by(self.deliveries.topics()) if topics else []
+            own = self.deliveries.topics()
+            counted_by = self.publications.counted_by(own) if topics else []
+            reacted_by = self.publications.reacted_by(own) if topics else []
             port.held_topics = frozenset(t for t, n in zip(topics, counted_by, strict=True) if n > 0)
+            port.quiet_topics = frozenset(t for t, n in zip(topics, self.publications.reacted_by(), strict=True)
+                                          if n == 0)
             step_others = self.publications.others()
             values: dict[str, Any] = {"seq": seq, **stamp_values(t_ns, "stamp"), "round": index,
                                       "timers": timers and index == 0}
@@ -298,6 +305,7 @@ class Coordinator:
             if topics:
                 values["published"] = self.publications.totals(port.counters.published)
                 values["counted_by"] = counted_by
+                values["reacted_by"] = reacted_by
             wire = self._step_wire(topics).serialize(values)
             port.holding = True
             self.step_pub.publish(wire)
@@ -325,10 +333,11 @@ class Coordinator:
         """The step's template for these counted topics (they change only as participants join)."""
         wire = self._step_wires.get(topics)
         if wire is None:
-            fields = ["seq", *stamp_fields("stamp"), "round", "timers"] + (["published", "counted_by"] if topics
-                                                                            else [])
+            fields = ["seq", *stamp_fields("stamp"), "round", "timers"] + (
+                ["published", "counted_by", "reacted_by"] if topics else [])
+            zeros = [0] * len(topics)
             wire = self._step_wires[topics] = MessageTemplate(
-                LockstepStep(topics=list(topics), published=[0] * len(topics), counted_by=[0] * len(topics)), fields)
+                LockstepStep(topics=list(topics), published=zeros, counted_by=zeros, reacted_by=zeros), fields)
         return wire
 
     def _wait_for_answers(self, process: Process, seq: int, t_ns: int, wire: Any) -> None:

@@ -81,7 +81,8 @@ class Outbox:
 
     So, once time runs (:attr:`holding`), a send on a topic another process counts
     (:attr:`held_topics`, from the step) is held (counted at once, so the answer reports it and
-    another round follows); the answer seals what is held (:meth:`seal`); the next step sends
+    another round follows, unless no other process reacts to the topic, :attr:`quiet_topics`: then
+    it goes with the next step, whenever that is); the answer seals what is held (:meth:`seal`); the next step sends
     what was sealed (:meth:`send_sealed`), before the participant waits for that step's messages.
     Everything one participant sends another in one round is thus handled in the next, by
     everyone, in the same order on every machine. What nobody else counts goes out at once while
@@ -103,6 +104,8 @@ class Outbox:
         #: the topics another lockstep process counts (held), and those this process counts
         self.held_topics: frozenset[str] = frozenset()
         self.own_topics: frozenset[str] = frozenset()
+        #: of the held topics, those no other process reacts to: held without asking for a round
+        self.quiet_topics: frozenset[str] = frozenset()
         self.lock = threading.Lock()
         self._on_own = on_own
         #: (send, whether it may go out with the answer: nobody else counts its topic)
@@ -126,7 +129,8 @@ class Outbox:
                     if topic in self.own_topics and self._on_own is not None:
                         self._on_own(topic)  # handled before the answer
                 else:
-                    if asks_round and (others or topic in self.own_topics):
+                    if asks_round and (others or topic in self.own_topics) \
+                            and (hold or topic not in self.quiet_topics):
                         self.counters.sent()
                     self._held.append((send, not others))
                     return

@@ -114,7 +114,7 @@ class Participant(StepPort):
         self._pending_seq: int | None = None
         self._early_step: LockstepStep | None = None
         self._last_seq = 0  # the last step taken since joining (the simulator repeats a step until all answer)
-        self._counted_topics: list[str] = []  # as last told to the simulator
+        self._counted_topics: tuple[list[str], list[str]] = ([], [])  # counted, quiet: as last told
         self._waiting_step: LockstepStep | None = None  # until the messages published before it are here
         self._waiting_since = 0.0
         self._done_wires: dict[int, MessageTemplate] = {}
@@ -132,7 +132,7 @@ class Participant(StepPort):
         self._timers_due = False
         self.ack_pub = node.create_publisher(LockstepAck, ACK_TOPIC, PROTOCOL_QOS)
         self._step_topics: tuple[str, ...] = ()
-        self._holding_key: tuple[tuple[str, ...], tuple[int, ...], tuple[str, ...]] | None = None
+        self._holding_key: tuple[tuple[str, ...], tuple[int, ...], tuple[int, ...], tuple[str, ...]] | None = None
         self._awaiting_own = False  # an answer waits for a message this process sent itself
         node.create_subscription(LockstepStep, STEP_TOPIC, self._on_step, PROTOCOL_QOS)
         node.create_subscription(LockstepStatus, STATUS_TOPIC, self._on_status, STATUS_QOS)
@@ -195,8 +195,9 @@ class Participant(StepPort):
         self.counters.task()
 
     # ------------------------------------------------------ the port: receptions
-    def counted(self, node: Node, topic: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
-        counted = self.deliveries.add(topic)
+    def counted(self, node: Node, topic: str, callback: Callable[[Any], None], quiet: bool = False) \
+            -> Callable[[Any], None]:
+        counted = self.deliveries.add(topic, quiet=quiet)
 
         def receive(msg: Any) -> None:
             try:
@@ -319,9 +320,9 @@ class Participant(StepPort):
         if unmet:
             self._warn("requirements", f"lockstep: '{self.name}' joins once it has {', '.join(unmet)}")
             return
-        self._counted_topics = self.deliveries.topics()
+        self._counted_topics = counted, quiet = self.deliveries.topics(), self.deliveries.quiet_topics()
         self._send(LockstepAck(kind=LockstepAck.JOIN, participant=self.name, settled=True,
-                               graph_nodes=self._graph_nodes(), counted_topics=self._counted_topics))
+                               graph_nodes=self._graph_nodes(), counted_topics=counted, quiet_topics=quiet))
 
     def _on_delivery(self) -> None:
         if self._waiting_step is not None:
@@ -368,7 +369,7 @@ class Participant(StepPort):
             self.outbox.in_step = True  # until the answer: what nobody else counts goes out at once
         self.outbox.send_sealed()  # what this process sent in the last round (see Outbox)
         self._step_topics = tuple(msg.topics)
-        self._update_held_topics(tuple(msg.counted_by))
+        self._update_held_topics(tuple(msg.counted_by), tuple(msg.reacted_by))
         self.deliveries.expect(msg.topics, msg.published)
         if stamp_ns(msg.stamp) == 0:
             self.deliveries.rebase()  # time holds at its start: discovery may have lost messages
@@ -377,19 +378,25 @@ class Participant(StepPort):
         self._waiting_step, self._waiting_since = msg, time.monotonic()
         self._try_step()
 
-    def _update_held_topics(self, counted_by: tuple[int, ...]) -> None:
-        """The topics whose sends are held (another process counts them) and those this process
-        counts, from the step (they change only as subscriptions are made)."""
+    def _update_held_topics(self, counted_by: tuple[int, ...], reacted_by: tuple[int, ...] = ()) -> None:
+        """The topics whose sends are held (another process counts them), those of them no other
+        process reacts to (held without asking for a round), and those this process counts, from
+        the step (they change only as subscriptions are made)."""
         own = tuple(self.deliveries.topics())
-        key = (self._step_topics, counted_by, own)
+        key = (self._step_topics, counted_by, reacted_by, own)
         if key == self._holding_key:
             return
         self._holding_key = key
         mine = set(own)
+        loud = mine - set(self.deliveries.quiet_topics())
+        reacted = reacted_by if len(reacted_by) == len(counted_by) else counted_by  # (an older simulator)
         with self.outbox.lock:
             self.outbox.held_topics = frozenset(
                 topic for topic, count in zip(self._step_topics, counted_by, strict=False)
                 if count - (topic in mine) > 0)
+            self.outbox.quiet_topics = frozenset(
+                topic for topic, count in zip(self._step_topics, reacted, strict=False)
+                if topic in self.outbox.held_topics and count - (topic in loud) <= 0)
             self.outbox.own_topics = frozenset(mine)
 
     def _try_step(self) -> None:
@@ -519,11 +526,12 @@ class Participant(StepPort):
         values: dict[str, Any] = {"seq": seq, "sent": sent, **stamp_values(wakeup or 0, "next_wakeup"),
                                   "settled": not starting or not self._unmet(),
                                   "graph_nodes": self._graph_nodes() if starting else 0}
-        counted_topics = self.deliveries.topics()
+        counted_topics = (self.deliveries.topics(), self.deliveries.quiet_topics())
         if counted_topics != self._counted_topics:  # a subscription made since: told once
             self._counted_topics = counted_topics
             self._send(LockstepAck(kind=LockstepAck.DONE, participant=self.name, published=published,
-                                   counted_topics=counted_topics, **_message_values(values)))
+                                   counted_topics=counted_topics[0], quiet_topics=counted_topics[1],
+                                   **_message_values(values)))
             self.outbox.send_with_answer()
             return
         if published:

@@ -78,8 +78,10 @@ class StepPort:
         """The process's executor made a task (work to wait for before answering a step)."""
 
     # ----------------------------------------------------------- receptions
-    def counted(self, node: Node, topic: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
-        """``callback`` for a data-path subscription of ``node`` on ``topic`` (fully qualified)."""
+    def counted(self, node: Node, topic: str, callback: Callable[[Any], None], quiet: bool = False) \
+            -> Callable[[Any], None]:
+        """``callback`` for a data-path subscription of ``node`` on ``topic`` (fully qualified);
+        ``quiet``: handling a message sends nothing (see :meth:`StepNode.create_subscription`)."""
         return callback
 
     def serve(self, node: Node, key: str, callback: Callable[..., Any], make_kept: Callable[[Any], Any]) \
