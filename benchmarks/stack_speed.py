@@ -16,8 +16,9 @@ Runs, one after the other in ``--world`` (default maze), on a DDS domain of its 
   the bringup's memory: the sum of its processes' RSS (the issue's measure, which counts the
   libraries they share once per process) and of their PSS (each shared page counted once).
 
-Each node's CPU share (% of one core, from /proc) is printed per run; one JSON object with
-every figure and its target is the last line.
+Each node's CPU share (% of one core, from /proc) and, in lockstep, the rounds per sync time
+(from the simulator's log) are printed per run; one JSON object with every figure, its target
+and whether it is met is the last line.
 
     ./pppbot env python benchmarks/stack_speed.py [--world maze] [--mapping-seconds 120] [--goals 3]
 """
@@ -26,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -176,7 +178,18 @@ def run_eval(scenario: str, args: list[str], domain: int) -> dict[str, Any]:
     report = json.loads(report_file.read_text())
     return {"real_time_factor": round(float(report["real_time_factor"]), 2), "ok": bool(report.get("ok")),
             "sim_seconds": round(float(report["sim_seconds"]), 1), "cpu_pct": shares,
-            "peak_rss_mb": round(sampler.peak_rss_mb), "out": str(out)}
+            "peak_rss_mb": round(sampler.peak_rss_mb), "rounds_per_sync_time": rounds_per_sync_time(out),
+            "out": str(out)}
+
+
+def rounds_per_sync_time(out: Path) -> float | None:
+    """Lockstep rounds (a step and everyone's answer) per sync time, from the simulator's last speed
+    line in the run's logs ("lockstep: N steps, M rounds"); None when it logged none."""
+    found = None
+    for log in sorted((out / "logs").glob("simulator*.log")):
+        for match in re.finditer(r"lockstep: (\d+) steps, (\d+) rounds", log.read_text(errors="replace")):
+            found = match
+    return round(int(found.group(2)) / int(found.group(1)), 2) if found and int(found.group(1)) else None
 
 
 def run_idle(world: str, seconds: float, domain: int, lockstep: bool = False) -> dict[str, Any]:
@@ -237,6 +250,8 @@ def main() -> None:
         bringup_idle_lockstep_1x_pct=round(sum(v for k, v in idle_lockstep["cpu_pct"].items() if k != "launch_sim"), 1),
         navigation_lockstep_rss_mb=idle_lockstep["rss_mb"], navigation_lockstep_pss_mb=idle_lockstep["pss_mb"],
         navigation_with_eval_peak_rss_mb=navigation["peak_rss_mb"],
+        rounds_per_sync_time={"mapping": mapping["rounds_per_sync_time"],
+                              "navigation": navigation["rounds_per_sync_time"]},
         cpu_pct={"mapping": mapping["cpu_pct"], "navigation": navigation["cpu_pct"],
                  "navigation_1x": driving["cpu_pct"], "idle_1x": idle["cpu_pct"],
                  "idle_lockstep_1x": idle_lockstep["cpu_pct"]})

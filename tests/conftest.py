@@ -2,7 +2,8 @@
 
 - The whole session gets its own ROS_DOMAIN_ID (held with a lock file, so parallel
   test runs on one machine never share one) and ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST;
-  both are set before any test, so in-process rclpy and child processes inherit them.
+  both are set before any test, so in-process rclpy and child processes inherit them; a module
+  starts in a new domain when this process holds many participants in the last one.
 - ``spawn`` starts children in their own process groups and stops every one of them
   after the test (SIGINT → SIGTERM → SIGKILL); ``module_spawn`` does the same for a
   module's shared fixture; the session fails if one survives.
@@ -22,7 +23,7 @@ from typing import Any
 
 import pytest
 
-from pppbot_common.dds_isolation import isolate_dds
+from pppbot_common.dds_isolation import fresh_domain_if_crowded, isolate_dds
 from pppbot_common.process import ChildProcess, StopTimeouts
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -31,6 +32,17 @@ SCRIPTS = Path(__file__).resolve().parent / "scripts"
 def pytest_configure(config: pytest.Config) -> None:
     isolate_dds()
     os.environ["PYTHONUNBUFFERED"] = "1"
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _domain_with_room() -> None:
+    """Before each module: if this process holds many DDS participants in the session's domain
+    (rclpy keeps some contexts' participants after rclpy.shutdown(): a lifecycle node's, until it
+    is collected), the module and its children move to a new domain: with LOCALHOST discovery, new
+    participants past ID 31 never find each other (the suite's late lockstep tests failed so)."""
+    moved = fresh_domain_if_crowded()
+    if moved is not None:
+        print(f"\n[conftest] ROS_DOMAIN_ID -> {moved} (this process held many participants in the last one)")
 
 
 def pytest_report_header(config: pytest.Config) -> str:
