@@ -20,11 +20,11 @@ from rclpy.action import get_action_server_names_and_types_by_node
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
-from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
 from pppbot_common.ros.messages import get_interface
 from pppbot_common.ros.qos import DEFAULT, LATCHED
+from pppbot_common.ros.retry import Request, Retry, Unanswered
 from pppbot_interfaces.msg import LockstepStatus
 from pppbot_lockstep.ros.participant import STATUS_QOS, STATUS_TOPIC
 
@@ -36,6 +36,7 @@ DOMAIN_CHECK_S = 4.0
 EMPTY_DOMAIN_S = 2.0
 #: a lifecycle probe's get_state request unanswered this long (wall s) is sent again
 STATE_RETRY_S = 2.0
+STATE_RETRY = Retry(STATE_RETRY_S, attempts=3)
 
 
 def domain_taken_message(what: str, environ: dict[str, str] | None = None) -> str:
@@ -125,23 +126,27 @@ class GraphProbe:
     def lifecycle_active(self, node: str) -> Callable[[], bool]:
         """A probe that turns true once lifecycle node ``node`` (in the root namespace) says it is
         active on ``<node>/get_state``, as ``ros2 lifecycle get`` and BasicNavigator ask; once true
-        it stays true. A request unanswered for :data:`STATE_RETRY_S` is sent again (Fast DDS drops
-        an answer to a client its server has not discovered yet)."""
+        it stays true. A request unanswered for :data:`STATE_RETRY_S` is sent again
+        (:class:`~pppbot_common.ros.retry.Request`: Fast DDS drops an answer to a client its server
+        has not discovered yet); one given up on is followed by a new one."""
         seen = threading.Event()
         client = self.node.create_client(GetState, f"/{node}/get_state")
-        pending: list[tuple[float, Future]] = []
+        asking: list[Request[GetState.Response]] = []
 
         def probe() -> bool:
             if seen.is_set() or self._closed:
                 return seen.is_set()
-            if pending and pending[0][1].done():
-                answer = pending.pop()[1].result()
-                if answer is not None and answer.current_state.id == State.PRIMARY_STATE_ACTIVE:
-                    seen.set()
-            elif pending and time.monotonic() - pending[0][0] > STATE_RETRY_S:
-                pending.pop()
-            if not seen.is_set() and not pending and client.service_is_ready():
-                pending.append((time.monotonic(), client.call_async(GetState.Request())))
+            try:
+                if asking and asking[0].poll():
+                    answer = asking.pop().pending.result()
+                    if answer is not None and answer.current_state.id == State.PRIMARY_STATE_ACTIVE:
+                        seen.set()
+            except Unanswered:
+                asking.pop()
+            if not seen.is_set() and not asking and client.service_is_ready():
+                asking.append(Request(lambda: client.call_async(GetState.Request()), STATE_RETRY,
+                                      f"service {client.srv_name}, asked by {self.node.get_fully_qualified_name()}",
+                                      forget=client.remove_pending_request))
                 self.executor.wake()
             return seen.is_set()
         return probe

@@ -5,7 +5,6 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
-from functools import partial
 from typing import Any, TypeVar
 
 import rclpy
@@ -45,31 +44,18 @@ def wait_until(condition: Callable[[], T | None], timeout_s: float, what: str,
 
 def send_goal(client: Any, goal: Any, node: Node | None, timeout_s: float = 10.0, attempts: int = 3,
               feedback_callback: Callable[[Any], None] | None = None) -> Any:
-    """Send an action goal and return its goal handle once the server answered (accepted or not).
-
-    Fast DDS drops a service's answer to a client whose reply reader the server has not
-    discovered yet ("failed to send response (timeout): client will not receive response"):
-    on a busy machine that can be the first goal after ``wait_for_server``. An answer not
-    there within ``timeout_s`` / ``attempts`` is taken for lost and the goal sent again (a
-    server that did take the first one takes the next as a new goal, as a preempting one).
+    """Send an action goal and return its goal handle once the server answered (accepted or not),
+    spinning ``node`` meanwhile (None: another thread spins it). An answer not there within
+    ``timeout_s`` / ``attempts`` is taken for lost and the goal sent again
+    (:func:`pppbot_common.ros.retry.send_goal`).
 
     Raises:
-        TimeoutExpired: no answer to any attempt.
+        TimeoutExpired: no answer to any attempt (:class:`~pppbot_common.ros.retry.Unanswered`).
     """
-    per_attempt = timeout_s / attempts
-    for attempt in range(1, attempts + 1):
-        sent: Future = client.send_goal_async(goal, feedback_callback=feedback_callback)
-        try:
-            return wait_until(partial(_answer, sent), per_attempt,
-                              f"an answer to the goal on '{client._action_name}'", node=node)
-        except TimeoutExpired:
-            if attempt == attempts:
-                raise
-    raise AssertionError("unreachable")
+    from pppbot_common.ros import retry
 
-
-def _answer(future: Future) -> Any:
-    return future.result() if future.done() else None
+    return retry.send_goal(client, goal, retry.Retry(timeout_s / attempts, attempts), retry.node_wait(node),
+                           node=node, feedback_callback=feedback_callback)
 
 
 def topic_types(node: Node, topic: str) -> list[str]:
@@ -171,22 +157,23 @@ def wait_for_future(future: Future, timeout_s: float, check: Callable[[], None] 
 
 
 def change_state(node: Node, target: str, transition: int, label: str = "", timeout_s: float = 30.0) -> bool:
-    """Ask lifecycle node ``target`` for ``transition`` (a ``lifecycle_msgs/msg/Transition`` id) on
-    its ``change_state`` service, as a lifecycle manager or ``ros2 lifecycle set`` does, spinning
-    ``node``; whether it succeeded.
+    """Ask lifecycle node ``target`` for ``transition`` (a ``lifecycle_msgs/msg/Transition`` id, or
+    its ``label``) on its ``change_state`` service, as a lifecycle manager or ``ros2 lifecycle set``
+    does, spinning ``node``; whether it succeeded. A request is sent again only when it was lost
+    (:class:`pppbot_common.ros.retry.LifecycleCalls`).
 
     Raises:
         TimeoutExpired: no service or no answer within ``timeout_s``.
     """
-    from lifecycle_msgs.msg import Transition
-    from lifecycle_msgs.srv import ChangeState
+    from pppbot_common.ros.retry import LifecycleCalls, Retry, node_wait
 
-    client = node.create_client(ChangeState, f"{target.rstrip('/')}/change_state")
+    calls = LifecycleCalls(node, target, Retry(timeout_s / 3, attempts=3), node_wait(node))
     try:
-        if not client.wait_for_service(timeout_sec=timeout_s):
-            raise TimeoutExpired(f"no {client.srv_name} service within {timeout_s:g} s")
-        future = client.call_async(ChangeState.Request(transition=Transition(id=transition, label=label)))
-        return bool(wait_until(lambda: future.result() if future.done() else None, timeout_s,
-                               f"{target}'s change_state", node=node).success)
+        for client in (calls.get_client, calls.change_client):
+            if not client.wait_for_service(timeout_sec=timeout_s):
+                raise TimeoutExpired(f"no {client.srv_name} service within {timeout_s:g} s")
+        before_id = calls.state()[0]
+        done = calls.change_state(transition, before_id, label)
+        return done if done is not None else calls.state()[0] != before_id
     finally:
-        node.destroy_client(client)
+        calls.destroy()
