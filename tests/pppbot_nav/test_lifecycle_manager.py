@@ -2,6 +2,7 @@
 launch_sim composes them, and the plans they follow."""
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -12,6 +13,7 @@ from std_srvs.srv import Trigger
 
 from pppbot_common.errors import PppbotError
 from pppbot_common.params import ParameterError
+from pppbot_common.ros.retry import Retry
 from pppbot_common.ros.wait import wait_until
 from pppbot_lockstep.ros.lifecycle import ManagedNode
 from pppbot_nav.errors import LifecycleError
@@ -183,8 +185,8 @@ def test_lost_answers_are_asked_again_and_the_state_decides(ros_node, process):
     manager(autostart=True)
     wait_until(lambda: all(s.active for s in servers.values()), 60, "the nodes active", node=ros_node)
     assert all(len(headers) == 1 for headers in lost)  # both first answers were dropped
-    # configure's answer was lost: amcl, configured by the first request, refused the second; the
-    # manager saw amcl inactive and went on
+    # configure's answer was lost: amcl, configured by the first request, showed inactive; the
+    # manager took that (it did not ask again) and went on
     assert log == [f"configure {n}" for n in NODES] + [f"activate {n}" for n in NODES]
     assert is_active(ros_node)
 
@@ -196,6 +198,36 @@ def test_a_manager_on_sim_time_does_not_follow_the_clock(ros_node, process):
     m = manager(use_sim_time=True)
     assert "/clock" not in [s.topic_name for s in m.subscriptions]
     assert "/clock" not in [s.topic_name for s in m._calls.subscriptions]
+
+
+class SlowFailure(ManagedNode):
+    """A managed node whose configure works for ``configure_s`` (wall), then fails."""
+
+    def __init__(self, name: str, configure_s: float) -> None:
+        super().__init__(name)
+        self.configure_s = configure_s
+        self.configures = 0
+
+    def configure(self) -> None:
+        self.configures += 1
+        time.sleep(self.configure_s)  # the work itself (a plugin loading), longer than an attempt
+        raise PppbotError("plugin 'GridBased' not found")
+
+
+@pytest.mark.ros
+def test_a_slow_configure_that_fails_is_asked_once_and_the_failure_names_the_node(ros_node, spin_in_background):
+    attempt_s = 0.5
+    slow = SlowFailure("slow_server", configure_s=4 * attempt_s)
+    spin_in_background(slow)
+    manager = LifecycleManager("lifecycle_manager_test", ["slow_server"], retry=Retry(attempt_s, attempts=10))
+    try:
+        assert not manage(ros_node, Command.STARTUP)
+        assert slow.configures == 1  # never asked again while configuring, nor after it failed
+        assert slow.state == "unconfigured" and slow.configure_failure == "plugin 'GridBased' not found"
+        assert manager.last_error == "Failed to change state for node: slow_server (configure left it unconfigured)"
+        assert not is_active(ros_node)
+    finally:
+        manager.destroy_node()
 
 
 @pytest.mark.ros

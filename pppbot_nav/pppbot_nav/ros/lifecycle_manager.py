@@ -23,22 +23,21 @@ from __future__ import annotations
 
 import sys
 import threading
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
 import rclpy
-from lifecycle_msgs.msg import Transition as TransitionMsg
-from lifecycle_msgs.srv import ChangeState, GetState
 from nav2_msgs.srv import ManageLifecycleNodes
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
 
+from pppbot_common.errors import TimeoutExpired
 from pppbot_common.params import ParameterError, param
 from pppbot_common.ros.params import declare_parameters
+from pppbot_common.ros.retry import LifecycleCalls, Retry, executor_wait
 from pppbot_nav.errors import LifecycleError
 from pppbot_nav.lifecycle import (
     ABORTED,
@@ -56,10 +55,12 @@ from pppbot_nav.lifecycle import (
 #: machine), and to answer (s, wall).
 SERVICE_WAIT_S = 60.0
 CALL_TIMEOUT_S = 30.0
-#: A request still unanswered after this long (s, wall) is sent again: Fast DDS drops a service's
-#: answer to a client whose reply reader the server has not discovered yet, most often on a busy
-#: machine with a node just started (as pppbot_common.ros.wait.send_goal does for goals).
+#: A request still unanswered after this long (s, wall) is sent again if it was lost
+#: (:mod:`pppbot_common.ros.retry`: Fast DDS drops a service's answer to a client whose reply
+#: reader the server has not discovered yet, most often on a busy machine with a node just
+#: started); a change_state only while the node's state has not moved, never during a transition.
 RESEND_S = 3.0
+RETRY = Retry(RESEND_S, attempts=int(CALL_TIMEOUT_S // RESEND_S), deadline_s=CALL_TIMEOUT_S)
 
 
 @dataclass(frozen=True)
@@ -83,10 +84,11 @@ class LifecycleManager(Node):
     spins_itself = True
 
     def __init__(self, name: str = "lifecycle_manager", node_names: Sequence[str] = (), autostart: bool = False,
-                 port: Any = None, **kwargs: Any) -> None:
+                 port: Any = None, retry: Retry = RETRY, **kwargs: Any) -> None:
         """``node_names`` and ``autostart``: the defaults of the parameters (a bringup's), which a
         parameters file overrides. ``port``: the process's step port, not used: a lifecycle manager
-        is a plain rclpy node that spins itself (its services answer at once, in lockstep too)."""
+        is a plain rclpy node that spins itself (its services answer at once, in lockstep too).
+        ``retry``: how long each request to a node is waited for and how often sent again."""
         super().__init__(name, **kwargs)
         # Its clock is never read (its timeouts are wall time): following /clock at 100 Hz in its own
         # Python executor took a third of the navigation process's CPU while the robot stood still.
@@ -101,13 +103,14 @@ class LifecycleManager(Node):
             raise ParameterError("node_names", p.node_names, "must name the lifecycle nodes to manage, in start order")
         self.set_parameters([Parameter("node_names", value=self.node_names)])
         self.state = "unconfigured"
+        #: the last command's failure, as logged (empty after a success)
+        self.last_error = ""
         self._calls = rclpy.create_node(f"{name}_service_client", context=self.context,
                                         start_parameter_services=False, enable_rosout=False)
         self._calls_executor = SingleThreadedExecutor(context=self.context)
         self._calls_executor.add_node(self._calls)
-        self._lifecycle_clients = {n: (self._calls.create_client(ChangeState, f"{n}/change_state"),
-                                       self._calls.create_client(GetState, f"{n}/get_state"))
-                                   for n in self.node_names}
+        wait = executor_wait(self._calls_executor)
+        self._lifecycle = {n: LifecycleCalls(self._calls, n, retry, wait) for n in self.node_names}
         self._lock = threading.Lock()  # one command at a time
         self.create_service(ManageLifecycleNodes, "~/manage_nodes", self._on_manage)
         self.create_service(Trigger, "~/is_active", self._on_is_active)
@@ -131,9 +134,11 @@ class LifecycleManager(Node):
 
     # ---------------------------------------------------------------- commands
     def run(self, command: Command) -> bool:
-        """Carry out ``command`` over the managed nodes; whether every node did as asked."""
+        """Carry out ``command`` over the managed nodes; whether every node did as asked (if not,
+        :attr:`last_error` says which failed and why)."""
         with self._lock:
             ok = True
+            self.last_error = ""
             for step in plan(command, self.node_names):
                 if not self._change(step):
                     ok = False
@@ -147,48 +152,43 @@ class LifecycleManager(Node):
             return ok
 
     def _change(self, step: Step) -> bool:
-        change, get = self._lifecycle_clients[step.node]
-        before = self._state_of(step.node, get)
-        if before is None:
-            self.get_logger().error(f"Failed to change state for node: {step.node} (its get_state service "
-                                    f"{self._silence(get)})")
-            return False
-        if already_there(before, step):
+        calls = self._lifecycle[step.node]
+        try:
+            before = self._state_of(calls)
+        except TimeoutExpired as exc:
+            return self._failed(step, str(exc))
+        if already_there(before[1], step):
             return True
         self.get_logger().info(f"{step.transition.name.capitalize().replace('_', ' ')} {step.node}")
-        answer = self._call(change, ChangeState.Request(transition=TransitionMsg(id=int(step.transition))))
-        after = self._state_of(step.node, get)
-        # The state decides: a change_state sent again after its answer was lost is refused by a
-        # node that made the transition the first time.
+        why = ""
+        try:
+            calls.change_state(int(step.transition), before[0])  # None: its answer was lost
+        except TimeoutExpired as exc:
+            why = str(exc)
+        # The state decides (a transition that failed, or whose answer was lost, shows there).
+        try:
+            after = self._state_of(calls)[1]
+        except TimeoutExpired as exc:
+            return self._failed(step, why or str(exc))
         if after != step.goal_label:
-            why = self._silence(change) if answer is None else f"{step.transition.name.lower()} left it " \
-                f"{after or 'silent'}"
-            self.get_logger().error(f"Failed to change state for node: {step.node} ({why})")
-            return False
+            return self._failed(step, why or f"{step.transition.name.lower()} left it {after}")
         return True
 
-    def _state_of(self, node: str, client: Any) -> str | None:
-        answer = self._call(client, GetState.Request())
-        return None if answer is None else str(answer.current_state.label)
+    def _state_of(self, calls: LifecycleCalls) -> tuple[int, str]:
+        """The node's state (id, label).
 
-    def _call(self, client: Any, request: Any) -> Any:
-        """``request``'s answer, sent again every RESEND_S until CALL_TIMEOUT_S; None: the service
-        never appeared within SERVICE_WAIT_S or never answered."""
-        if not client.wait_for_service(timeout_sec=SERVICE_WAIT_S):
-            return None
-        deadline = time.monotonic() + CALL_TIMEOUT_S
-        while (remaining := deadline - time.monotonic()) > 0:
-            future = client.call_async(request)
-            self._calls_executor.spin_until_future_complete(future, timeout_sec=min(RESEND_S, remaining))
-            if future.done():
-                return future.result()
-            client.remove_pending_request(future)
-        return None
+        Raises:
+            TimeoutExpired: its get_state service did not appear, or did not answer.
+        """
+        for client in (calls.get_client, calls.change_client):
+            if not client.wait_for_service(timeout_sec=SERVICE_WAIT_S):
+                raise TimeoutExpired(f"its service {client.srv_name} did not appear within {SERVICE_WAIT_S:g} s")
+        return calls.state()
 
-    def _silence(self, client: Any) -> str:
-        if not client.service_is_ready():
-            return f"did not appear within {SERVICE_WAIT_S:g} s"
-        return f"did not answer within {CALL_TIMEOUT_S:g} s"
+    def _failed(self, step: Step, why: str) -> bool:
+        self.last_error = f"Failed to change state for node: {step.node} ({why})"
+        self.get_logger().error(self.last_error)
+        return False
 
     # ---------------------------------------------------------------- services
     def _on_manage(self, request: ManageLifecycleNodes.Request,
@@ -212,6 +212,8 @@ class LifecycleManager(Node):
             self._thread.join(timeout=2.0)
         self._executor.shutdown(timeout_sec=1.0)
         self._calls_executor.shutdown(timeout_sec=1.0)
+        for calls in self._lifecycle.values():
+            calls.destroy()
         self._calls.destroy_node()
         super().destroy_node()
 
