@@ -10,7 +10,8 @@ ROS graph: a first message, a node's endpoints, a lockstep participant's joining
   decoded with replacement; ros2 launch's ``process started with pid``, ``process
   has finished cleanly`` and ``process has died`` lines. With a log directory,
   each node's output goes to ``<dir>/<name-N>.log`` and only warnings and errors
-  are echoed (so a keyboard teleop can own the terminal).
+  are echoed (so a keyboard teleop can own the terminal). A node's output is read to
+  its end even when it cannot be written (a full disk): a node never blocks on it.
 * Respawn: ``respawn`` with ``respawn_delay_s`` and at most ``max_respawns``
   restarts. A ``required`` node that dies ends the launch with a non-zero code.
 * Shutdown (Ctrl-C, SIGTERM, SIGHUP, a required node's death): SIGINT to every
@@ -148,7 +149,8 @@ class Output:
         with self._lock:
             self.end_terminal()
             for log in self._files.values():
-                log.close()
+                with contextlib.suppress(OSError):  # a full disk: the lines it could not take are lost
+                    log.close()
             self._files.clear()
 
 
@@ -288,19 +290,45 @@ class Supervisor:
             self._mark_ready(running)
 
     def _read(self, running: _Running, stream: IO[bytes] | None = None) -> None:
-        """A node's output, line by line; a terminal node's standard output is its terminal lines."""
+        """A node's output, line by line; a terminal node's standard output is its terminal lines.
+
+        The pipe is read to its end whatever happens: a node whose pipe nobody reads blocks once
+        the pipe is full (64 KiB), in its next print or log line, and then neither works nor stops
+        on SIGINT. A line that cannot be passed on (its log file on a full disk) is dropped, said
+        once. Should reading itself fail, the pipe is closed: the node's writes fail, they do not
+        block.
+        """
         to_terminal = stream is None and running.spec.terminal
         stream = stream if stream is not None else running.proc.stdout
         if stream is None:
             return
-        for raw in iter(stream.readline, b""):
-            text = raw.decode(errors="replace").rstrip("\r\n")
+        failed = False
+        try:
+            for raw in iter(stream.readline, b""):
+                text = raw.decode(errors="replace").rstrip("\r\n")
+                try:
+                    if to_terminal:
+                        self.output.terminal_line(text)
+                    else:
+                        self.output.node_line(running.label, text)
+                except Exception as exc:  # the output failed, not the node: read on
+                    if not failed:
+                        failed = True
+                        self._say(running, f"cannot write its output ({type(exc).__name__}: {exc}); its lines "
+                                           "are dropped, and read on so that it never blocks")
+        except (OSError, ValueError) as exc:
+            self._say(running, f"cannot read its output ({type(exc).__name__}: {exc}); closing its pipe")
+            with contextlib.suppress(OSError):
+                stream.close()
+        finally:
             if to_terminal:
-                self.output.terminal_line(text)
-            else:
-                self.output.node_line(running.label, text)
-        if to_terminal:
-            self.output.end_terminal()
+                with contextlib.suppress(Exception):
+                    self.output.end_terminal()
+
+    def _say(self, running: _Running, text: str) -> None:
+        """An error about a node's output, from its reader thread (which must not die of saying it)."""
+        with contextlib.suppress(Exception):
+            self.output.event("ERROR", running.label, text)
 
     def _mark_ready(self, running: _Running) -> None:
         running.ready = True

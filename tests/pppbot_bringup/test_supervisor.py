@@ -42,7 +42,7 @@ def started_pids(output: str) -> list[int]:
 
 @pytest.fixture
 def supervise(spawn):
-    def start(children: list[dict], **options: float):
+    def start(children: list[dict], **options: float | str):
         config = {"children": children, **options}
         child = spawn([sys.executable, SCRIPT, json.dumps(config)], name="supervisor")
         child.wait_for_output("SUPERVISOR READY", 20)
@@ -164,6 +164,39 @@ def test_sigkill_for_a_child_that_ignores_everything_and_a_second_ctrl_c_waits(s
     out = sup.output
     assert "already shutting down, please wait" in out
     assert "sending SIGKILL to deaf-1" in out
+    assert wait_dead(started_pids(out)) == []
+
+
+FLOODS = """
+stop = []
+signal.signal(signal.SIGINT, lambda *_: stop.append(True))
+def flood():  # 256 KiB of output: more than a pipe holds, so it blocks unless someone reads
+    for _ in range(256): print('x' * 1023)
+print('up')
+flood()
+mark('flooded')
+while not stop: time.sleep(0.05)
+flood()  # the way down is chatty too
+print('stopping')
+"""
+
+
+def test_a_node_whose_output_cannot_be_written_still_runs_and_stops_on_sigint(supervise, tmp_path):
+    # Its log file is on a full disk: writing its first line fails in the thread reading its output.
+    (tmp_path / "chatty-1.log").symlink_to("/dev/full")
+    sup = supervise([{"name": "chatty", "code": FLOODS, "ready": "flooded", "ready_timeout": 15.0},
+                     {"name": "quiet", "code": "mark('up')\nwhile True: time.sleep(0.1)\n", "ready": "up"}],
+                    log_dir=str(tmp_path), sigint_timeout=15.0, sigterm_timeout=2.0)
+    sup.wait_for_output(r"\[INFO\] \[chatty-1\]: ready after", 30)  # it wrote on past a pipe's worth
+    sup.wait_for_output(r"\[INFO\] \[quiet-1\]: ready after", 30)
+    os.kill(sup.pid, signal.SIGINT)
+    assert sup.wait(30) == 0
+    out = sup.output
+    assert re.search(r"\[ERROR\] \[chatty-1\]: cannot write its output \(OSError: .*No space left on device", out)
+    assert out.count("cannot write its output") == 1  # said once, not once a line
+    assert "[INFO] [chatty-1]: process has finished cleanly" in out
+    assert "[INFO] [quiet-1]: process has finished cleanly" in out
+    assert "sending SIGTERM" not in out
     assert wait_dead(started_pids(out)) == []
 
 

@@ -4,6 +4,7 @@ Each child: {"name", "code" (Python source), "after" [...], "ready" (a mark's na
 is ready once its code calls ``mark(name)``) or null,
 "ready_timeout", "required", "respawn", "max_respawns", "ignore": ["INT", "TERM"],
 "pppbot_node" (started as one of pppbot's nodes: stop signals blocked until the code unblocks them)}.
+Options: "sigint_timeout", "sigterm_timeout", "log_dir" (the nodes' log files go there).
 Prints the supervisor's lines; "PIDS <pid> ..." at the end; exits with its code.
 """
 from __future__ import annotations
@@ -39,7 +40,8 @@ def main() -> int:
                               ready=ready, required=c.get("required", False), respawn=c.get("respawn", False),
                               max_respawns=c.get("max_respawns", 3), respawn_delay_s=c.get("respawn_delay", 0.0),
                               pppbot_node=c.get("pppbot_node", False)))
-    supervisor = Supervisor(specs, Output(sys.stdout), sigint_timeout_s=config.get("sigint_timeout", 1.0),
+    log_dir = Path(config["log_dir"]) if config.get("log_dir") else None
+    supervisor = Supervisor(specs, Output(sys.stdout, log_dir), sigint_timeout_s=config.get("sigint_timeout", 1.0),
                             sigterm_timeout_s=config.get("sigterm_timeout", 1.0))
     supervisor.install_signal_handlers()
     print("SUPERVISOR READY", flush=True)
