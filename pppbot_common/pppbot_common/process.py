@@ -159,6 +159,14 @@ def block_stop_signals() -> None:
     signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
 
 
+def _stop_signals_by_default() -> None:
+    """In a child (``preexec_fn``): SIGINT takes its default action even where this process ignores
+    it (a shell starts a background job, such as a CI run, with SIGINT ignored, and Python then
+    installs no KeyboardInterrupt handler in the children): a child is stopped as it would be from
+    a terminal."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _signal_group(proc: subprocess.Popen[bytes] | subprocess.Popen[str], sig: int) -> None:
     try:
         os.killpg(proc.pid, sig)
@@ -212,7 +220,7 @@ class ChildProcess:
         self.proc = subprocess.Popen(
             self.cmd, env=None if env is None else dict(env), cwd=cwd,
             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-            start_new_session=True, text=True, errors="replace", bufsize=1,
+            start_new_session=True, text=True, errors="replace", bufsize=1, preexec_fn=_stop_signals_by_default,
         )
         self._reader = threading.Thread(target=self._read, name=f"{self.name}-output", daemon=True)
         self._reader.start()
