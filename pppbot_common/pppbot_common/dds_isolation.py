@@ -75,12 +75,12 @@ def own_participants(domain: int) -> int:
     metatraffic unicast ports, from /proc; 0 where /proc has no such files)."""
     base = 7400 + 250 * domain + 10
     ports: set[int] = set()
+    inodes = _own_socket_inodes()
     for table in ("/proc/self/net/udp", "/proc/self/net/udp6"):
         try:
             lines = Path(table).read_text().splitlines()[1:]
         except OSError:
             continue
-        inodes = _own_socket_inodes()
         for line in lines:
             fields = line.split()
             port = int(fields[1].rsplit(":", 1)[1], 16)
