@@ -11,6 +11,8 @@ import tempfile
 from pathlib import Path
 from typing import IO
 
+from pppbot_common.dds_participants import LOCALHOST_PEERS, own_participants
+
 # Linux domain IDs that map to valid DDS ports: 0-101 and 215-232. 0 is the default
 # every ROS user runs in, so runs avoid it.
 #: The largest domain ID whose DDS ports exist (Fast DDS: 7400 + 250 × domain + offsets < 65536).
@@ -62,43 +64,6 @@ def isolate_dds() -> int:
     os.environ.pop("ROS_STATIC_PEERS", None)
     os.environ.pop("ROS_LOCALHOST_ONLY", None)
     return domain
-
-
-#: The participant IDs a Fast DDS participant pings on localhost (rmw_fastrtps's
-#: maxInitialPeersRange with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST): two participants whose IDs
-#: are both past it never discover each other.
-LOCALHOST_PEERS = 32
-
-
-def own_participants(domain: int) -> int:
-    """How many DDS participants this process holds in ``domain`` (its sockets on the domain's
-    metatraffic unicast ports, from /proc; 0 where /proc has no such files)."""
-    base = 7400 + 250 * domain + 10
-    ports: set[int] = set()
-    inodes = _own_socket_inodes()
-    for table in ("/proc/self/net/udp", "/proc/self/net/udp6"):
-        try:
-            lines = Path(table).read_text().splitlines()[1:]
-        except OSError:
-            continue
-        for line in lines:
-            fields = line.split()
-            port = int(fields[1].rsplit(":", 1)[1], 16)
-            if base <= port < base + 2 * 120 and (port - base) % 2 == 0 and fields[9] in inodes:
-                ports.add(port)
-    return len(ports)
-
-
-def _own_socket_inodes() -> set[str]:
-    inodes = set()
-    for fd in Path("/proc/self/fd").iterdir():
-        try:
-            target = os.readlink(fd)
-        except OSError:
-            continue
-        if target.startswith("socket:["):
-            inodes.add(target[8:-1])
-    return inodes
 
 
 def fresh_domain_if_crowded(limit: int = LOCALHOST_PEERS // 2) -> int | None:

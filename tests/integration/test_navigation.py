@@ -25,7 +25,7 @@ from rclpy.action import ActionClient
 from std_srvs.srv import Trigger
 
 from pppbot_common.ros.qos import LATCHED
-from pppbot_common.ros.wait import send_goal, wait_until
+from pppbot_common.ros.wait import call, send_goal, wait_until
 from pppbot_common.se2 import quaternion_from_yaw, wrap_angle, yaw_from_quaternion
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -189,13 +189,6 @@ def assert_goes_through_poses(node: Any, truths: list[Odometry], poses: list[tup
     assert math.hypot(x - poses[-1][0], y - poses[-1][1]) < 0.35
     remaining = [fb.number_of_poses_remaining for fb in feedback]
     assert remaining[0] == 2 and remaining[-1] == 1 and remaining == sorted(remaining, reverse=True)
-
-
-def call(node: Any, srv_type: Any, name: str, request: Any) -> Any:
-    client = node.create_client(srv_type, name)
-    assert client.wait_for_service(timeout_sec=20), name
-    future = client.call_async(request)
-    return wait_until(lambda: future.result() if future.done() else None, 20, name, node=node)
 
 
 def lifecycle_state(node: Any, name: str) -> str:

@@ -22,6 +22,7 @@ from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 
+from pppbot_common.dds_participants import discovery_stays_on_this_machine, others_on_this_machine
 from pppbot_common.ros.messages import get_interface
 from pppbot_common.ros.qos import DEFAULT, LATCHED
 from pppbot_common.ros.retry import Request, Retry, Unanswered
@@ -29,8 +30,9 @@ from pppbot_interfaces.msg import LockstepStatus
 from pppbot_lockstep.ros.participant import STATUS_QOS, STATUS_TOPIC
 
 #: how long a new launch listens for another simulation's /clock on its domain (a simulation
-#: publishes it at 100 Hz; discovering and matching its publisher takes one to three seconds)
-DOMAIN_CHECK_S = 4.0
+#: publishes it at 100 Hz; discovering and matching its publisher takes one to three seconds, on a
+#: busy machine more: a missed first announcement waits for the next, three seconds on)
+DOMAIN_CHECK_S = 6.0
 #: with no other node in the graph after this long, the domain is taken to be empty (on a busy
 #: machine discovering another participant's nodes can take over a second)
 EMPTY_DOMAIN_S = 2.0
@@ -154,18 +156,26 @@ class GraphProbe:
     def running_stack(self, wait_s: float = DOMAIN_CHECK_S) -> str | None:
         """What already runs a simulation on this domain (something publishing ``/clock``), heard
         within ``wait_s``; None when nothing does. A probe's own readiness checks would be fooled by
-        it, and its nodes would mix with this launch's."""
+        it, and its nodes would mix with this launch's.
+
+        Discovery kept on this machine and no participant in the domain besides this process and
+        those that started it (:func:`~pppbot_common.dds_participants.others_on_this_machine`):
+        nothing can run there, and it answers at once. Other participants here: it listens the
+        whole ``wait_s`` (discovering one can take an announcement period of three seconds). Where
+        that cannot be told: a domain that shows no other node after :data:`EMPTY_DOMAIN_S` is
+        taken for empty."""
+        others = others_on_this_machine(self.context.get_domain_id())
+        if others == 0 and discovery_stays_on_this_machine():
+            return None
         heard = threading.Event()
         subscription = self.node.create_subscription(Clock, "/clock", lambda _msg: heard.set(), DEFAULT, raw=True)
         self.executor.wake()  # the spinning thread waits on the entities it had: take the new one in
         try:
-            # An empty domain shows no node after a second; a simulation's /clock needs the
-            # subscription matched first, which takes a second or two more.
             start = time.monotonic()
             while not heard.wait(0.1) and time.monotonic() - start < wait_s:
                 if self.node.count_publishers("/clock") > 0:
                     heard.set()  # the graph shows a /clock publisher: as good as a message, and sooner
-                elif time.monotonic() - start > EMPTY_DOMAIN_S and not self._other_nodes():
+                elif not others and time.monotonic() - start > EMPTY_DOMAIN_S and not self._other_nodes():
                     break
         finally:
             self.node.destroy_subscription(subscription)

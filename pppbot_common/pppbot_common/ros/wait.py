@@ -138,6 +138,27 @@ def sleep_until_clock(node: Node, t_s: float, timeout_s: float) -> bool:
     return clock.now().nanoseconds >= target_ns
 
 
+def call(node: Node, srv_type: Any, name: str, request: Any, timeout_s: float = 20.0, attempts: int = 3) -> Any:
+    """The answer of service ``name`` to ``request``, as ``ros2 service call`` gives it, spinning
+    ``node``: waits up to ``timeout_s`` for the service, then sends the request again when its answer
+    is lost (:func:`pppbot_common.ros.retry.call_service`), so only for a request that may be sent
+    twice (a query, setting a value).
+
+    Raises:
+        TimeoutExpired: no service, or no answer to any attempt within ``timeout_s``.
+    """
+    from pppbot_common.ros import retry
+
+    client = node.create_client(srv_type, name)
+    try:
+        if not client.wait_for_service(timeout_sec=timeout_s):
+            raise TimeoutExpired(f"no service {name} within {timeout_s:g} s")
+        return retry.call_service(client, request, retry.Retry(timeout_s / attempts, attempts),
+                                  retry.node_wait(node), node=node)
+    finally:
+        node.destroy_client(client)
+
+
 def wait_for_future(future: Future, timeout_s: float, check: Callable[[], None] | None = None,
                     check_every_s: float = 0.05) -> bool:
     """Block this thread until ``future`` is done (another thread spins its node), at most
