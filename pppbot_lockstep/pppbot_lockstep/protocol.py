@@ -333,7 +333,12 @@ class Counted:
     #: command line): taken as published before, so the next counted one is still waited for.
     catch_up: bool = False
     #: Handling a message sends nothing (a recording, a state timers read): see LockstepAck.quiet_topics.
-    quiet: bool = False
+    #: A callable is asked each time the participant tells its topics (a listener shared by a
+    #: process's nodes is quiet while every node's reaction to it is).
+    quiet: bool | Callable[[], bool] = False
+
+    def is_quiet(self) -> bool:
+        return self.quiet() if callable(self.quiet) else self.quiet
 
 
 class Deliveries:
@@ -350,7 +355,7 @@ class Deliveries:
         if topic in self.totals:
             self.totals[topic] += 1
 
-    def add(self, topic: str, catch_up: bool = False, quiet: bool = False) -> Counted:
+    def add(self, topic: str, catch_up: bool = False, quiet: bool | Callable[[], bool] = False) -> Counted:
         counted = Counted(topic, catch_up=catch_up, quiet=quiet)
         self.subscriptions.append(counted)
         return counted
@@ -364,7 +369,7 @@ class Deliveries:
 
     def quiet_topics(self) -> list[str]:
         """The topics every subscription of this process on which is quiet."""
-        loud = {c.topic for c in self.subscriptions if not c.quiet}
+        loud = {c.topic for c in self.subscriptions if not c.is_quiet()}
         return sorted({c.topic for c in self.subscriptions} - loud)
 
     def expect(self, topics: Sequence[str], totals: Sequence[int]) -> None:

@@ -76,6 +76,14 @@ class Velocity:
 
 
 # ---------------------------------------------------------------------- shapes
+def _within(points: np.ndarray, radius_m: float) -> np.ndarray:
+    """The points (N x 2) no farther than ``radius_m`` from the origin (a margin kept for rounding):
+    the only ones a shape of that reach can hold."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    bound = radius_m * (1.0 + 1e-9) + 1e-9
+    return pts[np.einsum("ij,ij->i", pts, pts) <= bound * bound]
+
+
 def points_in_polygon(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     """Which of ``points`` (N x 2) lie inside the polygon ``vertices`` (M x 2, in order, closed
     implicitly): the even-odd rule, a ray cast along +x crossing the edges (Shimrat, "Algorithm
@@ -102,6 +110,11 @@ class PolygonShape:
     def contains(self, points: np.ndarray) -> np.ndarray:
         return points_in_polygon(points, self.vertices)
 
+    @property
+    def reach_m(self) -> float:
+        """No point farther than this from the base frame's origin is inside."""
+        return float(np.max(np.hypot(self.vertices[:, 0], self.vertices[:, 1])))
+
     def outline(self) -> np.ndarray:
         return self.vertices
 
@@ -114,6 +127,10 @@ class CircleShape:
     def contains(self, points: np.ndarray) -> np.ndarray:
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
         return np.asarray(np.einsum("ij,ij->i", pts, pts) < self.radius_m ** 2)
+
+    @property
+    def reach_m(self) -> float:
+        return self.radius_m
 
     def outline(self) -> np.ndarray:
         angles = np.linspace(0.0, 2.0 * math.pi, CIRCLE_OUTLINE_VERTICES, endpoint=False)
@@ -203,27 +220,34 @@ class Zone:
         return np.concatenate(chosen) if chosen else np.empty((0, 2))
 
     def triggered(self, points: np.ndarray) -> bool:
-        return int(self.shape.contains(points).sum()) >= self.min_points
+        return int(self.shape.contains(_within(points, self.shape.reach_m)).sum()) >= self.min_points
 
     def collision_time(self, points: np.ndarray, command: Velocity) -> float | None:
         """Seconds until the footprint, moving with ``command``, holds ``min_points`` points (the
-        time of the last free simulated pose; 0 when already hit), or None within the horizon."""
-        if self.triggered(points):
-            return 0.0
-        x = y = yaw = 0.0
+        time of the last free simulated pose; 0 when already hit), or None within the horizon.
+        Only points the moved footprint can reach are tested, at every simulated pose at once."""
         step = self.simulation_time_step_s
         steps = int(math.floor(self.time_before_collision_s / step + 1e-9)) + 1
+        poses = np.empty((steps, 4))  # x, y, cos(yaw), sin(yaw) of each simulated pose
+        x = y = yaw = 0.0
         for k in range(steps):
             # The pose one step on (Euler, as Nav2): the points as the moved robot sees them.
             x += (command.x_mps * math.cos(yaw) - command.y_mps * math.sin(yaw)) * step
             y += (command.x_mps * math.sin(yaw) + command.y_mps * math.cos(yaw)) * step
             yaw += command.yaw_radps * step
-            c, s = math.cos(yaw), math.sin(yaw)
-            dx, dy = points[:, 0] - x, points[:, 1] - y
-            seen = np.column_stack([c * dx + s * dy, -s * dx + c * dy])
-            if self.triggered(seen):
-                return k * step
-        return None
+            poses[k] = (x, y, math.cos(yaw), math.sin(yaw))
+        travel = float(np.max(np.hypot(poses[:, 0], poses[:, 1])))
+        near = _within(points, self.shape.reach_m + travel)
+        if int(self.shape.contains(_within(near, self.shape.reach_m)).sum()) >= self.min_points:
+            return 0.0
+        if len(near) < self.min_points:
+            return None
+        xs, ys, c, s = (poses[:, i:i + 1] for i in range(4))
+        dx, dy = near[:, 0] - xs, near[:, 1] - ys  # steps x n
+        seen = np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1).reshape(-1, 2)
+        hits = self.shape.contains(seen).reshape(steps, len(near)).sum(axis=1)
+        first = np.flatnonzero(hits >= self.min_points)
+        return float(first[0] * step) if len(first) else None
 
     def outline(self) -> np.ndarray:
         return self.shape.outline()

@@ -198,3 +198,13 @@ def test_a_topic_is_quiet_only_where_every_subscription_of_the_process_is():
     deliveries.add("/tf")  # a transform listener of another node of the process, which reacts
     assert deliveries.topics() == ["/amcl_pose", "/tf"]
     assert deliveries.quiet_topics() == ["/amcl_pose"]
+
+
+def test_a_subscriptions_quietness_may_be_asked_each_time_the_topics_are_told():
+    """A listener shared by a process's nodes is quiet while every node's reaction to it is."""
+    reactions = {"costmap": True}
+    deliveries = Deliveries()
+    deliveries.add("/tf", quiet=lambda: all(reactions.values()))
+    assert deliveries.quiet_topics() == ["/tf"]
+    reactions["slam"] = False  # a node that sends when a transform comes listens too
+    assert deliveries.quiet_topics() == []

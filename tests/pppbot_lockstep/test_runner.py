@@ -263,3 +263,38 @@ def test_a_command_line_rcl_refuses_is_one_line_and_exit_1():
                           capture_output=True, text=True, timeout=30, check=False)
     assert done.returncode == 1
     assert done.stderr == "[map_server] error: unknown ROS argument(s) after --ros-args: ['--no-such-flag']\n"
+
+
+def test_a_shared_tf_subscription_is_quiet_while_every_nodes_reaction_to_it_is():
+    """TfListener(quiet=True): the process's /tf subscription asks no round of its own while each
+    listening node's on_tf only files what its timers read (or it has none); one node whose on_tf
+    sends makes it loud."""
+    from pppbot_lockstep.protocol import Deliveries
+    from pppbot_lockstep.ros.node import StepNode
+    from pppbot_lockstep.ros.port import StepPort
+    from pppbot_lockstep.ros.runner import Warnings
+    from pppbot_lockstep.ros.tf_listener import TfListener
+
+    class Recording(StepPort):
+        def __init__(self) -> None:
+            self.deliveries = Deliveries()
+
+        def counted(self, node, topic, callback, quiet=False):
+            self.deliveries.add(topic, quiet=quiet)
+            return callback
+
+    port = Recording()
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        nodes = [StepNode(name, port=port, context=context) for name in ("controller", "planner", "navigator", "slam")]
+        TfListener(nodes[0], Warnings(nodes[0]), on_tf=lambda: None, quiet=True)
+        TfListener(nodes[1], Warnings(nodes[1]), on_tf=lambda: None, quiet=True)
+        TfListener(nodes[2], Warnings(nodes[2]))  # reads the buffer in its timers
+        assert port.deliveries.topics() == ["/tf"] and port.deliveries.quiet_topics() == ["/tf"]
+        TfListener(nodes[3], Warnings(nodes[3]), on_tf=lambda: None)  # it sends when a transform comes
+        assert port.deliveries.topics() == ["/tf"] and port.deliveries.quiet_topics() == []
+        for node in reversed(nodes):
+            node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)

@@ -207,3 +207,38 @@ def test_a_stop_is_repeated_for_stop_pub_timeout_then_no_longer():
     assert repeat.allow(Velocity(), 1.0) and repeat.allow(Velocity(), 3.0)
     assert not repeat.allow(Velocity(), 3.1)
     assert repeat.allow(Velocity(0.1), 4.0) and repeat.allow(Velocity(), 5.0)  # moving again: a new stop counts
+
+
+def _collision_time_pose_by_pose(zone: Zone, points: np.ndarray, command: Velocity) -> float | None:
+    """Nav2's approach check as written down: every point, one simulated pose after the other."""
+    if zone.shape.contains(points).sum() >= zone.min_points:
+        return 0.0
+    x = y = yaw = 0.0
+    step = zone.simulation_time_step_s
+    for k in range(int(math.floor(zone.time_before_collision_s / step + 1e-9)) + 1):
+        x += (command.x_mps * math.cos(yaw) - command.y_mps * math.sin(yaw)) * step
+        y += (command.x_mps * math.sin(yaw) + command.y_mps * math.cos(yaw)) * step
+        yaw += command.yaw_radps * step
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy = points[:, 0] - x, points[:, 1] - y
+        if zone.shape.contains(np.column_stack([c * dx + s * dy, -s * dx + c * dy])).sum() >= zone.min_points:
+            return k * step
+    return None
+
+
+@pytest.mark.parametrize("shape", [PolygonShape(FOOTPRINT), PolygonShape(SQUARE), CircleShape(0.35)])
+def test_approach_tests_only_reachable_points_and_answers_as_pose_by_pose(shape: PolygonShape | CircleShape) -> None:
+    """The approach check skips points the moved footprint cannot reach and tests every pose at
+    once: on random scans and commands it answers exactly as the pose-by-pose check."""
+    rng = np.random.default_rng(52)
+    zone = Zone("approach", shape, ActionType.APPROACH, min_points=3, time_before_collision_s=1.5,
+                simulation_time_step_s=0.1)
+    met = set()
+    for _ in range(300):
+        points = rng.uniform(-3.0, 3.0, size=(int(rng.integers(0, 400)), 2))
+        command = Velocity(float(rng.uniform(-0.5, 1.0)), float(rng.uniform(-0.2, 0.2)), float(rng.uniform(-1.5, 1.5)))
+        expected = _collision_time_pose_by_pose(zone, points, command)
+        assert zone.collision_time(points, command) == expected
+        assert zone.triggered(points) == (zone.shape.contains(points).sum() >= zone.min_points)
+        met.add("free" if expected is None else "hit later" if expected > 0 else "hit now")
+    assert met == {"free", "hit later", "hit now"}

@@ -117,7 +117,8 @@ class CoordinatorPort(StepPort):
     def replied(self) -> None:
         self.counters.sent()  # a reply by one of this process's nodes may need another round too
 
-    def counted(self, node: Node, topic: str, callback: Callable[[Any], None], quiet: bool = False) \
+    def counted(self, node: Node, topic: str, callback: Callable[[Any], None],
+                quiet: bool | Callable[[], bool] = False) \
             -> Callable[[Any], None]:
         counted = self.deliveries.add(topic)  # the simulator's process reacts to all it counts
 

@@ -152,7 +152,8 @@ class StepNode(Node):
 
     def create_subscription(self, msg_type: Any, topic: str, callback: Callable[[Any], None],
                             qos_profile: QoSProfile | int, *, data_path: bool = False, at_step: bool = False,
-                            quiet: bool = False, needs_publisher: bool = True, what: str = "", **kwargs: Any) -> Any:
+                            quiet: bool | Callable[[], bool] = False, needs_publisher: bool = True, what: str = "",
+                            **kwargs: Any) -> Any:
         """rclpy's. ``data_path=True``: a subscription on lockstep's data path (what the simulator and
         the participants publish as the run goes on): its receptions are counted, in lockstep it is
         reliable, and the process joins once it hears every publisher and at least one
@@ -160,7 +161,8 @@ class StepNode(Node):
         waits for). ``at_step=True``: each message is handled at the next step (one that makes
         the node send). ``quiet=True`` (data path): handling a message sends nothing (it is recorded,
         or kept for the node's timers), so what others send on the topic needs no round of its own:
-        it comes with the next step, before the timers run, as it would have."""
+        it comes with the next step, before the timers run, as it would have (a callable: asked when
+        the process tells its topics, at joining)."""
         port = self._port()
         if at_step:
             callback = port.at_step(callback)

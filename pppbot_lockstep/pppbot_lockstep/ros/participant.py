@@ -195,7 +195,8 @@ class Participant(StepPort):
         self.counters.task()
 
     # ------------------------------------------------------ the port: receptions
-    def counted(self, node: Node, topic: str, callback: Callable[[Any], None], quiet: bool = False) \
+    def counted(self, node: Node, topic: str, callback: Callable[[Any], None],
+                quiet: bool | Callable[[], bool] = False) \
             -> Callable[[Any], None]:
         counted = self.deliveries.add(topic, quiet=quiet)
 

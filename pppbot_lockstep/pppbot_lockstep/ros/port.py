@@ -78,7 +78,8 @@ class StepPort:
         """The process's executor made a task (work to wait for before answering a step)."""
 
     # ----------------------------------------------------------- receptions
-    def counted(self, node: Node, topic: str, callback: Callable[[Any], None], quiet: bool = False) \
+    def counted(self, node: Node, topic: str, callback: Callable[[Any], None],
+                quiet: bool | Callable[[], bool] = False) \
             -> Callable[[Any], None]:
         """``callback`` for a data-path subscription of ``node`` on ``topic`` (fully qualified);
         ``quiet``: handling a message sends nothing (see :meth:`StepNode.create_subscription`)."""

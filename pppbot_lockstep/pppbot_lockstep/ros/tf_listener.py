@@ -28,17 +28,21 @@ class TfListener:
     throttled warning, and so is any error ``on_tf`` raises (it hands on scans that waited for
     odometry: one bad scan must not end the node). ``needs_static``: in lockstep the node's process
     joins only once ``/tf_static`` has delivered (a scan's user needs the sensor's mounting from
-    the start). Listeners of nodes in one process share one buffer (:class:`_Shared`)."""
+    the start). ``quiet``: ``on_tf`` sends nothing (it files what the node's timers read); while
+    every listening node's is, the process's ``/tf`` subscription is quiet, and what others send on
+    ``/tf`` needs no round of its own (:meth:`StepNode.create_subscription`). Listeners of nodes in
+    one process share one buffer (:class:`_Shared`)."""
 
     def __init__(self, node: Node, warn: Warnings, cache_s: float = 10.0,
-                 on_tf: Callable[[], None] | None = None, needs_static: bool = False) -> None:
+                 on_tf: Callable[[], None] | None = None, needs_static: bool = False, quiet: bool = False) -> None:
         if not (math.isfinite(cache_s) and cache_s > 0):  # checked here too: a later listener only widens
             raise ValueError(f"cache_s must be a positive number of seconds, not {cache_s}")
         shared = _SHARED.get(node.context)
         if shared is None or not shared.alive():
             shared = _SHARED[node.context] = _Shared(node, warn, cache_s)  # as long as the context lives
         shared.buffer.cache_s = max(shared.buffer.cache_s, cache_s)
-        shared.add(node, on_tf, port_of(node).require("the static transforms (/tf_static)") if needs_static else None)
+        shared.add(node, on_tf, port_of(node).require("the static transforms (/tf_static)") if needs_static else None,
+                   quiet)
         self.buffer = shared.buffer
 
 
@@ -55,7 +59,9 @@ class _Shared:
         self._on_tf: list[tuple[Node, Callable[[], None]]] = []
         self._static_waiting: list[Callable[[], None]] = []
         self._static_seen = False
-        subscribe(owner, TFMessage, "/tf", guarded(owner, self._dynamic, "TFMessage"), 200, data_path=True)
+        self._loud = False  # a node's on_tf sends
+        subscribe(owner, TFMessage, "/tf", guarded(owner, self._dynamic, "TFMessage"), 200, data_path=True,
+                  quiet=lambda: not self._loud)
         owner.create_subscription(TFMessage, "/tf_static", guarded(owner, self._static, "TFMessage"), LATCHED)
 
     def alive(self) -> bool:
@@ -63,8 +69,10 @@ class _Shared:
         again after destroying the first ones (tests do)."""
         return _exists(self.owner)
 
-    def add(self, node: Node, on_tf: Callable[[], None] | None, static_arrived: Callable[[], None] | None) -> None:
+    def add(self, node: Node, on_tf: Callable[[], None] | None, static_arrived: Callable[[], None] | None,
+            quiet: bool = False) -> None:
         if on_tf is not None:  # guarded by its own node: its error is that node's to report, and the others go on
+            self._loud |= not quiet
             self._on_tf.append((node, functools.partial(guarded(node, lambda _: on_tf(), "TFMessage"), None)))
         if static_arrived is not None:
             if self._static_seen:

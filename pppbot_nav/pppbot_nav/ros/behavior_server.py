@@ -25,7 +25,6 @@ puts the footprint circle on an obstacle. Past ``time_allowance``: TIMEOUT. No r
 """
 from __future__ import annotations
 
-import functools
 import math
 import sys
 from collections.abc import Callable
@@ -44,7 +43,7 @@ from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.transforms import TransformError
-from pppbot_lockstep.ros.goals import GoalEnd, GoalServer, stopped_end
+from pppbot_lockstep.ros.goals import GoalEnd, GoalServer, send_feedback, stopped_end
 from pppbot_lockstep.ros.lifecycle import ManagedNode
 from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
 from pppbot_lockstep.ros.tf_listener import TfListener
@@ -332,7 +331,7 @@ class BehaviorServer(ManagedNode):
             fb.time_left = Duration(seconds=core.remaining).to_msg()
         else:
             fb.current_teleop_duration = Duration(seconds=max(0.0, now - running.start_s)).to_msg()
-        self.port.send(functools.partial(running.handle.publish_feedback, fb))
+        send_feedback(self.port, running.handle, fb)
 
 
 def main(args: list[str] | None = None) -> int:

@@ -25,7 +25,6 @@ refused with the reason.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 import sys
 from dataclasses import dataclass
@@ -41,7 +40,7 @@ from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.ros.params import LiveParameters, declare_parameters, serve_live_parameters
 from pppbot_common.se2 import yaw_from_quaternion
 from pppbot_common.transforms import TransformError, compose
-from pppbot_lockstep.ros.goals import GoalEnd, GoalServer, Stopped, check_running, stopped_end
+from pppbot_lockstep.ros.goals import GoalEnd, GoalServer, Stopped, check_running, send_feedback, stopped_end
 from pppbot_lockstep.ros.lifecycle import ManagedNode
 from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
 from pppbot_nav.controller.follow import FollowEnd, Follower
@@ -350,7 +349,7 @@ class ControllerServer(ManagedNode):
         assert pose is not None
         feedback.distance_to_goal = float(math.hypot(following.goal[0] - pose[0], following.goal[1] - pose[1]))
         feedback.speed = float(abs(self._speed[0]))
-        self.port.send(functools.partial(following.handle.publish_feedback, feedback))
+        send_feedback(self.port, following.handle, feedback)
         return None
 
 def _pick(plugins: dict[str, Any], name: str, what: str) -> Any:

@@ -158,7 +158,7 @@ class CostmapNode(StepNode):
                                                 for layer in sorted(elsewhere)}}
         self._warn = Warnings(self, settling=("robot pose", "scan transform"))
         self._applied: tuple[tuple[_Observation, ...], tuple[float, float]] | None = None  # and where
-        self.tf = TfListener(self, self._warn, on_tf=self._drain).buffer
+        self.tf = TfListener(self, self._warn, on_tf=self._drain, quiet=True).buffer  # the update timer reads it
         self.plugins: dict[str, Plugin] = {layer: load_plugin(self, layer, LAYER_TYPES, DEFAULT_TYPES.get(layer))
                                            for layer in p.plugins}
         self.sources: list[_Source] = []

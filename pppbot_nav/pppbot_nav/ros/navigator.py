@@ -26,7 +26,6 @@ controller and the behaviours do (and stop the robot when their goal ends or is 
 """
 from __future__ import annotations
 
-import functools
 import math
 import sys
 from dataclasses import dataclass
@@ -57,7 +56,17 @@ from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_common.transforms import TransformError
 from pppbot_common.upright import UPRIGHT_STATUS
 from pppbot_lockstep.ros.action_client import ActionClient
-from pppbot_lockstep.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stopped, check_running, stopped_end
+from pppbot_lockstep.ros.goals import (
+    Flow,
+    GoalEnd,
+    GoalServer,
+    Sleep,
+    Step,
+    Stopped,
+    check_running,
+    send_feedback,
+    stopped_end,
+)
 from pppbot_lockstep.ros.lifecycle import ManagedNode
 from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
 from pppbot_lockstep.ros.tf_listener import TfListener
@@ -435,7 +444,7 @@ class Navigator(ManagedNode):
         fb.distance_remaining = float(remaining)
         speed = state.speed if state.speed > 0.05 else 0.0
         fb.estimated_time_remaining = Duration(seconds=remaining / speed if speed else 0.0).to_msg()
-        self.port.send(functools.partial(handle.publish_feedback, fb))
+        send_feedback(self.port, handle, fb)
 
     def _clear(self, client: Any) -> Step[None]:
         if not client.service_is_ready():

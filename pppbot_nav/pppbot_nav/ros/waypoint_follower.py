@@ -21,7 +21,6 @@ and ends canceled; a new goal preempts the running one, which aborts.
 """
 from __future__ import annotations
 
-import functools
 import sys
 from dataclasses import dataclass
 from typing import Any
@@ -36,7 +35,17 @@ from rclpy.task import Future
 from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_lockstep.ros.action_client import ActionClient
-from pppbot_lockstep.ros.goals import Flow, GoalEnd, GoalServer, Sleep, Step, Stopped, check_running, stopped_end
+from pppbot_lockstep.ros.goals import (
+    Flow,
+    GoalEnd,
+    GoalServer,
+    Sleep,
+    Step,
+    Stopped,
+    check_running,
+    send_feedback,
+    stopped_end,
+)
 from pppbot_lockstep.ros.lifecycle import ManagedNode
 from pppbot_lockstep.ros.runner import run_nodes
 from pppbot_nav.waypoints import (
@@ -175,7 +184,7 @@ class WaypointFollower(ManagedNode):
 
     def _feedback(self, handle: ServerGoalHandle, state: _Following) -> None:
         feedback = FollowWaypoints.Feedback(current_waypoint=state.index)
-        self.port.send(functools.partial(handle.publish_feedback, feedback))
+        send_feedback(self.port, handle, feedback)
 
     # ------------------------------------------------------------ following
     def _follow(self, handle: ServerGoalHandle, state: _Following) -> Step[None]:
