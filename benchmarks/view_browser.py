@@ -19,6 +19,7 @@ One JSON object is the last line: the figures, their targets, and every sample.
 
     ./pppbot env python benchmarks/view_browser.py --seconds 3600          # the hour
     ./pppbot env python benchmarks/view_browser.py --seconds 300 --late-pages 1
+    ./pppbot env python benchmarks/view_browser.py --seconds 600 --screenshot docs/live_view.png
 """
 from __future__ import annotations
 
@@ -219,6 +220,7 @@ def parse_arguments() -> argparse.Namespace:
     parser.add_argument("--max-wait", type=float, default=60.0, help="latency samples give up after this (s)")
     parser.add_argument("--radius", type=float, default=6.0, help="the robot drives back past this distance (m)")
     parser.add_argument("--launch-arg", action="append", default=[], help="more launch_sim name:=value arguments")
+    parser.add_argument("--screenshot", type=Path, help="save the first page as it looks at the end (PNG)")
     return parser.parse_args()
 
 
@@ -269,6 +271,8 @@ def main() -> None:
                 time.sleep(0.5)
             for watched in ([] if args.no_first_page else [pages[0]]) + ([pages[-1]] if late is not None else []):
                 sample(watched, robot, t0, args.max_wait)
+            if args.screenshot is not None and not args.no_first_page and pages[0].dead is None:
+                pages[0].page.screenshot(path=str(args.screenshot))
             if late is not None:
                 late.close()
             wall_s = time.monotonic() - t0

@@ -3,7 +3,8 @@
 - The whole session gets its own ROS_DOMAIN_ID (held with a lock file, so parallel
   test runs on one machine never share one) and ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST;
   both are set before any test, so in-process rclpy and child processes inherit them; a module
-  starts in a new domain when this process holds many participants in the last one.
+  starts in a new domain when this process holds many participants in the last one, and after
+  each test the contexts rclpy kept are collected.
 - ``spawn`` starts children in their own process groups and stops every one of them
   after the test (SIGINT → SIGTERM → SIGKILL); ``module_spawn`` does the same for a
   module's shared fixture; the session fails if one survives.
@@ -12,6 +13,7 @@
 """
 from __future__ import annotations
 
+import gc
 import importlib.util
 import os
 import sys
@@ -24,6 +26,7 @@ from typing import Any
 import pytest
 
 from pppbot_common.dds_isolation import fresh_domain_if_crowded, isolate_dds
+from pppbot_common.dds_participants import own_participants
 from pppbot_common.process import ChildProcess, StopTimeouts
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -43,6 +46,21 @@ def _domain_with_room() -> None:
     moved = fresh_domain_if_crowded()
     if moved is not None:
         print(f"\n[conftest] ROS_DOMAIN_ID -> {moved} (this process held many participants in the last one)")
+
+
+#: After a test, this process holding this many participants in its domain is cleaned up at once.
+_COLLECT_AT = 4
+
+
+@pytest.fixture(autouse=True)
+def _participants_let_go() -> Iterator[None]:
+    """After each test: contexts that rclpy keeps after ``rclpy.shutdown()`` (a lifecycle node's sits
+    in a reference cycle until the garbage collector runs) are collected, so their DDS participants
+    go with the test instead of piling up within a module (a module of lifecycle tests reached
+    past participant ID 31, where nothing is discovered on localhost)."""
+    yield
+    if own_participants(int(os.environ.get("ROS_DOMAIN_ID", "0") or 0)) >= _COLLECT_AT:
+        gc.collect()
 
 
 def pytest_report_header(config: pytest.Config) -> str:

@@ -25,3 +25,17 @@ def log_root() -> Path:
     if root is not None:
         return root / "log" / "launch_sim"
     return Path(os.environ.get("ROS_LOG_DIR", Path.home() / ".ros" / "log"))
+
+
+def new_run_dir(root: Path, name: str) -> Path:
+    """A directory ``root/name`` made for this run alone: a launch started in the same second (on
+    another domain) gets ``name-2``, ``name-3``, ..., never the other's directory."""
+    root.mkdir(parents=True, exist_ok=True)
+    for n in range(1, 1000):
+        path = root / (name if n == 1 else f"{name}-{n}")
+        try:
+            path.mkdir()
+        except FileExistsError:
+            continue
+        return path
+    raise FileExistsError(f"{root / name}: a thousand runs in one second")

@@ -150,3 +150,12 @@ def test_users_robot_drives_and_maps_under_launch_sim(ros_node, spawn) -> None:
     # SLAM, on the robot's own scan topic and frames, made a map
     wait_until(lambda: maps, 30, "a /map", node=ros_node)
     assert maps[-1].header.frame_id == "map" and (max(maps[-1].data) == 100)
+
+
+def test_launches_started_in_the_same_second_get_a_log_directory_each(tmp_path):
+    from pppbot_bringup.paths import new_run_dir
+
+    first, second, third = (new_run_dir(tmp_path / "launch_sim", "2026-11-28-21-17-55") for _ in range(3))
+    assert [p.name for p in (first, second, third)] == \
+        ["2026-11-28-21-17-55", "2026-11-28-21-17-55-2", "2026-11-28-21-17-55-3"]
+    assert all(p.is_dir() for p in (first, second, third))

@@ -11,6 +11,7 @@ Every argument is checked, and the domain looked at, before anything starts.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import sys
@@ -23,7 +24,7 @@ from pppbot_viz.errors import VizError
 from pppbot_bringup.launch_sim import ARGUMENTS, LaunchArgs, controllers_file, parameter_file, plan
 from pppbot_bringup.node_specs import VizPlan, twist_mux_inputs
 from pppbot_bringup.notices import first_time
-from pppbot_bringup.paths import checkout_root, config_directory, log_root
+from pppbot_bringup.paths import checkout_root, config_directory, log_root, new_run_dir
 from pppbot_bringup.robot import load_description, robot_facts
 from pppbot_bringup.ros.graph_probe import GraphProbe, domain_taken_message
 from pppbot_bringup.run import RunError, find_executable
@@ -70,14 +71,14 @@ def run(argv: Sequence[str]) -> int:
         urdf, urdf_source = load_description(args.description, args.xacro_args, controllers)
         mux_params = parameter_file(args.twist_mux_params, config_directory() / "twist_mux.yaml", "twist_mux_params")
         robot = robot_facts(urdf, urdf_source, twist_mux_inputs(mux_params))
-        run_dir = log_root() / time.strftime("%Y-%m-%d-%H-%M-%S")
-        urdf_file = run_dir / "robot.urdf"
         viz, viz_notes = viz_plan(args) if args.use_viz else (None, [])
         probe = GraphProbe()
         running = probe.running_stack()
         if running is not None:
             probe.close()
             raise ArgumentError(domain_taken_message(running))
+        run_dir = new_run_dir(log_root(), time.strftime("%Y-%m-%d-%H-%M-%S"))
+        urdf_file = run_dir / "robot.urdf"
     except (ArgumentError, WorldError, SpawnError, DescriptionError, RunError, VizError, OSError) as exc:
         print(f"launch_sim: {exc}", file=sys.stderr)
         return 2
@@ -90,8 +91,9 @@ def run(argv: Sequence[str]) -> int:
                             terminal and args.use_teleop, shutil.which("rviz2"), viz=viz, robot=robot)
         except (ArgumentError, RunError) as exc:
             print(f"launch_sim: {exc}", file=sys.stderr)
+            with contextlib.suppress(OSError):
+                run_dir.rmdir()  # nothing in it yet
             return 2
-        run_dir.mkdir(parents=True, exist_ok=True)
         urdf_file.write_text(urdf)
         for path, text in the_plan.files.items():
             path.write_text(text)
