@@ -62,6 +62,7 @@ def test_simulator_reports_the_tip_on_diagnostics_and_in_its_log(ros_node, spawn
     assert abs(float({v.key: v.value for v in tipped.values}["pitch"])) > 0.5
     sim.wait_for_output(r"robot 'ppp_bot' tipped over \(beyond 0.5 rad\) \(roll .* pitch .*\)", 10)
     assert sim.output.count("tipped over (beyond") == 1  # one tip, said once
+    assert sim.running() and "Traceback" not in sim.output  # the report never ends the simulator
 
 
 def test_navigator_ends_a_goal_when_the_robot_is_not_upright(ros_node, spawn) -> None:

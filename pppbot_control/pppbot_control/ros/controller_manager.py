@@ -146,8 +146,11 @@ class ControllerManager(StepNode):
             self.controllers[name].handle.activate()
             self.controllers[name].status = ControllerStatus.ACTIVE
         response.ok, response.message = plan.ok, plan.message
-        (self.get_logger().info if plan.ok else self.get_logger().error)(
-            f"switch_controller {'done' if plan.ok else 'refused'}: {plan.message}")
+        # One call site per severity: rclpy raises when a line's severity changes between calls.
+        if plan.ok:
+            self.get_logger().info(f"switch_controller done: {plan.message}")
+        else:
+            self.get_logger().error(f"switch_controller refused: {plan.message}")
         return response
 
     def _load_controller(self, request: LoadController.Request,

@@ -147,7 +147,10 @@ class Simulator(StepNode):
         self.cameras = CameraPublisher(self, self.sim, p.seed, p.cameras, self._warn, self.get_logger().error,
                                        every_frame=p.lockstep)
         for line in self.cameras.describe():
-            (self.get_logger().error if line.startswith("cameras off:") else self.get_logger().info)(line)
+            if line.startswith("cameras off:"):  # one call site per severity (rclpy's rule)
+                self.get_logger().error(line)
+            else:
+                self.get_logger().info(line)
         self.runner = PhysicsRunner(self.sim, p.command_timeout, p.paused,
                                     log=lambda text: self.get_logger().error(text))
         self.pacer = Pacer(p.real_time_factor)
@@ -403,7 +406,13 @@ class Simulator(StepNode):
         changed = self.upright.update(reading.stamp_s, float(truth.position[2]), (x, y, z, w))
         if changed is not None:
             text = f"robot '{self.params.robot_name}' {changed.describe()}"
-            (self.get_logger().info if changed.upright else self.get_logger().error)(text)
+            # One call site per severity: rclpy raises "Logger severity cannot be changed between
+            # calls" when a line logs at another severity than before (this killed the simulator
+            # when the robot tipped over after it had been reported upright).
+            if changed.upright:
+                self.get_logger().info(text)
+            else:
+                self.get_logger().error(text)
         if changed is not None or reading.stamp_s >= self._next_diagnostics_s:
             self._next_diagnostics_s = reading.stamp_s + DIAGNOSTICS_PERIOD_S
             self.diagnostics_pub.publish(self._diagnostics(reading.stamp_s))
@@ -513,9 +522,9 @@ class Simulator(StepNode):
                 process.spin_once(0.0)
                 self._sync_viewer()
                 last_service = now
-                if now - log_wall >= RTF_LOG_PERIOD_S:
-                    self._log_speed(now - log_wall, self.sim.time_s - log_sim)
-                    log_wall, log_sim = now, self.sim.time_s
+            if now - log_wall >= RTF_LOG_PERIOD_S:  # also in lockstep, whose syncs serve callbacks
+                self._log_speed(now - log_wall, self.sim.time_s - log_sim)
+                log_wall, log_sim = now, self.sim.time_s
 
     def _log_speed(self, wall_s: float, sim_s: float) -> None:
         rtf = self.params.real_time_factor
