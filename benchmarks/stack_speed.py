@@ -184,10 +184,11 @@ def run_eval(scenario: str, args: list[str], domain: int) -> dict[str, Any]:
 
 def rounds_per_sync_time(out: Path) -> float | None:
     """Lockstep rounds (a step and everyone's answer) per sync time, from the simulator's last speed
-    line in the run's logs ("lockstep: N steps, M rounds"); None when it logged none."""
+    line in the run's logs ("lockstep: N steps, M rounds", or a participant's leaving "so far: N steps,
+    M rounds"); None when it logged none."""
     found = None
     for log in sorted((out / "logs").glob("simulator*.log")):
-        for match in re.finditer(r"lockstep: (\d+) steps, (\d+) rounds", log.read_text(errors="replace")):
+        for match in re.finditer(r"(\d+) steps, (\d+) rounds", log.read_text(errors="replace")):
             found = match
     return round(int(found.group(2)) / int(found.group(1)), 2) if found and int(found.group(1)) else None
 

@@ -60,6 +60,7 @@ class Robot:
     goals: list[float] = field(default_factory=list)  # monotonic arrival times
     stop: threading.Event = field(default_factory=threading.Event)
     _front_m: float = math.inf
+    _beside_m: float = math.inf  # the nearest return within 90 degrees of ahead
     _left_better: bool = True
     _pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
@@ -93,6 +94,7 @@ class Robot:
         angles = [msg.angle_min + i * msg.angle_increment for i in range(n)]
         near = [(a, r) for a, r in zip(angles, msg.ranges, strict=True) if math.isfinite(r) and r > msg.range_min]
         self._front_m = min((r for a, r in near if abs(a) < 0.5), default=math.inf)
+        self._beside_m = min((r for a, r in near if abs(a) < 1.6), default=math.inf)
         left = sum(min(r, 3.0) for a, r in near if 0.3 < a < 1.6)
         right = sum(min(r, 3.0) for a, r in near if -1.6 < a < -0.3)
         self._left_better = left >= right
@@ -103,7 +105,7 @@ class Robot:
 
     def _command(self, twist: Any) -> Any:
         x, y, yaw = self._pose
-        if self._front_m < 0.9:
+        if self._front_m < 0.9 or self._beside_m < 0.4:  # turn in place before a wheel touches
             twist.angular.z = 0.8 if self._left_better else -0.8
         elif math.hypot(x, y) > self.radius_m:
             home = math.atan2(-y, -x) - yaw
@@ -224,6 +226,13 @@ def parse_arguments() -> argparse.Namespace:
     return parser.parse_args()
 
 
+def check_running(launch: ChildProcess, t0: float) -> None:
+    """Stop the benchmark, with the end of the launch's output, when the stack has ended."""
+    if not launch.running():
+        tail = "\n".join(launch.output.splitlines()[-30:])
+        raise SystemExit(f"view_browser: the stack ended after {time.monotonic() - t0:.0f} s:\n{tail}")
+
+
 def main() -> None:
     args = parse_arguments()
     isolate_dds()
@@ -250,6 +259,7 @@ def main() -> None:
             late: ExitStack | None = None
             next_sample, next_goal = t0, t0 + 30.0
             while time.monotonic() - t0 < args.seconds:
+                check_running(launch, t0)
                 now = time.monotonic()
                 if late is None and late_at and now >= late_at[0]:
                     late_at.pop(0)

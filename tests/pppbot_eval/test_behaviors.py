@@ -21,7 +21,7 @@ class FakeNode:
         self.recording = Recording()
         self.sim_now_s: float | None = 0.0
         self.truth_pose: tuple[float, float, float] | None = (0.0, 0.0, 0.0)
-        self.amcl_poses = 0
+        self.amcl_poses = 1  # the localizer has published its first pose
         self.driving = False
         self.answer = answer
         self.sent: list[tuple[float, float, float]] = []
@@ -73,3 +73,16 @@ def test_a_rejected_goal_is_recorded_at_once() -> None:
     run(node, behavior, until_s=5.0)
     assert behavior.outcome == "" and [g.status for g in node.recording.goals] == ["rejected"]
     assert node.recording.goals[0].end_s < 0.2
+
+
+def test_the_first_goal_waits_for_the_localizers_first_pose() -> None:
+    """As BasicNavigator's waitUntilNav2Active: no goal before AMCL's first pose (and its map -> odom),
+    which the navigator would abort ("no transform from 'base_link' to 'map'")."""
+    node = FakeNode("rejects")
+    node.amcl_poses = 0
+    behavior = NavigateGoals([(1.0, 0.0, 0.0)], FREE_ROOM, (0.0, 0.0, 0.0), max_speed_mps=0.5)
+    run(node, behavior, until_s=2.0)
+    assert node.sent == [] and behavior.outcome is None
+    node.amcl_poses = 1
+    run(node, behavior, until_s=4.0)
+    assert len(node.sent) == 1 and [g.status for g in node.recording.goals] == ["rejected"]

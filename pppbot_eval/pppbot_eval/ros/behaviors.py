@@ -192,6 +192,10 @@ class NavigateGoals:
             if self.index == len(self.goals):
                 self.outcome = ""
                 return
+            if self.index == 0 and node.amcl_poses == 0:
+                # As BasicNavigator's waitUntilNav2Active: the localizer's first pose (and with it
+                # map -> odom) before the first goal, which the navigator would abort without it.
+                return
             self._send(node, self.goals[self.index])
             return
         elapsed = node.sim_now_s - self._start_s

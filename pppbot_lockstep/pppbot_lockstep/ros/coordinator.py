@@ -182,7 +182,7 @@ class Coordinator:
             self.publish_status(self.barrier.stamp_ns, force=True)
         elif msg.kind == LockstepAck.LEAVE:
             if name in self.barrier.members or name in self.barrier.joining:
-                self.log(f"lockstep: '{name}' leaves")
+                self.log(f"lockstep: '{name}' leaves (so far: {self.steps} steps, {self.rounds} rounds)")
             self.barrier.leave(name)
             self.publications.left(name)
             self.publish_status(self.barrier.stamp_ns)

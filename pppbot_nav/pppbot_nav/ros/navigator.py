@@ -298,6 +298,11 @@ class Navigator(ManagedNode):
         p = self.params
         if not state.goals:
             raise Failed(0, "no poses to navigate through")
+        while self._now_s() <= 0.0:
+            # On sim time with no /clock heard yet (a process started a moment ago, its clock's
+            # reader not matched yet) the clock reads 0: a deadline from it would pass at the first
+            # /clock. The goal waits for the clock instead.
+            yield self._sleep(TICK_S)
         deadline = self._now_s() + p.server_timeout
         planner = (self.planner_through, "compute_path_through_poses") if state.through \
             else (self.planner, "compute_path_to_pose")
