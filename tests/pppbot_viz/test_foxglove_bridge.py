@@ -34,6 +34,33 @@ def next_json(ws: Any, op: str, timeout_s: float = 20.0, where: Any = None) -> d
     raise TimeoutError(f"no '{op}' from the bridge within {timeout_s} s")
 
 
+def first_message(ws: Any, channel_id: int, publish: Any, has_scan: Any, timeout_s: float = 30.0) -> bytes | None:
+    """Subscribe to ``channel_id`` and return the first message's payload, calling ``publish``
+    meanwhile. As Foxglove does, a /scan channel advertised again (the topic left the graph for
+    a moment: another /scan publisher of the test process went) is subscribed again."""
+    subscription_id = 7
+    ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": subscription_id, "channelId": channel_id}]}))
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        publish()
+        try:
+            frame = ws.recv(timeout=0.5)
+        except TimeoutError:
+            continue
+        if isinstance(frame, str):
+            message = json.loads(frame)
+            if message.get("op") == "advertise" and has_scan(message):
+                channel_id = next(c for c in message["channels"] if c["topic"] == "/scan")["id"]
+                subscription_id += 1
+                ws.send(json.dumps({"op": "subscribe",
+                                    "subscriptions": [{"id": subscription_id, "channelId": channel_id}]}))
+        elif frame[0] == 0x01:
+            subscription, _stamp = struct.unpack_from("<IQ", frame, 1)
+            assert subscription == subscription_id
+            return bytes(frame[13:])
+    return None
+
+
 def test_bridge_forwards_scans_and_takes_goals(ros_node, spawn):
     bridge = spawn([PPPBOT, "foxglove", "--port", "0"], name="foxglove")
     url = bridge.wait_for_output(r"Foxglove bridge: (ws://127\.0\.0\.1:\d+)", 60).group(1)
@@ -60,20 +87,7 @@ def test_bridge_forwards_scans_and_takes_goals(ros_node, spawn):
         # The schema is the full definition: an independent reader builds the type from it.
         typestore = get_typestore(Stores.EMPTY)
         typestore.register(get_types_from_msg(channel["schema"], "sensor_msgs/msg/LaserScan"))
-        ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": channel["id"]}]}))
-
-        deadline = time.monotonic() + 30
-        payload = None
-        while payload is None and time.monotonic() < deadline:
-            scan_pub.publish(scan)
-            try:
-                frame = ws.recv(timeout=0.5)
-            except TimeoutError:
-                continue
-            if isinstance(frame, bytes) and frame[0] == 0x01:
-                subscription, _stamp = struct.unpack_from("<IQ", frame, 1)
-                assert subscription == 7
-                payload = frame[13:]
+        payload = first_message(ws, channel["id"], lambda: scan_pub.publish(scan), has_scan)
         assert payload is not None, "no /scan message within 30 s"
         decoded: Any = typestore.deserialize_cdr(payload, "sensor_msgs/msg/LaserScan")
         assert decoded.header.frame_id == "lidar_frame"
