@@ -6,10 +6,11 @@ from types import SimpleNamespace
 from typing import Any
 
 import pytest
+from action_msgs.msg import GoalStatus
 from rclpy.action.client import ClientGoalHandle
 from rclpy.task import Future
 
-from pppbot_lockstep.ros.goals import Flow, GoalEnd, Stopped, check_running, stopped_end
+from pppbot_lockstep.ros.goals import Cancels, Flow, GoalEnd, Stopped, check_running, stopped_end
 
 
 def handle(cancel: bool = False) -> Any:  # a ServerGoalHandle as far as these read it
@@ -68,3 +69,35 @@ def test_a_goal_sent_by_a_flow_stopped_before_its_answer_is_canceled_once_accept
     handle = ClientGoalHandle(client, SimpleNamespace(uuid=bytes(16)), SimpleNamespace(accepted=accepted, stamp=None))
     sent.set_result(handle)
     assert client.canceled == ([handle] if accepted else [])
+
+
+def test_a_canceled_goal_is_canceled_again_until_it_ends_and_no_more_than_attempts_times():
+    now = [0.0]
+    cancels = Cancels(lambda: now[0], again_s=1.0, attempts=3)
+    client = Client()
+    lost = ClientGoalHandle(client, SimpleNamespace(uuid=bytes(16)), SimpleNamespace(accepted=True, stamp=None))
+    ends = ClientGoalHandle(client, SimpleNamespace(uuid=bytes([1] * 16)), SimpleNamespace(accepted=True, stamp=None))
+    result = Future()  # ends's result
+    cancels.cancel(lost)  # its cancels are lost: the goal runs on
+    cancels.cancel(ends, result)
+    assert client.canceled == [lost, ends]
+    now[0] = 0.9
+    assert cancels.tick() and client.canceled == [lost, ends]  # not due yet
+    now[0] = 1.0
+    assert cancels.tick() and client.canceled == [lost, ends, lost, ends]
+    result.set_result(SimpleNamespace(status=GoalStatus.STATUS_CANCELED))  # ends ended
+    now[0] = 2.0
+    assert cancels.tick() and client.canceled[4:] == [lost]  # the third and last ask
+    now[0] = 3.0
+    assert not cancels.tick() and len(client.canceled) == 5  # given up on: the timer may stop
+
+
+def test_a_canceled_goal_whose_status_says_it_ended_is_not_asked_again():
+    now = [0.0]
+    cancels = Cancels(lambda: now[0])
+    client = Client()
+    goal = ClientGoalHandle(client, SimpleNamespace(uuid=bytes(16)), SimpleNamespace(accepted=True, stamp=None))
+    cancels.cancel(goal)
+    goal._status = GoalStatus.STATUS_ABORTED  # as the action's status topic sets it
+    now[0] = 5.0
+    assert not cancels.tick() and client.canceled == [goal]

@@ -21,6 +21,7 @@ from collections.abc import Callable, Generator
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
+from action_msgs.msg import GoalStatus
 from rclpy.action import CancelResponse, GoalResponse
 from rclpy.action.client import ClientGoalHandle
 from rclpy.action.server import ServerGoalHandle
@@ -256,6 +257,43 @@ def cancel_once_accepted(sent: Future) -> None:
         if isinstance(handle, ClientGoalHandle) and handle.accepted:
             handle.cancel_goal_async()
     sent.add_done_callback(cancel)
+
+
+#: the statuses of a goal that ended
+ENDED_STATUSES = frozenset({GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_CANCELED, GoalStatus.STATUS_ABORTED})
+
+
+class Cancels:
+    """Goals a node canceled, asked again until they end. A cancel request or its answer can be
+    lost (Fast DDS drops samples to an endpoint not matched yet: a client just started on a busy
+    machine), and a goal whose cancel was lost runs on with nobody following it. The node calls
+    :meth:`tick` from its timer and keeps the timer on while it returns True: a goal not ended
+    ``again_s`` of node time after a cancel is canceled again, at most ``attempts`` times in all
+    (asking again is harmless: a server cancels a goal once)."""
+
+    def __init__(self, clock_s: Callable[[], float], again_s: float = 1.0, attempts: int = 5) -> None:
+        self._clock_s, self.again_s, self.attempts = clock_s, again_s, attempts
+        self._goals: list[tuple[ClientGoalHandle, Any, float, int]] = []  # handle, result, last ask (s), asks
+
+    def cancel(self, handle: ClientGoalHandle, result: Any = None) -> None:
+        """Cancel ``handle`` (``result``: its ``get_result_async`` future, if asked for) until it ends."""
+        handle.cancel_goal_async()
+        self._goals.append((handle, result, self._clock_s(), 1))
+
+    def tick(self) -> bool:
+        """Ask again where due; whether any canceled goal has yet to end."""
+        now = self._clock_s()
+        pending = []
+        for handle, result, asked_s, asks in self._goals:
+            if (result is not None and result.done()) or handle.status in ENDED_STATUSES:
+                continue
+            if now - asked_s < self.again_s:
+                pending.append((handle, result, asked_s, asks))
+            elif asks < self.attempts:  # else given up: the server is gone or ignores cancels
+                handle.cancel_goal_async()
+                pending.append((handle, result, now, asks + 1))
+        self._goals = pending
+        return bool(pending)
 
 
 def hold_until(port: StepPort, future: Any) -> Any:

@@ -57,6 +57,7 @@ from pppbot_common.transforms import TransformError
 from pppbot_common.upright import UPRIGHT_STATUS
 from pppbot_lockstep.ros.action_client import ActionClient
 from pppbot_lockstep.ros.goals import (
+    Cancels,
     Flow,
     GoalEnd,
     GoalServer,
@@ -169,6 +170,7 @@ class Navigator(ManagedNode):
         for recovery, client in self.behaviors.items():
             self.port.require_when(f"the {recovery.value} server", client.server_is_ready)
         self._active: tuple[ServerGoalHandle, Flow[None], _Progress] | None = None
+        self._cancels = Cancels(self._now_s)  # FollowPath and behavior goals canceled, until they end
         self._self_client = ActionClient(self, NavigateToPose, "navigate_to_pose")
         self.server = GoalServer(self, NavigateToPose, "navigate_to_pose", self._on_goal, accept=self.taking_goals)
         self.through_server = GoalServer(self, NavigateThroughPoses, "navigate_through_poses", self._on_through_goal,
@@ -239,7 +241,8 @@ class Navigator(ManagedNode):
 
     def _tick(self) -> None:
         if self._active is None:
-            self.timer.cancel()
+            if not self._cancels.tick():
+                self.timer.cancel()
             return
         handle, flow, state = self._active
         flow.tick()
@@ -286,9 +289,14 @@ class Navigator(ManagedNode):
 
     def _cancel_follow(self, state: _Progress) -> None:
         if state.follow is not None:
-            state.follow.cancel_goal_async()
+            self._cancel(state.follow, state.follow_result)
             state.follow = None
             state.follow_result = None
+
+    def _cancel(self, handle: Any, result: Any) -> None:
+        self._cancels.cancel(handle, result)
+        if self.timer.is_canceled():
+            self.timer.reset()  # ticks until the goal ended
 
     def _sleep(self, seconds: float) -> Sleep:
         return Sleep(self._now_s() + seconds)
@@ -496,7 +504,7 @@ class Navigator(ManagedNode):
                 yield Sleep(deadline, wake=result)
         finally:
             if not result.done():  # the goal was canceled or preempted meanwhile, or the server hangs
-                handle.cancel_goal_async()
+                self._cancel(handle, result)
         if result.done() and result.result().result.error_code != 0:
             res = result.result().result
             self.get_logger().info(f"{recovery.value} ended early: {res.error_msg}")

@@ -36,6 +36,7 @@ from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.ros.params import declare_parameters, fixed_parameters
 from pppbot_lockstep.ros.action_client import ActionClient
 from pppbot_lockstep.ros.goals import (
+    Cancels,
     Flow,
     GoalEnd,
     GoalServer,
@@ -105,6 +106,7 @@ class _Following:
         self.run: WaypointRun | None = None
         self.index = 0  # the pose being handled (the feedback)
         self.navigation: Any = None  # the running navigate_to_pose goal's handle
+        self.navigation_result: Future | None = None  # and its result
 
 
 class WaypointFollower(ManagedNode):
@@ -119,6 +121,7 @@ class WaypointFollower(ManagedNode):
         self.navigator = ActionClient(self, NavigateToPose, "navigate_to_pose")
         self.port.require_when("the navigate_to_pose server", self.navigator.server_is_ready)
         self._active: tuple[ServerGoalHandle, Flow[None], _Following] | None = None
+        self._cancels = Cancels(self._now_s)  # navigations canceled, until they end
         self.server = GoalServer(self, FollowWaypoints, "follow_waypoints", self._on_goal, accept=self.taking_goals)
         # Ticks while a goal runs (an idle follower makes no sync times in lockstep).
         self.timer = self.step_timer(1.0 / self.params.loop_rate, self._tick)
@@ -164,7 +167,8 @@ class WaypointFollower(ManagedNode):
 
     def _tick(self) -> None:
         if self._active is None:
-            self.timer.cancel()
+            if not self._cancels.tick():
+                self.timer.cancel()
             return
         handle, flow, state = self._active
         flow.tick()
@@ -226,11 +230,11 @@ class WaypointFollower(ManagedNode):
         handle = yield self.navigator.send_goal_async(goal)
         if handle is None or not handle.accepted:
             return False, 0
-        state.navigation = handle
         done: Future = handle.get_result_async()
+        state.navigation, state.navigation_result = handle, done
         while not done.done():
             yield Sleep(self._now_s() + self._period_s(), wake=done)
-        state.navigation = None
+        state.navigation = state.navigation_result = None
         response = done.result()
         if response.status == GoalStatus.STATUS_SUCCEEDED:
             return True, 0
@@ -282,8 +286,10 @@ class WaypointFollower(ManagedNode):
 
     def _cancel_navigation(self, state: _Following) -> None:
         if state.navigation is not None:
-            state.navigation.cancel_goal_async()
-            state.navigation = None
+            self._cancels.cancel(state.navigation, state.navigation_result)
+            state.navigation = state.navigation_result = None
+            if self.timer.is_canceled():
+                self.timer.reset()  # ticks until the navigation ended
 
 
 def main(args: list[str] | None = None) -> int:
