@@ -18,10 +18,12 @@ from pathlib import Path
 from pppbot_viz.errors import VizError
 
 #: the server keeps the newest data up to this for viewers that connect late, then drops the oldest
-#: (a few minutes of a run: what a viewer that connects late catches up with; the view sends it
-#: the newest map, costmaps, plans and trail when it starts); its RSS levels off at 1.4-1.7 times
-#: this (benchmarks/viz_server_memory.py)
-SERVER_MEMORY_LIMIT = "32MiB"
+#: (half a minute or so of a mapping run: what a page opened late catches up with before it shows
+#: the present; the view sends it the newest map, costmaps, plans and trail when it starts). With
+#: 32 MiB sent newest first, a page opened 12.5 minutes into a mapping run filled the browser's
+#: 4 GB WebAssembly heap within 90 s and never caught up; with 8 MiB in logged order it caught up
+#: in 2 minutes, with 2 MiB in 30 s (benchmarks/view_browser.py --late-pages, RESULTS.md)
+SERVER_MEMORY_LIMIT = "2MiB"
 #: the native viewer's cap: past it, it drops its oldest data, keeping each thing's newest
 VIEWER_MEMORY_LIMIT = "2GiB"
 #: the web page's viewer's cap, the same way: a browser tab without a GPU stays under 1.5 GB with
@@ -70,9 +72,10 @@ def grpc_url(port: int, host: str = LOCALHOST) -> str:
 
 def server_command(grpc_port: int, web_port: int, memory_limit: str = SERVER_MEMORY_LIMIT) -> list[str]:
     """The gRPC proxy and the bundled web viewer's files, on 127.0.0.1 only. A viewer that
-    connects late gets the newest data first."""
+    connects late gets what the server kept in the order it was logged (rerun's ``--newest-first``
+    also reverses the messages that set a recording and its layout up: rerun issue 12721)."""
     return [str(rerun_binary()), "--serve-web", "--bind", LOCALHOST, "--port", str(grpc_port),
-            "--web-viewer-port", str(web_port), "--server-memory-limit", memory_limit, "--newest-first"]
+            "--web-viewer-port", str(web_port), "--server-memory-limit", memory_limit]
 
 
 def native_viewer_command(grpc_port: int, memory_limit: str = VIEWER_MEMORY_LIMIT) -> list[str]:
