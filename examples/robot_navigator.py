@@ -39,6 +39,9 @@ from rclpy.action import ActionClient
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+#: seconds a node's get_state answer is waited for before it is asked again
+GET_STATE_WAIT_S = 5.0
+
 
 class TaskResult(Enum):
     UNKNOWN = 0
@@ -274,7 +277,13 @@ class BasicNavigator(Node):
         while state != "active":
             self.debug(f"Getting {node_name} state...")
             future = client.call_async(GetState.Request())
-            rclpy.spin_until_future_complete(self, future)
+            # Asked again when no answer comes: DDS drops the answer to a client the server has
+            # not matched yet (this process just started), and Nav2's own wait would hang for good.
+            rclpy.spin_until_future_complete(self, future, timeout_sec=GET_STATE_WAIT_S)
+            if not future.done():
+                client.remove_pending_request(future)
+                self.info(f"{node_name}/get_state did not answer within {GET_STATE_WAIT_S:.0f} s, asking again")
+                continue
             if future.result() is not None:
                 state = future.result().current_state.label
                 self.debug(f"Result of get_state: {state}")
