@@ -20,9 +20,9 @@ from pppbot_viz.errors import VizError
 #: the server keeps the newest data up to this for viewers that connect late, then drops the oldest
 #: (half a minute or so of a mapping run: what a page opened late catches up with before it shows
 #: the present; the view sends it the newest map, costmaps, plans and trail when it starts). With
-#: 32 MiB sent newest first, a page opened 12.5 minutes into a mapping run filled the browser's
-#: 4 GB WebAssembly heap within 90 s and never caught up; with 8 MiB in logged order it caught up
-#: in 2 minutes, with 2 MiB in 30 s (benchmarks/view_browser.py --late-pages, RESULTS.md)
+#: 32 MiB, a page opened 12.5 minutes into a mapping run filled the browser's 4 GB WebAssembly heap
+#: within 90 s and never caught up; with 2 MiB it shows the present within 30 s at about 710 MB
+#: (benchmarks/view_browser.py --late-pages, RESULTS.md)
 SERVER_MEMORY_LIMIT = "2MiB"
 #: the native viewer's cap: past it, it drops its oldest data, keeping each thing's newest
 VIEWER_MEMORY_LIMIT = "2GiB"
@@ -72,10 +72,10 @@ def grpc_url(port: int, host: str = LOCALHOST) -> str:
 
 def server_command(grpc_port: int, web_port: int, memory_limit: str = SERVER_MEMORY_LIMIT) -> list[str]:
     """The gRPC proxy and the bundled web viewer's files, on 127.0.0.1 only. A viewer that
-    connects late gets what the server kept in the order it was logged (rerun's ``--newest-first``
-    also reverses the messages that set a recording and its layout up: rerun issue 12721)."""
+    connects late gets the newest data first (in logged order instead, a page opened with the
+    stack, as tests/pppbot_viz/test_live_view.py opens it, took 70 s longer on a busy machine)."""
     return [str(rerun_binary()), "--serve-web", "--bind", LOCALHOST, "--port", str(grpc_port),
-            "--web-viewer-port", str(web_port), "--server-memory-limit", memory_limit]
+            "--web-viewer-port", str(web_port), "--server-memory-limit", memory_limit, "--newest-first"]
 
 
 def native_viewer_command(grpc_port: int, memory_limit: str = VIEWER_MEMORY_LIMIT) -> list[str]:
