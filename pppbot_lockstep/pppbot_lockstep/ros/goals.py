@@ -266,19 +266,23 @@ ENDED_STATUSES = frozenset({GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_CANCE
 class Cancels:
     """Goals a node canceled, asked again until they end. A cancel request or its answer can be
     lost (Fast DDS drops samples to an endpoint not matched yet: a client just started on a busy
-    machine), and a goal whose cancel was lost runs on with nobody following it. The node calls
-    :meth:`tick` from its timer and keeps the timer on while it returns True: a goal not ended
+    machine), and a goal whose cancel was lost runs on with nobody following it. ``timer`` (the
+    node's tick) is restarted by :meth:`cancel` when stopped; the node calls :meth:`tick` from it
+    and keeps it on while it returns True: a goal not ended
     ``again_s`` of node time after a cancel is canceled again, at most ``attempts`` times in all
     (asking again is harmless: a server cancels a goal once)."""
 
-    def __init__(self, clock_s: Callable[[], float], again_s: float = 1.0, attempts: int = 5) -> None:
-        self._clock_s, self.again_s, self.attempts = clock_s, again_s, attempts
+    def __init__(self, clock_s: Callable[[], float], timer: Any = None, again_s: float = 1.0,
+                 attempts: int = 5) -> None:
+        self._clock_s, self._timer, self.again_s, self.attempts = clock_s, timer, again_s, attempts
         self._goals: list[tuple[ClientGoalHandle, Any, float, int]] = []  # handle, result, last ask (s), asks
 
     def cancel(self, handle: ClientGoalHandle, result: Any = None) -> None:
         """Cancel ``handle`` (``result``: its ``get_result_async`` future, if asked for) until it ends."""
         handle.cancel_goal_async()
         self._goals.append((handle, result, self._clock_s(), 1))
+        if self._timer is not None and self._timer.is_canceled():
+            self._timer.reset()  # it ticks until the goal ended
 
     def tick(self) -> bool:
         """Ask again where due; whether any canceled goal has yet to end."""

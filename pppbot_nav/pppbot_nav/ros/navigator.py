@@ -170,7 +170,6 @@ class Navigator(ManagedNode):
         for recovery, client in self.behaviors.items():
             self.port.require_when(f"the {recovery.value} server", client.server_is_ready)
         self._active: tuple[ServerGoalHandle, Flow[None], _Progress] | None = None
-        self._cancels = Cancels(self._now_s)  # FollowPath and behavior goals canceled, until they end
         self._self_client = ActionClient(self, NavigateToPose, "navigate_to_pose")
         self.server = GoalServer(self, NavigateToPose, "navigate_to_pose", self._on_goal, accept=self.taking_goals)
         self.through_server = GoalServer(self, NavigateThroughPoses, "navigate_through_poses", self._on_through_goal,
@@ -183,6 +182,7 @@ class Navigator(ManagedNode):
         # Ticks while a goal runs (an idle navigator makes no sync times in lockstep).
         self.timer = self.step_timer(TICK_S, self._tick)
         self.timer.cancel()
+        self._cancels = Cancels(self._now_s, self.timer)  # FollowPath and behavior goals canceled, until they end
         self.get_logger().info("bt_navigator: navigate_to_pose and goal_pose once active")
 
     def destroy_node(self) -> None:
@@ -289,14 +289,9 @@ class Navigator(ManagedNode):
 
     def _cancel_follow(self, state: _Progress) -> None:
         if state.follow is not None:
-            self._cancel(state.follow, state.follow_result)
+            self._cancels.cancel(state.follow, state.follow_result)
             state.follow = None
             state.follow_result = None
-
-    def _cancel(self, handle: Any, result: Any) -> None:
-        self._cancels.cancel(handle, result)
-        if self.timer.is_canceled():
-            self.timer.reset()  # ticks until the goal ended
 
     def _sleep(self, seconds: float) -> Sleep:
         return Sleep(self._now_s() + seconds)
@@ -504,7 +499,7 @@ class Navigator(ManagedNode):
                 yield Sleep(deadline, wake=result)
         finally:
             if not result.done():  # the goal was canceled or preempted meanwhile, or the server hangs
-                self._cancel(handle, result)
+                self._cancels.cancel(handle, result)
         if result.done() and result.result().result.error_code != 0:
             res = result.result().result
             self.get_logger().info(f"{recovery.value} ended early: {res.error_msg}")

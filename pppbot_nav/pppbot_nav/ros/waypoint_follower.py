@@ -121,11 +121,11 @@ class WaypointFollower(ManagedNode):
         self.navigator = ActionClient(self, NavigateToPose, "navigate_to_pose")
         self.port.require_when("the navigate_to_pose server", self.navigator.server_is_ready)
         self._active: tuple[ServerGoalHandle, Flow[None], _Following] | None = None
-        self._cancels = Cancels(self._now_s)  # navigations canceled, until they end
         self.server = GoalServer(self, FollowWaypoints, "follow_waypoints", self._on_goal, accept=self.taking_goals)
         # Ticks while a goal runs (an idle follower makes no sync times in lockstep).
         self.timer = self.step_timer(1.0 / self.params.loop_rate, self._tick)
         self.timer.cancel()
+        self._cancels = Cancels(self._now_s, self.timer)  # navigations canceled, until they end
         self.get_logger().info(f"follow_waypoints once active ({TASK_EXECUTOR_NAME} at each waypoint)")
 
     def _set_params(self, new: WaypointFollowerParameters) -> None:
@@ -288,8 +288,6 @@ class WaypointFollower(ManagedNode):
         if state.navigation is not None:
             self._cancels.cancel(state.navigation, state.navigation_result)
             state.navigation = state.navigation_result = None
-            if self.timer.is_canceled():
-                self.timer.reset()  # ticks until the navigation ended
 
 
 def main(args: list[str] | None = None) -> int:
