@@ -69,9 +69,12 @@ class Robot:
         from geometry_msgs.msg import PoseStamped, Twist
         from nav_msgs.msg import Odometry
         from rclpy.qos import qos_profile_sensor_data
+        from rclpy.signals import SignalHandlerOptions
         from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import LaserScan
-        rclpy.init()
+        # Ctrl-C is the main thread's (it stops the pages and the stack); rclpy's own handler
+        # would end this thread's context instead and leave the run sampling a dead robot.
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         node = rclpy.create_node("view_browser_benchmark")
         node.create_subscription(Clock, "/clock",
                                  lambda m: setattr(self, "sim_s", m.clock.sec + 1e-9 * m.clock.nanosec), 10)
@@ -176,7 +179,14 @@ def click_goal(watched: Watched, robot: Robot, timeout_s: float) -> None:
 
 
 def open_page(stack: ExitStack, start: Any, name: str, url: str, scratch: Path, playwright: Any) -> Watched:
-    browser = stack.enter_context(chromium_page(start, scratch / name, SIZE, playwright=playwright))
+    """A page of its own Chromium, both closed with ``stack`` (a late page's browser must not go on
+    rendering beside the first page once its time is up)."""
+    def start_browser(cmd: list[str], name: str) -> Any:
+        child = start(cmd, name)
+        stack.callback(child.stop)
+        return child
+
+    browser = stack.enter_context(chromium_page(start_browser, scratch / name, SIZE, playwright=playwright))
     browser.page.goto(url)
     wait_for(browser.page, "window.pppbot && window.pppbot.started", 180, f"{name}: the viewer to start")
     return Watched(name, browser.page, browser.pid, time.monotonic())
