@@ -2,6 +2,9 @@
 # Each sets the environment up on first use (./pppbot does it).
 
 PYTEST_ARGS ?=
+# Test files run in parallel, one worker per core, the files marked heavy first (tests/conftest.py);
+# a file's tests stay on one worker (they share its fixtures). PYTEST_WORKERS=0: all in one process.
+PYTEST_WORKERS ?= auto
 
 .PHONY: setup run test check lock clean
 
@@ -12,7 +15,7 @@ run:
 	./pppbot launch_sim
 
 test: check
-	./pppbot env python -m pytest $(PYTEST_ARGS)
+	./pppbot env python -m pytest -n $(PYTEST_WORKERS) --dist loadfile --no-loadscope-reorder $(PYTEST_ARGS)
 
 # Static checks: lint (ruff, rules in pyproject.toml) and types (mypy) across packages, tools and tests.
 check:

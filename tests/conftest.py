@@ -17,6 +17,7 @@ import gc
 import importlib.util
 import os
 import sys
+import time
 from collections.abc import Callable, Generator, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -62,6 +63,59 @@ def _participants_let_go() -> Iterator[None]:
     yield
     if own_participants(int(os.environ.get("ROS_DOMAIN_ID", "0") or 0)) >= _COLLECT_AT:
         gc.collect()
+
+
+def _idle_cores(window_s: float = 1.0) -> int:
+    """How many of this machine's cores were idle over the last ``window_s`` (/proc/stat), at least 1."""
+    def times() -> tuple[int, int]:
+        fields = [int(v) for v in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
+        return sum(fields), fields[3] + fields[4]  # all, idle + iowait
+
+    try:
+        total0, idle0 = times()
+        time.sleep(window_s)
+        total1, idle1 = times()
+    except (OSError, ValueError, IndexError):
+        return os.cpu_count() or 1
+    cores = os.cpu_count() or 1
+    return max(1, min(cores, round(cores * (idle1 - idle0) / max(total1 - total0, 1))))
+
+
+@pytest.hookimpl(optionalhook=True)  # pytest-xdist's: without it, pytest has no such hook
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
+    """``-n auto`` (``make test``): a worker per idle core. On a machine already busy (a test run
+    beside another, CI with a core taken) the suite runs as it would alone on what is left, rather
+    than its stacks and browsers each getting a share too small for their waits."""
+    return _idle_cores()
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Files with a test marked ``heavy`` (whole stacks, a browser: minutes each) come first, each
+    file's tests in their order. ``make test`` runs files in parallel, one worker per core and in
+    this order (``--dist loadfile --no-loadscope-reorder``): the long files start at once and the
+    many short ones fill the cores at the end, instead of one long file running alone last."""
+    heavy = {item.path for item in items if item.get_closest_marker("heavy")}
+    items.sort(key=lambda item: item.path not in heavy)
+
+
+@pytest.fixture(autouse=True)
+def _machine_shared_or_whole(request: pytest.FixtureRequest) -> Iterator[None]:
+    """In a parallel run (pytest-xdist), a test marked ``exclusive`` runs while no other worker runs a
+    test, and waits for them: one that loads every core on purpose would leave another worker's
+    stack a third of the machine, and one that times the machine by the wall clock would measure
+    the other worker too. Every other test holds the run's lock shared."""
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if not run:
+        yield
+        return
+    import fcntl
+    import tempfile
+    with open(Path(tempfile.gettempdir()) / f"pppbot-pytest-{run}.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX if request.node.get_closest_marker("exclusive") else fcntl.LOCK_SH)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
 
 
 def pytest_report_header(config: pytest.Config) -> str:

@@ -101,12 +101,16 @@ def write_viewer_settings(state_dir: Path) -> Path:
         VizError: ``state_dir`` can't be written.
     """
     config_file = state_dir / "config" / "rerun" / "analytics.json"
+    text = json.dumps({"analytics_enabled": False, "analytics_id": "0" * 32, "metadata": {},
+                       "config_file_path": str(config_file),
+                       "data_dir_path": str(state_dir / "data" / "rerun" / "analytics")})
     try:
         config_file.parent.mkdir(parents=True, exist_ok=True)
-        config_file.write_text(json.dumps({
-            "analytics_enabled": False, "analytics_id": "0" * 32, "metadata": {},
-            "config_file_path": str(config_file),
-            "data_dir_path": str(state_dir / "data" / "rerun" / "analytics")}))
+        if not config_file.is_file() or config_file.read_text() != text:
+            # whole or not at all: a rerun another launch starts meanwhile reads the old file or this one
+            part = config_file.with_name(f"{config_file.name}.{os.getpid()}")
+            part.write_text(text)
+            os.replace(part, config_file)
     except OSError as exc:
         raise VizError(f"can't write rerun's settings under {state_dir}: {exc}") from exc
     return config_file

@@ -78,6 +78,7 @@ def test_the_aggregate_counts_worlds_against_each_target(suite):
 
 
 @pytest.mark.ros
+@pytest.mark.heavy
 @pytest.mark.timeout(2400)
 def test_the_smallest_suite_maps_localizes_and_navigates_two_small_worlds_in_lockstep(
         spawn: Callable[..., ChildProcess], tmp_path: Path):

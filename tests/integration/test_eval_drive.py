@@ -181,6 +181,8 @@ def busy_loops(spawn: Callable[..., ChildProcess]) -> None:
 VARYING = {"wall_seconds", "real_time_factor", "out", "map", "posegraph"}
 
 
+@pytest.mark.heavy
+@pytest.mark.exclusive
 def test_lockstep_slam_is_the_same_run_on_a_busy_machine(spawn, tmp_path: Path):
     """Lockstep (eval's default): the same seed gives the same run to the bit, once beside the suite
     and once with both cores taken by busy loops: every recorded series (ground truth, odometry,
@@ -207,6 +209,7 @@ def test_lockstep_slam_is_the_same_run_on_a_busy_machine(spawn, tmp_path: Path):
            {k: v for k, v in reports[1].items() if k not in VARYING}
 
 
+@pytest.mark.exclusive
 def test_lockstep_navigation_is_the_same_run_on_a_busy_machine(spawn, tmp_path: Path):
     """Navigation in lockstep (AMCL, and the planner, controller_server and navigator composed):
     the same seed gives the same run to the bit (ground-truth trajectory, goal outcomes,

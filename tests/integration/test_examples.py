@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[2]
 PPPBOT = str(ROOT / "pppbot")
 EXAMPLES = ROOT / "examples"
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.heavy]
 
 
 @pytest.fixture(scope="module")

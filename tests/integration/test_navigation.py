@@ -47,6 +47,7 @@ def truth_pose(msg: Odometry) -> tuple[float, float, float]:
 
 
 @pytest.mark.ros
+@pytest.mark.heavy
 def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spawn: Any) -> None:
     launch = spawn([PPPBOT, "launch_sim", "world:=room", "localization:=true", "use_teleop:=false",
                     "use_rviz:=false", "use_viz:=false", "lockstep:=true", "real_time_factor:=1.0"], name="launch_sim")

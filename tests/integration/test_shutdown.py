@@ -73,6 +73,7 @@ def _stop_moment(run: int) -> str:
 
 
 @pytest.mark.ros
+@pytest.mark.heavy
 def test_sigint_ends_every_node_of_the_navigation_bringup_with_exit_code_0(spawn: Any) -> None:
     failures: list[str] = []
     stopped_while_starting = 0

@@ -77,6 +77,7 @@ def test_keys_publish_the_twists_of_teleop_twist_keyboard(ros_node, teleop):
     wait_until(lambda: got and got[-1].linear.x == 0 and got[-1].angular.z == 0, 10, "stop", node=ros_node)
 
 
+@pytest.mark.exclusive  # times the key timeout by the wall clock
 def test_holding_repeats_and_releasing_stops(ros_node, teleop):
     proc, press, _, _ = teleop
     got: list[tuple[float, float]] = []

@@ -159,6 +159,7 @@ def test_pause_step_unpause_and_reset(ros_node, spawn):
     assert math.hypot(odom.pose.pose.position.x, odom.pose.pose.position.y) < 0.01
 
 
+@pytest.mark.exclusive  # the speed reached by the wall clock
 def test_runtime_real_time_factor_change(ros_node, spawn):
     start_simulator(spawn, "real_time_factor:=1.0", name="sim-rtf")
     sim_time = SimClock(ros_node)

@@ -35,7 +35,7 @@ SCAN_POINT_M = 0.03
 #: the mouse wheel zooms the top-down view in this many steps of this many pixels (about 4x)
 ZOOM_STEPS, ZOOM_STEP_PX = 3, 100
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.heavy]
 
 
 def map_view(page: Any) -> np.ndarray:

@@ -4,6 +4,7 @@ QoS plays), and time going back (``--loop``) starts a new recording in the view;
 recording served as it was. What the server streams is read back by rerun's own CLI."""
 from __future__ import annotations
 
+import json
 import os
 import re
 import subprocess
@@ -20,6 +21,7 @@ from pppbot_viz.ros.view_cli import check_recording
 from pppbot_viz.viewer import available_port, free_port, listening, rerun_binary, viewer_environment
 
 from pppbot_common.process import StopTimeouts, stop_process_group
+from pppbot_viz import viewer
 
 PPPBOT = str(Path(__file__).resolve().parents[2] / "pppbot")
 
@@ -33,6 +35,19 @@ def test_a_file_that_is_not_a_recording_is_named(tmp_path: Path) -> None:
         check_recording(tmp_path / "missing.rrd")
     with pytest.raises(VizError, match="--port 70000: must be a port number"):
         available_port(70000, "--port ")
+
+
+def test_rerun_settings_are_written_whole_and_only_when_they_differ(tmp_path: Path) -> None:
+    """Launches (parallel test workers) share one settings file: it is replaced in one step, never
+    truncated under a rerun reading it, and left alone when it already says the same."""
+    written = viewer.write_viewer_settings(tmp_path)
+    assert json.loads(written.read_text())["analytics_enabled"] is False
+    os.utime(written, ns=(0, 0))
+    assert viewer.write_viewer_settings(tmp_path) == written and written.stat().st_mtime_ns == 0  # the same: untouched
+    written.write_text("{}")
+    viewer.write_viewer_settings(tmp_path)
+    assert json.loads(written.read_text())["analytics_enabled"] is False
+    assert [p.name for p in written.parent.iterdir()] == ["analytics.json"]  # no part file left
 
 
 def grpc_of(page_url: str) -> str:
