@@ -15,7 +15,8 @@ and every ``--goal-period`` seconds it uses the page's 2D Goal Pose tool (button
 the map) and times the second click until ``/goal_pose`` arrives. ``--late-pages`` more pages,
 each in a browser of its own, open at even times through the run for ``--late-seconds`` each.
 
-One JSON object is the last line: the figures, their targets, and every sample.
+One JSON object is the last line: the figures, their targets, and every sample. Ctrl-C ends the
+run early, with the figures so far.
 
     ./pppbot env python benchmarks/view_browser.py --seconds 3600          # the hour
     ./pppbot env python benchmarks/view_browser.py --seconds 300 --late-pages 1
@@ -26,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import signal
 import statistics
 import sys
 import tempfile
@@ -131,15 +133,21 @@ class Watched:
     dead: str | None = None
 
 
-def latency_s(page: Any, robot: Robot, max_wait_s: float) -> float:
-    """Wall seconds from now (the sim time just reached) until the page's viewer shows that time."""
+#: Set by Ctrl-C: the run ends as if its time were up (pages, stack and figures so far). Raising
+#: KeyboardInterrupt inside a Playwright call instead left the run stuck in Playwright's loop.
+STOPPING = threading.Event()
+
+
+def latency_s(page: Any, robot: Robot, max_wait_s: float) -> float | None:
+    """Wall seconds from now (the sim time just reached) until the page's viewer shows that time
+    (inf: not within ``max_wait_s``; None: the run was stopped meanwhile)."""
     target, start = robot.sim_s, time.monotonic()
-    while time.monotonic() - start < max_wait_s:
+    while time.monotonic() - start < max_wait_s and not STOPPING.is_set():
         shown = view_time_s(page)
         if shown is not None and shown >= target:
             return time.monotonic() - start
         time.sleep(0.1)
-    return math.inf
+    return None if STOPPING.is_set() else math.inf
 
 
 def sample(watched: Watched, robot: Robot, t0: float, max_wait_s: float) -> dict[str, Any]:
@@ -147,7 +155,8 @@ def sample(watched: Watched, robot: Robot, t0: float, max_wait_s: float) -> dict
                            "open_s": round(time.monotonic() - watched.opened_s), "sim_s": round(robot.sim_s, 1)}
     try:
         problem = viewer_problem(watched.page)
-        row["latency_s"] = round(latency_s(watched.page, robot, max_wait_s), 2) if problem is None else None
+        latency = latency_s(watched.page, robot, max_wait_s) if problem is None else None
+        row["latency_s"] = None if latency is None else round(latency, 2)
     except Exception as exc:  # the page crashed ("Target crashed") or closed
         problem = f"{type(exc).__name__}: {exc}"
     row["memory_mb"] = round(memory_mb(watched.pid), 1)
@@ -246,6 +255,7 @@ def check_running(launch: ChildProcess, t0: float) -> None:
 def main() -> None:
     args = parse_arguments()
     isolate_dds()
+    signal.signal(signal.SIGINT, lambda *_: STOPPING.set())
     children: list[ChildProcess] = []
 
     def start(cmd: list[str], name: str) -> ChildProcess:
@@ -268,7 +278,7 @@ def main() -> None:
             late_at = [t0 + args.seconds * (k + 1) / (args.late_pages + 1) for k in range(args.late_pages)]
             late: ExitStack | None = None
             next_sample, next_goal = t0, t0 + 30.0
-            while time.monotonic() - t0 < args.seconds:
+            while time.monotonic() - t0 < args.seconds and not STOPPING.is_set():
                 check_running(launch, t0)
                 now = time.monotonic()
                 if late is None and late_at and now >= late_at[0]:
@@ -289,7 +299,8 @@ def main() -> None:
                     for watched in open_pages:
                         sample(watched, robot, t0, args.max_wait)
                 time.sleep(0.5)
-            for watched in ([] if args.no_first_page else [pages[0]]) + ([pages[-1]] if late is not None else []):
+            last = ([] if args.no_first_page else [pages[0]]) + ([pages[-1]] if late is not None else [])
+            for watched in [] if STOPPING.is_set() else last:  # a last sample, unless stopped by Ctrl-C
                 sample(watched, robot, t0, args.max_wait)
             if args.screenshot is not None and not args.no_first_page and pages[0].dead is None:
                 pages[0].page.screenshot(path=str(args.screenshot))

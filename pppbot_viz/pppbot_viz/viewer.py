@@ -26,9 +26,8 @@ from pppbot_viz.errors import VizError
 SERVER_MEMORY_LIMIT = "2MiB"
 #: the native viewer's cap: past it, it drops its oldest data, keeping each thing's newest
 VIEWER_MEMORY_LIMIT = "2GiB"
-#: the web page's viewer's cap, the same way. A browser without a GPU draws slower as the viewer's
-#: store fills: with 512 MiB the view's latency rose from 1.0 s to 2.2 s over 16 minutes of
-#: mapping, at 1.25 GB (benchmarks/view_browser.py, RESULTS.md)
+#: the web page's viewer's cap, the same way: over half an hour of mapping the tab levels off near
+#: 1.0 GB with it (1.25 GB with 512 MiB; benchmarks/view_browser.py, RESULTS.md)
 WEB_VIEWER_MEMORY_LIMIT = "256MiB"
 LOCALHOST = "127.0.0.1"
 
