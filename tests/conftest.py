@@ -13,10 +13,12 @@
 """
 from __future__ import annotations
 
+import fcntl
 import gc
 import importlib.util
 import os
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Generator, Iterator
 from contextlib import contextmanager
@@ -108,8 +110,6 @@ def _machine_shared_or_whole(request: pytest.FixtureRequest) -> Iterator[None]:
     if not run:
         yield
         return
-    import fcntl
-    import tempfile
     with open(Path(tempfile.gettempdir()) / f"pppbot-pytest-{run}.lock", "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX if request.node.get_closest_marker("exclusive") else fcntl.LOCK_SH)
         try:
