@@ -333,3 +333,38 @@ class LogOddsGrid:
         data[observed & (log_odds < _logit(self._settings.free_threshold))] = FREE
         x0, y0, _, _ = self.bounds_m
         return OccupancyGrid(data, self._settings.resolution_m, (x0, y0, 0.0), frame_id)
+
+
+class GridCache:
+    """A :class:`LogOddsGrid` kept between map updates, so each update draws only the scans it
+    has not drawn yet. While the scans it drew stay first, in order and at the same poses, the
+    grid is exactly the full rebuild's; when one moves (an optimised pose graph), drops out or
+    the settings change, it is rebuilt from all of them. Not thread-safe: one caller at a time.
+    """
+
+    def __init__(self) -> None:
+        self._grid: LogOddsGrid | None = None
+        self._poses = np.zeros((0, 3))  # the sensor poses of the scans drawn, in order
+        self._scans: list[ScanRays] = []
+        self.rebuilds = 0  # full rebuilds so far (the first build counts as one)
+
+    def update(self, settings: OccupancySettings, sensor_poses: np.ndarray | Sequence[PoseLike],
+               scans: Sequence[ScanRays]) -> LogOddsGrid:
+        """The grid of ``scans`` at ``sensor_poses`` (as :meth:`LogOddsGrid.build` with no mount).
+
+        Raises:
+            OccupancyError: as :meth:`LogOddsGrid.build`.
+        """
+        poses = np.asarray(sensor_poses, dtype=float)
+        poses = poses.reshape(0, 3) if poses.size == 0 else poses
+        drawn = len(self._scans)
+        if (self._grid is None or self._grid.settings != settings or len(scans) < drawn
+                or poses.shape != (len(scans), 3) or not np.array_equal(poses[:drawn], self._poses)
+                or any(a is not b for a, b in zip(self._scans, scans[:drawn], strict=True))):
+            self._grid = LogOddsGrid.build(settings, poses, scans)
+            self.rebuilds += 1
+        else:
+            for pose, scan in zip(poses[drawn:], scans[drawn:], strict=True):
+                self._grid.add_scan(pose, scan)
+        self._poses, self._scans = poses.copy(), list(scans)
+        return self._grid

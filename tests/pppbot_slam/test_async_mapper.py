@@ -56,10 +56,14 @@ class Recorded(AsyncMapperEvents):
         self.keyframes: list[KeyframeAdded] = []
         self.merged: list[LoopsMerged] = []
         self.maps: list[int] = []  # occupied cells of each map built
+        self.last_map = None
         self.warnings: list[tuple[str, str]] = []
-        super().__init__(keyframe=self.keyframes.append, loops=self.merged.append,
-                         map_built=lambda grid: self.maps.append(int((grid.data == 100).sum())),
+        super().__init__(keyframe=self.keyframes.append, loops=self.merged.append, map_built=self.map_built,
                          warn=lambda kind, text: self.warnings.append((kind, text)))
+
+    def map_built(self, grid) -> None:
+        self.maps.append(int((grid.data == 100).sum()))
+        self.last_map = grid
 
 
 def scan(k: int, truth: np.ndarray, odom: np.ndarray) -> ScanInput:
@@ -106,11 +110,18 @@ def test_the_threads_map_the_ring_and_close_its_loop(started):
     stamps = np.array([k.stamp_s for k in mapper.keyframes])
     errors = np.linalg.norm(np.array(mapper.graph.poses)[:, :2] - truth[np.round(stamps / 0.1).astype(int), :2], axis=1)
     assert np.sqrt(np.mean(errors ** 2)) < 0.05 and errors.max() < 0.1
-    # A map on request, built from the corrected poses.
-    before = len(events.maps)
-    mapping.request_map()
-    holds.wait_until(0)
-    assert len(events.maps) == before + 1
+    # A map on request, built from the corrected poses: the same grid as a rebuild from every
+    # keyframe, though most updates drew only the keyframes new since the one before.
+    for _ in range(3):
+        before = len(events.maps)
+        mapping.add_scan(scan(len(truth) - 1, truth, odom))  # standing still: no keyframe, no new pose
+        mapping.request_map()
+        holds.wait_until(0)
+        assert len(events.maps) == before + 1
+    rebuilt = mapper.grid()
+    assert events.last_map.origin == rebuilt.origin
+    np.testing.assert_array_equal(events.last_map.data, rebuilt.data)
+    assert 1 <= mapping.map_rebuilds <= len(events.merged) + 1 < len(events.maps)
 
 
 def test_a_failing_scan_is_warned_about_and_the_thread_goes_on(started, monkeypatch):

@@ -10,6 +10,7 @@ from pppbot_common.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from pppbot_common.se2 import se2_compose
 from pppbot_slam.occupancy import (
     BLOCK_CELLS,
+    GridCache,
     LogOddsGrid,
     OccupancyError,
     OccupancySettings,
@@ -219,6 +220,36 @@ def test_build_equals_incremental_integration_in_any_order():
         np.testing.assert_array_equal(a.data, b.data)
         np.testing.assert_array_equal(grid.observed, built.observed)
         np.testing.assert_allclose(grid.log_odds(), built.log_odds(), atol=1e-5)
+
+
+def test_the_cache_draws_only_new_scans_and_rebuilds_when_a_drawn_one_moves_or_leaves():
+    rng = np.random.default_rng(3)
+    poses = rng.uniform(-3.0, 3.0, (6, 3))
+    scans = [ScanRays.from_laser(-2.0, 4.0 / 199, rng.uniform(0.5, 6.0, 200), 0.1, 8.0) for _ in poses]
+    cache, settings = GridCache(), OccupancySettings()
+
+    def same_as_rebuild(grid, poses, scans):
+        built = LogOddsGrid.build(settings, poses, scans)
+        assert grid.bounds_m == built.bounds_m and grid.scan_count == len(scans)
+        np.testing.assert_array_equal(grid.log_odds(), built.log_odds())
+        np.testing.assert_array_equal(grid.observed, built.observed)
+
+    for count in (1, 3, 3, 6):  # scans added (or none): drawn on top of the kept grid
+        same_as_rebuild(cache.update(settings, poses[:count], scans[:count]), poses[:count], scans[:count])
+    assert cache.rebuilds == 1
+    moved = poses.copy()
+    moved[2, 0] += 0.01  # a loop closure moved one pose
+    same_as_rebuild(cache.update(settings, moved, scans), moved, scans)
+    assert cache.rebuilds == 2
+    kept = [0, 1, 3, 4, 5]  # a keyframe left the map
+    same_as_rebuild(cache.update(settings, moved[kept], [scans[k] for k in kept]), moved[kept],
+                    [scans[k] for k in kept])
+    assert cache.rebuilds == 3
+    other = [ScanRays(s.directions, s.ranges_m, s.range_min_m, s.range_max_m) for s in scans]  # a new mapper's
+    cache.update(settings, poses, other)
+    coarse = OccupancySettings(resolution_m=0.1)
+    assert cache.update(coarse, poses, other).settings == coarse
+    assert cache.rebuilds == 5
 
 
 def test_build_composes_the_sensor_mount():
