@@ -25,7 +25,7 @@ from typing import NamedTuple
 import numpy as np
 
 from pppbot_common.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
-from pppbot_common.se2 import PoseLike, finite_pose, se2_apply, se2_compose
+from pppbot_common.se2 import PoseLike, finite_pose, se2_apply, se2_compose, wrap_angles
 from pppbot_slam.errors import OccupancyError
 
 #: The reported grid extent is a multiple of this many cells, aligned to world (0, 0).
@@ -246,7 +246,9 @@ class LogOddsGrid:
         self._scan_count += 1
         if not used.size:
             return
-        # One update per cell per scan, hits taking precedence, inside the scan's window.
+        # One update per cell per scan, hits taking precedence: the cells the scan touched, found
+        # in its window, then updated where they are stored (only those: a scan touches a few
+        # percent of its window).
         rows, cols = hi_rel[1] - lo_rel[1], hi_rel[0] - lo_rel[0]
         flat = iy * cols
         flat += ix
@@ -254,16 +256,19 @@ class LogOddsGrid:
         seen, occupied = np.zeros((2, rows * cols), dtype=bool)
         seen[flat] = True
         occupied[flat[ends[beams.hit[used]]]] = True
-        seen, occupied = seen.reshape(rows, cols), occupied.reshape(rows, cols)
-        free = seen & ~occupied
-        r0, c0 = lo[1] - self._store_lo[1], lo[0] - self._store_lo[0]
-        window = (slice(r0, r0 + rows), slice(c0, c0 + cols))
-        log_odds = self._log_odds[window]
-        np.add(log_odds, np.float32(self._settings.miss_log_odds), out=log_odds, where=free)
-        np.add(log_odds, np.float32(self._settings.hit_log_odds), out=log_odds, where=occupied)
+        touched = np.flatnonzero(seen)
+        row, col = np.divmod(touched, cols)
+        row += lo[1] - self._store_lo[1]
+        col += lo[0] - self._store_lo[0]
+        stored = row * self._log_odds.shape[1]
+        stored += col
+        log_odds = self._log_odds.reshape(-1)  # views of the (contiguous) storage
+        change = np.where(occupied[touched], np.float32(self._settings.hit_log_odds),
+                          np.float32(self._settings.miss_log_odds))
+        change += log_odds[stored]
         clamp = np.float32(self._settings.clamp_log_odds)
-        np.clip(log_odds, -clamp, clamp, out=log_odds)
-        self._observed[window] |= seen
+        log_odds[stored] = np.clip(change, -clamp, clamp, out=change)
+        self._observed.reshape(-1)[stored] = True
 
     def _grow(self, lo: np.ndarray, hi: np.ndarray) -> None:
         """Extend the reported extent to hold world cells [lo, hi); re-allocate storage if needed."""
@@ -336,21 +341,31 @@ class LogOddsGrid:
 
 
 class GridCache:
-    """A :class:`LogOddsGrid` kept between map updates, so each update draws only the scans it
-    has not drawn yet. While the scans it drew stay first, in order and at the same poses, the
-    grid is exactly the full rebuild's; when one moves (an optimised pose graph), drops out or
-    the settings change, it is rebuilt from all of them. Not thread-safe: one caller at a time.
+    """A :class:`LogOddsGrid` kept between map updates, so that each update draws only the scans
+    it has not drawn yet instead of every scan again.
+
+    The grid stays as drawn while the scans it drew come first, in order, and each lies where it
+    was drawn to within half a cell: the pose moved at most ``resolution / 2`` once its turn
+    is counted at the scan's farthest beam end (``|Δxy| + reach·|Δyaw|``). Then every cell the
+    scan touched is within half a cell of where a rebuild would put it, and the small corrections
+    a pose graph makes while the robot goes over mapped ground cost nothing. A larger move (a
+    loop that bends the map), a scan that left the map or other settings redraw every scan at
+    its pose now. Each pose is compared with the one it was drawn at, so small moves do not add
+    up unseen. The result depends only on the poses and scans given, never on timing. Not
+    thread-safe: one caller at a time.
     """
 
     def __init__(self) -> None:
         self._grid: LogOddsGrid | None = None
-        self._poses = np.zeros((0, 3))  # the sensor poses of the scans drawn, in order
+        self._poses = np.zeros((0, 3))  # the sensor pose each drawn scan was drawn at, in order
         self._scans: list[ScanRays] = []
+        self._reach_m = np.zeros(0)  # each drawn scan's farthest beam end from its sensor
         self.rebuilds = 0  # full rebuilds so far (the first build counts as one)
 
     def update(self, settings: OccupancySettings, sensor_poses: np.ndarray | Sequence[PoseLike],
                scans: Sequence[ScanRays]) -> LogOddsGrid:
-        """The grid of ``scans`` at ``sensor_poses`` (as :meth:`LogOddsGrid.build` with no mount).
+        """The grid of ``scans`` at ``sensor_poses`` (as :meth:`LogOddsGrid.build` with no mount),
+        with scans drawn before kept where they were drawn if that is within half a cell.
 
         Raises:
             OccupancyError: as :meth:`LogOddsGrid.build`.
@@ -358,13 +373,26 @@ class GridCache:
         poses = np.asarray(sensor_poses, dtype=float)
         poses = poses.reshape(0, 3) if poses.size == 0 else poses
         drawn = len(self._scans)
-        if (self._grid is None or self._grid.settings != settings or len(scans) < drawn
-                or poses.shape != (len(scans), 3) or not np.array_equal(poses[:drawn], self._poses)
-                or any(a is not b for a, b in zip(self._scans, scans[:drawn], strict=True))):
+        if self._grid is None or self._redraw(settings, poses, scans):
             self._grid = LogOddsGrid.build(settings, poses, scans)
+            self._poses, self._scans, self._reach_m = poses.copy(), [], np.zeros(0)
             self.rebuilds += 1
+            drawn = 0
         else:
             for pose, scan in zip(poses[drawn:], scans[drawn:], strict=True):
                 self._grid.add_scan(pose, scan)
-        self._poses, self._scans = poses.copy(), list(scans)
+            self._poses = np.concatenate([self._poses, poses[drawn:]])
+        reach = [float(scan.classify(settings.max_range_m).length_m.max(initial=0.0)) for scan in scans[drawn:]]
+        self._scans += scans[drawn:]
+        self._reach_m = np.concatenate([self._reach_m, reach])
         return self._grid
+
+    def _redraw(self, settings: OccupancySettings, poses: np.ndarray, scans: Sequence[ScanRays]) -> bool:
+        drawn = len(self._scans)
+        if (self._grid is None or self._grid.settings != settings or len(scans) < drawn
+                or poses.shape != (len(scans), 3)
+                or any(a is not b for a, b in zip(self._scans, scans[:drawn], strict=True))):
+            return True
+        moved = poses[:drawn] - self._poses
+        shift_m = np.hypot(moved[:, 0], moved[:, 1]) + self._reach_m * np.abs(wrap_angles(moved[:, 2]))
+        return bool(np.any(shift_m > settings.resolution_m / 2))

@@ -222,10 +222,11 @@ def test_build_equals_incremental_integration_in_any_order():
         np.testing.assert_allclose(grid.log_odds(), built.log_odds(), atol=1e-5)
 
 
-def test_the_cache_draws_only_new_scans_and_rebuilds_when_a_drawn_one_moves_or_leaves():
+def test_the_cache_draws_only_new_scans_and_redraws_when_a_drawn_one_moves_half_a_cell_or_leaves():
     rng = np.random.default_rng(3)
     poses = rng.uniform(-3.0, 3.0, (6, 3))
     scans = [ScanRays.from_laser(-2.0, 4.0 / 199, rng.uniform(0.5, 6.0, 200), 0.1, 8.0) for _ in poses]
+    reach = np.array([s.ranges_m.max() for s in scans])  # every beam ends in range
     cache, settings = GridCache(), OccupancySettings()
 
     def same_as_rebuild(grid, poses, scans):
@@ -234,22 +235,32 @@ def test_the_cache_draws_only_new_scans_and_rebuilds_when_a_drawn_one_moves_or_l
         np.testing.assert_array_equal(grid.log_odds(), built.log_odds())
         np.testing.assert_array_equal(grid.observed, built.observed)
 
-    for count in (1, 3, 3, 6):  # scans added (or none): drawn on top of the kept grid
+    for count in (1, 3, 3, 6):  # scans added (or none): drawn on top of the kept grid, as a rebuild
         same_as_rebuild(cache.update(settings, poses[:count], scans[:count]), poses[:count], scans[:count])
     assert cache.rebuilds == 1
-    moved = poses.copy()
-    moved[2, 0] += 0.01  # a loop closure moved one pose
-    same_as_rebuild(cache.update(settings, moved, scans), moved, scans)
+    # A correction within half a cell at each scan's farthest end leaves the grid as it was drawn.
+    nudged = poses.copy()
+    nudged[2, 0] += 0.01
+    nudged[4, 2] += 0.02 / reach[4]
+    same_as_rebuild(cache.update(settings, nudged, scans), poses, scans)
+    # Moves are measured from where each scan was drawn: two nudges together are a redraw.
+    nudged[2, 0] += 0.01
+    nudged[2, 2] += 0.006 / reach[2]
+    same_as_rebuild(cache.update(settings, nudged, scans), nudged, scans)
     assert cache.rebuilds == 2
-    kept = [0, 1, 3, 4, 5]  # a keyframe left the map
-    same_as_rebuild(cache.update(settings, moved[kept], [scans[k] for k in kept]), moved[kept],
-                    [scans[k] for k in kept])
+    turned = nudged.copy()
+    turned[5, 2] += 0.03 / reach[5]  # 3 cm at its farthest beam end
+    same_as_rebuild(cache.update(settings, turned, scans), turned, scans)
     assert cache.rebuilds == 3
+    kept = [0, 1, 3, 4, 5]  # a keyframe left the map
+    same_as_rebuild(cache.update(settings, turned[kept], [scans[k] for k in kept]), turned[kept],
+                    [scans[k] for k in kept])
+    assert cache.rebuilds == 4
     other = [ScanRays(s.directions, s.ranges_m, s.range_min_m, s.range_max_m) for s in scans]  # a new mapper's
     cache.update(settings, poses, other)
     coarse = OccupancySettings(resolution_m=0.1)
     assert cache.update(coarse, poses, other).settings == coarse
-    assert cache.rebuilds == 5
+    assert cache.rebuilds == 6
 
 
 def test_build_composes_the_sensor_mount():

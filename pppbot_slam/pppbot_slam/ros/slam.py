@@ -407,7 +407,7 @@ class Slam(StepNode):
             self._publish_diagnostics(stamp)
 
     def _publish_diagnostics(self, stamp: Any) -> None:
-        health = self.mapping.read(Mapper.health)
+        health = {**self.mapping.read(Mapper.health), "map_rebuilds": self.mapping.map_rebuilds}
         status = DiagnosticStatus(name=f"{self.get_name()}: mapping", hardware_id=self.params.scan_topic)
         if health["lost"]:
             status.level, status.message = DiagnosticStatus.WARN, "lost: scans do not match the map"
