@@ -1,39 +1,19 @@
 """``pppbot eval`` end to end in the box room (drive, slam, localization, navigation): the real stack over DDS,
-reports read back."""
+reports read back. The lockstep runs on a busy machine are in test_busy_machine.py."""
 from __future__ import annotations
 
 import json
 import math
-import sys
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
+from eval_runs import box_room_map, run_eval
 from PIL import Image
 
 from pppbot_common.maps import OCCUPIED, load_map
-from pppbot_common.process import ChildProcess
 from pppbot_slam.mapper import MapperSettings
 from pppbot_slam.serialization import load_posegraph
-
-ROOT = Path(__file__).resolve().parents[2]
-PPPBOT = str(ROOT / "pppbot")
-BOX_ROOM = str(ROOT / "tests" / "pppbot_sim" / "data" / "box_room.sdf")
-
-
-def run_eval(spawn: Callable[..., ChildProcess], out: Path, *extra: str,
-             scenario: str = "drive", view: bool = False) -> tuple[int, dict[str, Any], str]:
-    """Exit code, the report from stdout, and stderr (progress, node warnings). ``view``: ``--view``
-    (the live view's recording is tested once, in the slam run; the others run on the default, none)."""
-    stderr = out.parent / f"{out.name}.stderr"
-    child = spawn(["bash", "-c", f'exec "$0" "$@" 2>"{stderr}"', PPPBOT, "eval", scenario, "--world", BOX_ROOM,
-                   "--out", str(out), "--json", *(("--view",) if view else ()), *extra], name="eval")
-    code = child.wait(timeout_s=240)
-    stdout_lines = child.output.strip().splitlines()
-    assert len(stdout_lines) == 1, child.output  # with --json, stdout is the report alone
-    return code, json.loads(stdout_lines[0]), stderr.read_text()
 
 
 def test_drive_scenario_reports_odometry_drift_against_ground_truth(spawn, tmp_path: Path):
@@ -111,12 +91,6 @@ def test_slam_scenario_maps_the_room_and_tracks_the_robot(spawn, tmp_path: Path,
     assert all(np.isfinite(k.rays.ranges_m).sum() > 100 for k in graph.keyframes)
 
 
-def box_room_map(spawn: Callable[..., ChildProcess], folder: Path) -> Path:
-    """The room's ground-truth map, as maps/<world>.yaml would hold it."""
-    saver = spawn([PPPBOT, "run", "pppbot_sim", "ground_truth_map", f"world:={BOX_ROOM}",
-                   f"output:={folder / 'box_room'}"], name="ground_truth_map")
-    assert saver.wait(timeout_s=120) == 0, saver.output
-    return folder / "box_room.yaml"
 
 
 def test_localization_scenario_recovers_from_a_wrong_initial_pose_on_the_rooms_map(spawn, tmp_path: Path):
@@ -170,67 +144,3 @@ def test_navigation_scenario_reaches_random_goals_judged_on_ground_truth(spawn, 
     for log in ("navigation-1.log", "localization-1.log"):  # composed: planner, controller, navigator; map_server, amcl
         assert (out / "logs" / log).is_file()
     assert "process has died" not in output
-
-
-def busy_loops(spawn: Callable[..., ChildProcess]) -> None:
-    """Two busy loops, one pinned to each core: the machine as loaded as it gets (they end with the test)."""
-    for core in (0, 1):
-        spawn(["taskset", "-c", str(core), sys.executable, "-c", "while True: pass"], name=f"busy_loop_{core}")
-
-
-VARYING = {"wall_seconds", "real_time_factor", "out", "map", "posegraph"}
-
-
-@pytest.mark.heavy
-@pytest.mark.exclusive
-def test_lockstep_slam_is_the_same_run_on_a_busy_machine(spawn, tmp_path: Path):
-    """Lockstep (eval's default): the same seed gives the same run to the bit, once beside the suite
-    and once with both cores taken by busy loops: every recorded series (ground truth, odometry,
-    SLAM's map -> odom), the saved map and the report."""
-    recordings, reports, maps = [], [], []
-    for name in ("first", "busy"):
-        if name == "busy":
-            busy_loops(spawn)
-        out = tmp_path / name
-        code, report, output = run_eval(spawn, out, "--seed", "3", "--wheel-slip", "0.03", "--timeout", "40",
-                                        scenario="slam")
-        assert report["lockstep"] is True, output
-        assert "go on without" not in output and "skipped" not in output, output  # nothing by wall clock
-        with np.load(out / "recording.npz") as data:
-            recordings.append({key: data[key] for key in data.files})
-        reports.append(report)
-        maps.append((out / "map.pgm").read_bytes())
-    first, busy = recordings
-    assert first.keys() == busy.keys() and len(first["truth"]) > 500 and "tf_map__odom" in first
-    for key in first:
-        assert np.array_equal(first[key], busy[key]), key
-    assert maps[0] == maps[1]
-    assert {k: v for k, v in reports[0].items() if k not in VARYING} == \
-           {k: v for k, v in reports[1].items() if k not in VARYING}
-
-
-@pytest.mark.exclusive
-def test_lockstep_navigation_is_the_same_run_on_a_busy_machine(spawn, tmp_path: Path):
-    """Navigation in lockstep (AMCL, and the planner, controller_server and navigator composed):
-    the same seed gives the same run to the bit (ground-truth trajectory, goal outcomes,
-    collisions), once beside the suite and once with both cores taken by busy loops."""
-    map_file = box_room_map(spawn, tmp_path)
-    runs = []
-    for name in ("first", "busy"):
-        if name == "busy":
-            busy_loops(spawn)
-        out = tmp_path / name
-        code, report, output = run_eval(spawn, out, "--seed", "4", "--map", str(map_file), "--goals", "2",
-                                        "--goal-distance", "1.5", "--start", "-0.8", "-0.8", "0",
-                                        scenario="navigation")
-        assert code == 0, output
-        assert "go on without" not in output, output
-        with np.load(out / "recording.npz") as data:
-            runs.append((report, {key: data[key] for key in data.files}))
-    (first, first_data), (busy, busy_data) = runs
-    assert first["successes"] == busy["successes"] == 2
-    assert [r["status"] for r in first["goal_results"]] == [r["status"] for r in busy["goal_results"]]
-    assert first["collisions"] == busy["collisions"] == 0
-    assert len(first_data["truth"]) > 300
-    for key in first_data:
-        assert np.array_equal(first_data[key], busy_data[key]), key

@@ -8,7 +8,7 @@ smoothed as it comes (at the step it arrives in lockstep), and the node's timer,
 ``smoothing_frequency`` from the start, smooths again when no command came within a period (Nav2
 publishes on its timer only: with the controller at the smoothing frequency the outputs are the
 same; in lockstep a relay on the command's own step keeps runs identical, which a timer-only
-relay did not, measured by tests/integration/test_eval_drive.py's busy-machine run). With
+relay did not, measured by tests/integration/test_busy_machine.py). With
 ``feedback: CLOSED_LOOP`` the current velocity is the odometry on ``odom_topic`` averaged over
 ``odom_duration`` s. A command that is ``velocity_timeout`` s old is replaced by zero; once the
 output is zero the node is quiet until the next command.
