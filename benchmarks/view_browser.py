@@ -14,6 +14,8 @@ open page:
 and every ``--goal-period`` seconds it uses the page's 2D Goal Pose tool (button, two clicks on
 the map) and times the second click until ``/goal_pose`` arrives. ``--late-pages`` more pages,
 each in a browser of its own, open at even times through the run for ``--late-seconds`` each.
+The latency target is judged on one browser open (a user's page); samples taken while a late
+page's browser runs beside the first page's are reported apart (``latency_s_max_two_browsers``).
 
 One JSON object is the last line: the figures, their targets, and every sample. Ctrl-C ends the
 run early, with the figures so far.
@@ -150,9 +152,11 @@ def latency_s(page: Any, robot: Robot, max_wait_s: float) -> float | None:
     return None if STOPPING.is_set() else math.inf
 
 
-def sample(watched: Watched, robot: Robot, t0: float, max_wait_s: float) -> dict[str, Any]:
+def sample(watched: Watched, robot: Robot, t0: float, max_wait_s: float, browsers: int = 1) -> dict[str, Any]:
+    """One latency and memory sample of ``watched``, with ``browsers`` open on the machine."""
     row: dict[str, Any] = {"page": watched.name, "run_s": round(time.monotonic() - t0),
-                           "open_s": round(time.monotonic() - watched.opened_s), "sim_s": round(robot.sim_s, 1)}
+                           "open_s": round(time.monotonic() - watched.opened_s), "sim_s": round(robot.sim_s, 1),
+                           "browsers": browsers}
     try:
         problem = viewer_problem(watched.page)
         latency = latency_s(watched.page, robot, max_wait_s) if problem is None else None
@@ -205,7 +209,12 @@ def figures(pages: list[Watched], args: argparse.Namespace, wall_s: float, robot
     rows = [r for w in pages for r in w.samples]
     latencies = [r["latency_s"] for r in rows if r.get("latency_s") is not None]
     # The first minute of a page is its start (the viewer loads and catches up): reported apart.
-    settled = [r["latency_s"] for r in rows if r.get("latency_s") is not None and r["open_s"] >= 60]
+    # The target is for one page open at a time (a user's); while a late page runs beside the
+    # first, two software-rendered browsers share the cores: reported apart too.
+    settled = [r["latency_s"] for r in rows
+               if r.get("latency_s") is not None and r["open_s"] >= 60 and r.get("browsers", 1) == 1]
+    beside = [r["latency_s"] for r in rows
+              if r.get("latency_s") is not None and r["open_s"] >= 60 and r.get("browsers", 1) > 1]
     clicks = [c for w in pages for c in w.clicks_s]
     result = {
         "world": args.world, "seconds": round(wall_s), "sim_seconds": round(robot.sim_s),
@@ -215,6 +224,7 @@ def figures(pages: list[Watched], args: argparse.Namespace, wall_s: float, robot
         "latency_s_max": max(latencies, default=None),
         "latency_s_median": statistics.median(latencies) if latencies else None,
         "latency_s_max_after_first_minute": max(settled, default=None),
+        "latency_s_max_two_browsers": max(beside, default=None),
         "click_to_goal_s_max": max(clicks, default=None),
         "click_to_goal_s_median": statistics.median(clicks) if clicks else None,
         "targets": TARGETS, "samples": rows,
@@ -297,11 +307,11 @@ def main() -> None:
                 if now >= next_sample:
                     next_sample = now + args.sample
                     for watched in open_pages:
-                        sample(watched, robot, t0, args.max_wait)
+                        sample(watched, robot, t0, args.max_wait, len(open_pages))
                 time.sleep(0.5)
             last = ([] if args.no_first_page else [pages[0]]) + ([pages[-1]] if late is not None else [])
             for watched in [] if STOPPING.is_set() else last:  # a last sample, unless stopped by Ctrl-C
-                sample(watched, robot, t0, args.max_wait)
+                sample(watched, robot, t0, args.max_wait, len(last))
             if args.screenshot is not None and not args.no_first_page and pages[0].dead is None:
                 pages[0].page.screenshot(path=str(args.screenshot))
             if late is not None:
@@ -315,7 +325,9 @@ def main() -> None:
     result = figures(pages, args, wall_s, robot)
     print(f"{result['pages_alive']} of {result['pages']} pages alive; tab at most {result['tab_mb_max']} MB; "
           f"latency at most {result['latency_s_max']} s (after a page's first minute "
-          f"{result['latency_s_max_after_first_minute']} s); click to goal at most {result['click_to_goal_s_max']} s")
+          f"{result['latency_s_max_after_first_minute']} s with one browser, "
+          f"{result['latency_s_max_two_browsers']} s with two); "
+          f"click to goal at most {result['click_to_goal_s_max']} s")
     print(json.dumps(result))
     sys.exit(0 if all(result["met"].values()) else 1)
 
