@@ -29,7 +29,7 @@ import numpy as np
 from pppbot_common.maps import OccupancyGrid
 from pppbot_slam.loops import LOOP_SEE_THROUGH_MAX, LoopMatch, solve_loops
 from pppbot_slam.mapper import Mapper
-from pppbot_slam.occupancy import GridCache, ScanRays
+from pppbot_slam.occupancy import GridCache, LogOddsGrid, ScanRays
 
 #: Scans (with their odometry) waiting for the processing thread; beyond this the oldest goes.
 MAX_QUEUED = 200
@@ -126,7 +126,7 @@ class AsyncMapper:
         self._map_holds: list[Release] = []
         self._map_lock = threading.Lock()
         self._grid = GridCache()  # the map so far: each update draws only the new keyframes
-        self._grid_lock = threading.Lock()  # the map thread and a save_map call both build
+        self._grid_lock = threading.Lock()  # the kept grid: one build_map at a time
         self._stopping = threading.Event()
         self._threads = [
             threading.Thread(target=self._serve, args=(self._scans, self.process, "process",
@@ -250,15 +250,18 @@ class AsyncMapper:
             self._map_holds.append(self.hold())
         self._map_wake.set()
 
-    def build_map(self) -> OccupancyGrid | None:
+    def build_map(self, exact: bool = False) -> OccupancyGrid | None:
         """The grid from the keyframes' current poses, built outside the lock (scans go on);
         None before the first keyframe. Only keyframes new since the last build are drawn,
-        unless the poses moved (a loop closed), a keyframe left the map, or the mapper was
-        replaced: then the grid is rebuilt from every keyframe."""
+        unless a correction moved a drawn one by over half a cell, a keyframe left the map, or
+        the mapper was replaced (:class:`GridCache`). ``exact``: built anew from every keyframe
+        at its pose now, leaving the kept grid alone (a saved map)."""
         with self.lock:
             if not self._mapper.keyframes:
                 return None
             inputs = self._mapper.grid_inputs()
+        if exact:
+            return LogOddsGrid.build(*inputs).to_occupancy_grid(self.map_frame)
         with self._grid_lock:
             return self._grid.update(*inputs).to_occupancy_grid(self.map_frame)
 

@@ -23,7 +23,7 @@ The flow of slam_toolbox's (Karto's) mapper, with its parameter names:
   (:data:`LOST_KEYFRAMES`), says so in :meth:`Mapper.health`, and is found again only by a
   match as good as a loop closure's (``loop_match_minimum_response_fine``).
 * ``map → odom`` is the latest keyframe's map pose composed with the inverse of its
-  odometry pose; the grid is rebuilt from the optimised poses on request.
+  odometry pose; the grid is built from the optimised poses on request.
 
 Poses of the robot are of its base frame; the lidar sits at ``sensor_offset`` in it.
 No ROS here.

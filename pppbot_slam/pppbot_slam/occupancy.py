@@ -1,4 +1,5 @@
-"""Log-odds occupancy grid rebuilt from laser scans at (optimised) sensor poses.
+"""Log-odds occupancy grid drawn from laser scans at (optimised) sensor poses: rebuilt whole, or
+kept between map updates by :class:`GridCache`.
 
 The update follows OctoMap (Hornung et al., Autonomous Robots 34(3), 2013, §III-C): a
 cell is updated at most ONCE per scan, a "hit" if some beam ends in it, else a "miss"
@@ -260,15 +261,12 @@ class LogOddsGrid:
         row, col = np.divmod(touched, cols)
         row += lo[1] - self._store_lo[1]
         col += lo[0] - self._store_lo[0]
-        stored = row * self._log_odds.shape[1]
-        stored += col
-        log_odds = self._log_odds.reshape(-1)  # views of the (contiguous) storage
         change = np.where(occupied[touched], np.float32(self._settings.hit_log_odds),
                           np.float32(self._settings.miss_log_odds))
-        change += log_odds[stored]
+        change += self._log_odds[row, col]
         clamp = np.float32(self._settings.clamp_log_odds)
-        log_odds[stored] = np.clip(change, -clamp, clamp, out=change)
-        self._observed.reshape(-1)[stored] = True
+        self._log_odds[row, col] = np.clip(change, -clamp, clamp, out=change)
+        self._observed[row, col] = True
 
     def _grow(self, lo: np.ndarray, hi: np.ndarray) -> None:
         """Extend the reported extent to hold world cells [lo, hi); re-allocate storage if needed."""
@@ -346,13 +344,15 @@ class GridCache:
 
     The grid stays as drawn while the scans it drew come first, in order, and each lies where it
     was drawn to within half a cell: the pose moved at most ``resolution / 2`` once its turn
-    is counted at the scan's farthest beam end (``|Δxy| + reach·|Δyaw|``). Then every cell the
-    scan touched is within half a cell of where a rebuild would put it, and the small corrections
-    a pose graph makes while the robot goes over mapped ground cost nothing. A larger move (a
-    loop that bends the map), a scan that left the map or other settings redraw every scan at
-    its pose now. Each pose is compared with the one it was drawn at, so small moves do not add
-    up unseen. The result depends only on the poses and scans given, never on timing. Not
-    thread-safe: one caller at a time.
+    is counted at the scan's farthest beam end (``|Δxy| + reach·|Δyaw|``). Then every point of
+    the scan's beams lies within half a cell of where a rebuild would put it (a cell it marks is
+    at most one cell off), and the small corrections a pose graph makes while the robot goes
+    over mapped ground cost nothing. A larger move (a loop that bends the map), a scan that left
+    the map or other settings redraw every scan at its pose now. Each pose is compared with the
+    one it was drawn at, so small moves do not add up unseen. The grid depends on the sequence
+    of updates (a scan stays where it was first drawn), so the same updates give the same grid:
+    in lockstep, the same on every machine. For the grid of the poses as they are now (a saved
+    map), use :meth:`LogOddsGrid.build`. Not thread-safe: one caller at a time.
     """
 
     def __init__(self) -> None:
@@ -379,8 +379,12 @@ class GridCache:
             self.rebuilds += 1
             drawn = 0
         else:
-            for pose, scan in zip(poses[drawn:], scans[drawn:], strict=True):
-                self._grid.add_scan(pose, scan)
+            try:
+                for pose, scan in zip(poses[drawn:], scans[drawn:], strict=True):
+                    self._grid.add_scan(pose, scan)
+            except BaseException:
+                self._grid = None  # partly drawn: the next update starts over
+                raise
             self._poses = np.concatenate([self._poses, poses[drawn:]])
         reach = [float(scan.classify(settings.max_range_m).length_m.max(initial=0.0)) for scan in scans[drawn:]]
         self._scans += scans[drawn:]

@@ -263,6 +263,43 @@ def test_the_cache_draws_only_new_scans_and_redraws_when_a_drawn_one_moves_half_
     assert cache.rebuilds == 6
 
 
+def test_the_cache_measures_a_turn_across_pi_and_at_the_reach_of_beams_without_return():
+    settings = OccupancySettings(max_range_m=4.0)
+    ranges = np.full(90, np.inf)
+    ranges[::3] = 1.5  # a third return at 1.5 m; the rest clear up to max_range_m (4 m), not range_max
+    scan = ScanRays.from_laser(-1.0, 2.0 / 89, ranges, 0.1, 8.0)
+    cache = GridCache()
+    cache.update(settings, [[1.0, 2.0, math.pi - 0.001]], [scan])
+    turned = [[1.0, 2.0, -math.pi + 0.001 + 0.01 / 4.0]]  # 0.0045 rad across ±pi: 1.8 cm at 4 m
+    cache.update(settings, turned, [scan])
+    assert cache.rebuilds == 1
+    turned = [[1.0, 2.0, math.pi - 0.001 + 0.03 / 4.0]]  # 3 cm at 4 m (though only 1.1 cm at 1.5 m)
+    cache.update(settings, turned, [scan])
+    assert cache.rebuilds == 2
+
+
+def test_a_failed_update_is_drawn_again_whole(monkeypatch):
+    rng = np.random.default_rng(5)
+    poses = rng.uniform(-2.0, 2.0, (3, 3))
+    scans = [ScanRays.from_laser(-2.0, 4.0 / 99, rng.uniform(0.5, 4.0, 100), 0.1, 8.0) for _ in poses]
+    cache, settings = GridCache(), OccupancySettings()
+    cache.update(settings, poses[:1], scans[:1])
+    real, calls = LogOddsGrid.add_scan, []
+
+    def fails_second(self, pose, rays):
+        calls.append(1)
+        if len(calls) == 2:
+            raise MemoryError("no room")
+        real(self, pose, rays)
+    monkeypatch.setattr(LogOddsGrid, "add_scan", fails_second)
+    with pytest.raises(MemoryError):
+        cache.update(settings, poses, scans)  # scan 1 drawn, scan 2 failed
+    monkeypatch.undo()
+    grid = cache.update(settings, poses, scans)
+    assert cache.rebuilds == 2  # not scan 1 twice
+    np.testing.assert_array_equal(grid.log_odds(), LogOddsGrid.build(settings, poses, scans).log_odds())
+
+
 def test_build_composes_the_sensor_mount():
     base_poses = np.array([[0.0, 0.0, 0.5], [0.4, -0.3, 1.5]])
     mount = (0.2, 0.05, 0.1)

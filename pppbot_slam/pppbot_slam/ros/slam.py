@@ -5,8 +5,9 @@ saved pose graph instead, as slam_toolbox's ``localization_slam_toolbox_node`` d
 (:mod:`pppbot_slam.ros.localization`).
 
 Subscribes ``scan`` and TF (``odom_frame → base_frame`` at each scan's stamp, and the
-lidar's mounting); publishes ``/map`` and ``/map_metadata`` (transient local, rebuilt
-every ``map_update_interval`` in a thread of its own, so mapping never blocks scans),
+lidar's mounting); publishes ``/map`` and ``/map_metadata`` (transient local, updated
+every ``map_update_interval`` in a thread of its own, so mapping never blocks scans; a saved
+map is built anew from every keyframe at its optimised pose),
 ``pose`` (PoseWithCovarianceStamped of ``base_frame`` in ``map_frame``), and the TF
 ``map_frame → odom_frame`` every ``transform_publish_period``, stamped ahead by
 ``transform_timeout`` as slam_toolbox does, the pose graph as markers
@@ -106,7 +107,7 @@ class SlamParameters:
     max_laser_range: float = param(20.0, "beams are used up to this range (m)")
     minimum_travel_distance: float = param(0.5, "travel between keyframes (m)")
     minimum_travel_heading: float = param(0.5, "turn between keyframes (rad)")
-    map_update_interval: float = param(5.0, "seconds between map rebuilds")
+    map_update_interval: float = param(5.0, "seconds between map updates")
     transform_publish_period: float = param(0.02, "seconds between map → odom transforms")
     transform_timeout: float = param(0.2, "map → odom is stamped this far ahead (s)")
     tf_buffer_duration: float = param(30.0, "seconds of TF history kept")
@@ -428,7 +429,7 @@ class Slam(StepNode):
     # -------------------------------------------------------------- services
     def _save_map(self, request: SaveMap.Request, response: SaveMap.Response) -> SaveMap.Response:
         """The map as map_saver writes it: ``<name>.yaml`` + ``<name>.pgm``."""
-        grid = self.mapping.build_map()
+        grid = self.mapping.build_map(exact=True)
         if grid is None:
             self.get_logger().error("save_map: no map yet, no scan has been processed")
             response.result = SaveMap.Response.RESULT_NO_MAP_RECEIEVD
