@@ -92,14 +92,12 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Files with a test marked ``heavy`` (whole stacks, a browser: minutes each) come first and files
-    with an ``exclusive`` test last, each file's tests in their order. ``make test`` runs files in
-    parallel, one worker per core and in this order (``--dist loadfile --no-loadscope-reorder``):
-    the long files start at once and the many short ones fill the cores, instead of one long file
-    running alone last; a test that runs alone waits only for the other workers' last short tests."""
+    """Files with a test marked ``heavy`` (whole stacks, a browser: minutes each) come first, each
+    file's tests in their order. ``make test`` runs files in parallel, one worker per core and in
+    this order (``--dist loadfile --no-loadscope-reorder``): the long files start at once and the
+    many short ones fill the cores at the end, instead of one long file running alone last."""
     heavy = {item.path for item in items if item.get_closest_marker("heavy")}
-    exclusive = {item.path for item in items if item.get_closest_marker("exclusive")}
-    items.sort(key=lambda item: 2 if item.path in exclusive else item.path not in heavy)
+    items.sort(key=lambda item: item.path not in heavy)
 
 
 @pytest.fixture(autouse=True)

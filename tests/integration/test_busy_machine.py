@@ -1,6 +1,6 @@
 """Lockstep gives the same run to the bit on a machine as loaded as it gets: ``pppbot eval`` twice
 with one seed, once beside the suite and once with both cores taken by busy loops. Each test runs
-alone (``exclusive``); this file comes last in a parallel run, so they wait for little."""
+alone (``exclusive``)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -12,6 +12,7 @@ from eval_runs import box_room_map, busy_loops, run_eval
 VARYING = {"wall_seconds", "real_time_factor", "out", "map", "posegraph"}
 
 
+@pytest.mark.heavy
 @pytest.mark.exclusive
 def test_lockstep_slam_is_the_same_run_on_a_busy_machine(spawn, tmp_path: Path):
     """Lockstep (eval's default): the same seed gives the same run to the bit, once beside the suite
