@@ -253,9 +253,9 @@ class AsyncMapper:
     def build_map(self, exact: bool = False) -> OccupancyGrid | None:
         """The grid from the keyframes' current poses, built outside the lock (scans go on);
         None before the first keyframe. Only keyframes new since the last build are drawn,
-        unless a correction moved a drawn one by over half a cell, a keyframe left the map, or
-        the mapper was replaced (:class:`GridCache`). ``exact``: built anew from every keyframe
-        at its pose now, leaving the kept grid alone (a saved map)."""
+        unless a correction moved a drawn one by over half a cell (within a budget of redraws),
+        a keyframe left the map, or the mapper was replaced (:class:`GridCache`). ``exact``:
+        built anew from every keyframe at its pose now, leaving the kept grid alone (a saved map)."""
         with self.lock:
             if not self._mapper.keyframes:
                 return None
@@ -269,6 +269,12 @@ class AsyncMapper:
     def map_rebuilds(self) -> int:
         """Full map rebuilds so far (the rest of the map updates drew only new keyframes)."""
         return self._grid.rebuilds
+
+    @property
+    def map_stale_keyframes(self) -> int:
+        """Keyframes the last map drew over half a cell from their pose now, waiting for a
+        redraw within the budget (:class:`GridCache`)."""
+        return self._grid.stale
 
     def _map_loop(self) -> None:
         while not self._stopping.is_set():

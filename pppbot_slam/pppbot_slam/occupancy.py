@@ -347,20 +347,34 @@ class GridCache:
     is counted at the scan's farthest beam end (``|Δxy| + reach·|Δyaw|``). Then every point of
     the scan's beams lies within half a cell of where a rebuild would put it (a cell it marks is
     at most one cell off), and the small corrections a pose graph makes while the robot goes
-    over mapped ground cost nothing. A larger move (a loop that bends the map), a scan that left
-    the map or other settings redraw every scan at its pose now. Each pose is compared with the
-    one it was drawn at, so small moves do not add up unseen. The grid depends on the sequence
-    of updates (a scan stays where it was first drawn), so the same updates give the same grid:
-    in lockstep, the same on every machine. For the grid of the poses as they are now (a saved
-    map), use :meth:`LogOddsGrid.build`. Not thread-safe: one caller at a time.
+    over mapped ground cost nothing. A scan that left the map or other settings redraw every
+    scan at its pose now, at once. A larger move (a loop that bends the map) does too, within a
+    budget: each update earns ``redraw_per_update`` scan draws, kept up to one redraw's worth
+    (every scan), and a redraw spends as many as it draws. So a rare correction is drawn at
+    once, and a map corrected at every update, however large, costs at most about
+    ``redraw_per_update`` scan draws per update on average; meanwhile new scans are drawn at
+    their poses and the moved ones stay where they were drawn (:attr:`stale` counts them).
+    Each pose is compared with the one it was drawn at, so small moves do not add up unseen.
+    The grid depends on the sequence of updates (a scan stays where it was first drawn), so
+    the same updates give the same grid: in lockstep, the same on every machine. For the grid
+    of the poses as they are now (a saved map), use :meth:`LogOddsGrid.build`. Not
+    thread-safe: one caller at a time.
+
+    Raises:
+        OccupancyError: ``redraw_per_update`` below 1.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, redraw_per_update: int = 250) -> None:
+        if isinstance(redraw_per_update, bool) or not isinstance(redraw_per_update, int) or redraw_per_update < 1:
+            raise OccupancyError(f"redraw_per_update must be an integer >= 1, not {redraw_per_update!r}")
+        self.redraw_per_update = redraw_per_update
         self._grid: LogOddsGrid | None = None
         self._poses = np.zeros((0, 3))  # the sensor pose each drawn scan was drawn at, in order
         self._scans: list[ScanRays] = []
         self._reach_m = np.zeros(0)  # each drawn scan's farthest beam end from its sensor
+        self._credit = 0  # scan draws earned towards a redraw
         self.rebuilds = 0  # full rebuilds so far (the first build counts as one)
+        self.stale = 0  # drawn scans more than half a cell from their pose, waiting for a redraw
 
     def update(self, settings: OccupancySettings, sensor_poses: np.ndarray | Sequence[PoseLike],
                scans: Sequence[ScanRays]) -> LogOddsGrid:
@@ -373,12 +387,17 @@ class GridCache:
         poses = np.asarray(sensor_poses, dtype=float)
         poses = poses.reshape(0, 3) if poses.size == 0 else poses
         drawn = len(self._scans)
-        if self._grid is None or self._redraw(settings, poses, scans):
+        self._credit = min(self._credit + self.redraw_per_update, max(len(scans), self.redraw_per_update))
+        replaced = self._grid is None or self._replaced(settings, poses, scans)
+        moved = 0 if replaced else self._moved(settings, poses)
+        if replaced or (moved and self._credit >= len(scans)):
             self._grid = LogOddsGrid.build(settings, poses, scans)
             self._poses, self._scans, self._reach_m = poses.copy(), [], np.zeros(0)
+            self._credit = max(self._credit - len(scans), 0)
             self.rebuilds += 1
-            drawn = 0
+            self.stale = drawn = 0
         else:
+            assert self._grid is not None
             try:
                 for pose, scan in zip(poses[drawn:], scans[drawn:], strict=True):
                     self._grid.add_scan(pose, scan)
@@ -386,17 +405,21 @@ class GridCache:
                 self._grid = None  # partly drawn: the next update starts over
                 raise
             self._poses = np.concatenate([self._poses, poses[drawn:]])
+            self.stale = moved
         reach = [float(scan.classify(settings.max_range_m).length_m.max(initial=0.0)) for scan in scans[drawn:]]
         self._scans += scans[drawn:]
         self._reach_m = np.concatenate([self._reach_m, reach])
         return self._grid
 
-    def _redraw(self, settings: OccupancySettings, poses: np.ndarray, scans: Sequence[ScanRays]) -> bool:
+    def _replaced(self, settings: OccupancySettings, poses: np.ndarray, scans: Sequence[ScanRays]) -> bool:
+        """Whether the drawn scans are no longer the first of ``scans`` or the settings changed."""
         drawn = len(self._scans)
-        if (self._grid is None or self._grid.settings != settings or len(scans) < drawn
+        return (self._grid is None or self._grid.settings != settings or len(scans) < drawn
                 or poses.shape != (len(scans), 3)
-                or any(a is not b for a, b in zip(self._scans, scans[:drawn], strict=True))):
-            return True
-        moved = poses[:drawn] - self._poses
+                or any(a is not b for a, b in zip(self._scans, scans[:drawn], strict=True)))
+
+    def _moved(self, settings: OccupancySettings, poses: np.ndarray) -> int:
+        """How many drawn scans lie more than half a cell from where they were drawn."""
+        moved = poses[:len(self._scans)] - self._poses
         shift_m = np.hypot(moved[:, 0], moved[:, 1]) + self._reach_m * np.abs(wrap_angles(moved[:, 2]))
-        return bool(np.any(shift_m > settings.resolution_m / 2))
+        return int(np.count_nonzero(shift_m > settings.resolution_m / 2))

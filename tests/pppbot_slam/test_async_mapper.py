@@ -122,6 +122,7 @@ def test_the_threads_map_the_ring_and_close_its_loop(started):
         holds.wait_until(0)
         assert len(events.maps) == before + 1
     assert 1 <= mapping.map_rebuilds <= len(events.maps) - 3  # standing still redraws nothing
+    assert mapping.map_stale_keyframes == 0  # a small map's redraws are never put off
     rebuilt = mapper.grid()
     assert events.last_map.origin == rebuilt.origin and events.last_map.data.shape == rebuilt.data.shape
     assert np.mean(events.last_map.data == rebuilt.data) > 0.98

@@ -263,6 +263,42 @@ def test_the_cache_draws_only_new_scans_and_redraws_when_a_drawn_one_moves_half_
     assert cache.rebuilds == 6
 
 
+def test_the_cache_spreads_redraws_over_updates_within_its_budget():
+    rng = np.random.default_rng(4)
+    poses = rng.uniform(-3.0, 3.0, (7, 3))
+    scans = [ScanRays.from_laser(-2.0, 4.0 / 99, rng.uniform(0.5, 5.0, 100), 0.1, 8.0) for _ in poses]
+    cache, settings = GridCache(redraw_per_update=2), OccupancySettings()
+
+    def rebuilt(grid, poses, scans):
+        return np.array_equal(grid.log_odds(), LogOddsGrid.build(settings, poses, scans).log_odds())
+
+    cache.update(settings, poses[:6], scans[:6])  # the first build is never deferred
+    assert (cache.rebuilds, cache.stale) == (1, 0)
+    moved = poses.copy()
+    moved[:3, 0] += 0.1  # a loop bent the map: three keyframes 10 cm off
+    # The first build spent what it earned. Then 2, 4, 6 scan draws earned, less than a redraw
+    # costs: the moved scans stay where they were drawn, a new one is drawn at its pose, the
+    # grid is the one drawn in that order.
+    grid = cache.update(settings, moved[:6], scans[:6])
+    assert (cache.rebuilds, cache.stale) == (1, 3) and rebuilt(grid, poses[:6], scans[:6])
+    for _ in range(2):
+        grid = cache.update(settings, moved, scans)
+        assert (cache.rebuilds, cache.stale) == (1, 3)
+        assert rebuilt(grid, np.concatenate([poses[:6], moved[6:]]), scans)
+    grid = cache.update(settings, moved, scans)  # 8 earned, kept up to 7, all 7 spent
+    assert (cache.rebuilds, cache.stale) == (2, 0) and rebuilt(grid, moved, scans)
+    moved[:3, 0] += 0.1
+    for _ in range(3):  # 2, 4, 6 < 7
+        cache.update(settings, moved, scans)
+        assert (cache.rebuilds, cache.stale) == (2, 3)
+    assert rebuilt(cache.update(settings, moved, scans), moved, scans) and cache.rebuilds == 3
+    # Other scans (a new mapper) are drawn at once, whatever the credit.
+    other = [ScanRays(s.directions, s.ranges_m, s.range_min_m, s.range_max_m) for s in scans]
+    assert rebuilt(cache.update(settings, moved, other), moved, other) and cache.rebuilds == 4
+    with pytest.raises(OccupancyError, match="redraw_per_update must be an integer >= 1, not 0"):
+        GridCache(redraw_per_update=0)
+
+
 def test_the_cache_measures_a_turn_across_pi_and_at_the_reach_of_beams_without_return():
     settings = OccupancySettings(max_range_m=4.0)
     ranges = np.full(90, np.inf)

@@ -254,6 +254,7 @@ def test_a_scan_from_an_unknown_frame_is_dropped_with_a_warning_and_health_stays
     health = room.health
     wait_until(lambda: health and health[-1]["lost"] == "false", 20, "a healthy /diagnostics", node=room.node)
     assert health[-1]["level"] == DiagnosticStatus.OK and int(health[-1]["keyframes"]) >= 3
+    assert int(health[-1]["map_rebuilds"]) >= 1 and health[-1]["map_stale_keyframes"] == "0"
 
 
 def test_scans_that_fit_nothing_make_it_say_lost_and_leave_them_out_of_the_map(room: Room):

@@ -408,7 +408,8 @@ class Slam(StepNode):
             self._publish_diagnostics(stamp)
 
     def _publish_diagnostics(self, stamp: Any) -> None:
-        health = {**self.mapping.read(Mapper.health), "map_rebuilds": self.mapping.map_rebuilds}
+        health = {**self.mapping.read(Mapper.health), "map_rebuilds": self.mapping.map_rebuilds,
+                  "map_stale_keyframes": self.mapping.map_stale_keyframes}
         status = DiagnosticStatus(name=f"{self.get_name()}: mapping", hardware_id=self.params.scan_topic)
         if health["lost"]:
             status.level, status.message = DiagnosticStatus.WARN, "lost: scans do not match the map"
