@@ -252,10 +252,11 @@ class AsyncMapper:
 
     def build_map(self, exact: bool = False) -> OccupancyGrid | None:
         """The grid from the keyframes' current poses, built outside the lock (scans go on);
-        None before the first keyframe. Only keyframes new since the last build are drawn,
-        unless a correction moved a drawn one by over half a cell (within a budget of redraws),
-        a keyframe left the map, or the mapper was replaced (:class:`GridCache`). ``exact``:
-        built anew from every keyframe at its pose now, leaving the kept grid alone (a saved map)."""
+        None before the first keyframe. Only keyframes new since the last build are drawn; a
+        redraw at the keyframes' poses replaces the grid once a correction moved a drawn one by
+        over half a cell (over several builds for a large map), a keyframe left the map, or the
+        mapper was replaced (:class:`GridCache`). ``exact``: built anew from every keyframe at
+        its pose now, leaving the kept grid alone (a saved map)."""
         with self.lock:
             if not self._mapper.keyframes:
                 return None
@@ -267,13 +268,13 @@ class AsyncMapper:
 
     @property
     def map_rebuilds(self) -> int:
-        """Full map rebuilds so far (the rest of the map updates drew only new keyframes)."""
+        """Maps redrawn from every keyframe so far (the other updates drew only new keyframes)."""
         return self._grid.rebuilds
 
     @property
     def map_stale_keyframes(self) -> int:
-        """Keyframes the last map drew over half a cell from their pose now, waiting for a
-        redraw within the budget (:class:`GridCache`)."""
+        """Keyframes the last map drew over half a cell from their pose at that build, until
+        the redraw under way replaces it (:class:`GridCache`)."""
         return self._grid.stale
 
     def _map_loop(self) -> None:

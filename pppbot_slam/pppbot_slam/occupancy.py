@@ -347,18 +347,20 @@ class GridCache:
     is counted at the scan's farthest beam end (``|Δxy| + reach·|Δyaw|``). Then every point of
     the scan's beams lies within half a cell of where a rebuild would put it (a cell it marks is
     at most one cell off), and the small corrections a pose graph makes while the robot goes
-    over mapped ground cost nothing. A scan that left the map or other settings redraw every
-    scan at its pose now, at once. A larger move (a loop that bends the map) does too, within a
-    budget: each update earns ``redraw_per_update`` scan draws, kept up to one redraw's worth
-    (every scan), and a redraw spends as many as it draws. So a rare correction is drawn at
-    once, and a map corrected at every update, however large, costs at most about
-    ``redraw_per_update`` scan draws per update on average; meanwhile new scans are drawn at
-    their poses and the moved ones stay where they were drawn (:attr:`stale` counts them).
-    Each pose is compared with the one it was drawn at, so small moves do not add up unseen.
-    The grid depends on the sequence of updates (a scan stays where it was first drawn), so
-    the same updates give the same grid: in lockstep, the same on every machine. For the grid
-    of the poses as they are now (a saved map), use :meth:`LogOddsGrid.build`. Not
-    thread-safe: one caller at a time.
+    over mapped ground cost nothing. Each pose is compared with the one it was drawn at, so
+    small moves do not add up unseen.
+
+    A larger move (a loop that bends the map) starts a redraw: a new grid that draws every scan
+    at its pose, at most ``redraw_per_update`` scans per update, and replaces the kept one
+    when it has drawn them all. A map of up to that many scans is redrawn within the update;
+    a larger one over several, the kept grid (with new scans drawn on it) returned meanwhile,
+    its moved scans where they were drawn (:attr:`stale` counts them). So no update draws
+    more than about ``redraw_per_update`` scans beyond the new ones, however large the map.
+    A scan that left the map or other settings draw every scan again within the update.
+
+    The grid depends on the sequence of updates, so the same updates give the same grid: in
+    lockstep, the same on every machine. For the grid of the poses as they are now (a saved
+    map), use :meth:`LogOddsGrid.build`. Not thread-safe: one caller at a time.
 
     Raises:
         OccupancyError: ``redraw_per_update`` below 1.
@@ -372,44 +374,62 @@ class GridCache:
         self._poses = np.zeros((0, 3))  # the sensor pose each drawn scan was drawn at, in order
         self._scans: list[ScanRays] = []
         self._reach_m = np.zeros(0)  # each drawn scan's farthest beam end from its sensor
-        self._credit = 0  # scan draws earned towards a redraw
-        self.rebuilds = 0  # full rebuilds so far (the first build counts as one)
-        self.stale = 0  # drawn scans more than half a cell from their pose, waiting for a redraw
+        self._redraw: LogOddsGrid | None = None  # the grid being redrawn, its first scans drawn
+        self._redraw_poses: list[np.ndarray] = []  # where the redraw drew each
+        self.rebuilds = 0  # grids drawn whole so far (the first build counts as one)
+        self.stale = 0  # scans the returned grid drew over half a cell from their pose
 
     def update(self, settings: OccupancySettings, sensor_poses: np.ndarray | Sequence[PoseLike],
                scans: Sequence[ScanRays]) -> LogOddsGrid:
         """The grid of ``scans`` at ``sensor_poses`` (as :meth:`LogOddsGrid.build` with no mount),
-        with scans drawn before kept where they were drawn if that is within half a cell.
+        with scans drawn before kept where they were drawn until a redraw has drawn them again.
 
         Raises:
             OccupancyError: as :meth:`LogOddsGrid.build`.
         """
         poses = np.asarray(sensor_poses, dtype=float)
         poses = poses.reshape(0, 3) if poses.size == 0 else poses
-        drawn = len(self._scans)
-        self._credit = min(self._credit + self.redraw_per_update, max(len(scans), self.redraw_per_update))
-        replaced = self._grid is None or self._replaced(settings, poses, scans)
-        moved = 0 if replaced else self._moved(settings, poses)
-        if replaced or (moved and self._credit >= len(scans)):
-            self._grid = LogOddsGrid.build(settings, poses, scans)
-            self._poses, self._scans, self._reach_m = poses.copy(), [], np.zeros(0)
-            self._credit = max(self._credit - len(scans), 0)
-            self.rebuilds += 1
-            self.stale = drawn = 0
-        else:
-            assert self._grid is not None
-            try:
-                for pose, scan in zip(poses[drawn:], scans[drawn:], strict=True):
-                    self._grid.add_scan(pose, scan)
-            except BaseException:
-                self._grid = None  # partly drawn: the next update starts over
-                raise
+        try:
+            if self._grid is None or self._replaced(settings, poses, scans):
+                self._grid, self._redraw, self._redraw_poses = None, None, []
+                self._keep(LogOddsGrid.build(settings, poses, scans), poses, scans)
+                return self._kept()
+            drawn = len(self._scans)
+            for pose, scan in zip(poses[drawn:], scans[drawn:], strict=True):
+                self._grid.add_scan(pose, scan)
             self._poses = np.concatenate([self._poses, poses[drawn:]])
-            self.stale = moved
-        reach = [float(scan.classify(settings.max_range_m).length_m.max(initial=0.0)) for scan in scans[drawn:]]
-        self._scans += scans[drawn:]
-        self._reach_m = np.concatenate([self._reach_m, reach])
+            self._scans += scans[drawn:]
+            self._reach_m = np.concatenate([self._reach_m, [self._reach(settings, s) for s in scans[drawn:]]])
+            if self._redraw is None and self._moved(settings, poses):
+                self._redraw = LogOddsGrid(settings)
+            if self._redraw is not None:
+                start = len(self._redraw_poses)
+                for pose, scan in zip(poses[start:start + self.redraw_per_update],
+                                      scans[start:start + self.redraw_per_update], strict=True):
+                    self._redraw.add_scan(pose, scan)
+                    self._redraw_poses.append(pose)
+                if len(self._redraw_poses) == len(scans):
+                    self._keep(self._redraw, np.array(self._redraw_poses), scans)
+            self.stale = self._moved(settings, poses)
+            return self._grid
+        except BaseException:
+            self._grid = None  # partly drawn: the next update starts over
+            raise
+
+    def _keep(self, grid: LogOddsGrid, poses: np.ndarray, scans: Sequence[ScanRays]) -> None:
+        self._grid, self._poses, self._scans = grid, poses.copy(), list(scans)
+        self._reach_m = np.array([self._reach(grid.settings, s) for s in scans])
+        self._redraw, self._redraw_poses = None, []
+        self.rebuilds += 1
+        self.stale = 0
+
+    def _kept(self) -> LogOddsGrid:
+        assert self._grid is not None
         return self._grid
+
+    @staticmethod
+    def _reach(settings: OccupancySettings, scan: ScanRays) -> float:
+        return float(scan.classify(settings.max_range_m).length_m.max(initial=0.0))
 
     def _replaced(self, settings: OccupancySettings, poses: np.ndarray, scans: Sequence[ScanRays]) -> bool:
         """Whether the drawn scans are no longer the first of ``scans`` or the settings changed."""

@@ -263,38 +263,40 @@ def test_the_cache_draws_only_new_scans_and_redraws_when_a_drawn_one_moves_half_
     assert cache.rebuilds == 6
 
 
-def test_the_cache_spreads_redraws_over_updates_within_its_budget():
+def test_the_cache_redraws_a_large_map_over_updates_within_its_budget():
     rng = np.random.default_rng(4)
-    poses = rng.uniform(-3.0, 3.0, (7, 3))
+    poses = rng.uniform(-3.0, 3.0, (8, 3))
     scans = [ScanRays.from_laser(-2.0, 4.0 / 99, rng.uniform(0.5, 5.0, 100), 0.1, 8.0) for _ in poses]
-    cache, settings = GridCache(redraw_per_update=2), OccupancySettings()
+    settings = OccupancySettings()
+    cache = GridCache(redraw_per_update=3)
 
-    def rebuilt(grid, poses, scans):
+    def drawn_as(grid, poses, scans):
         return np.array_equal(grid.log_odds(), LogOddsGrid.build(settings, poses, scans).log_odds())
 
-    cache.update(settings, poses[:6], scans[:6])  # the first build is never deferred
+    cache.update(settings, poses[:6], scans[:6])  # the first build is whole at once
     assert (cache.rebuilds, cache.stale) == (1, 0)
     moved = poses.copy()
-    moved[:3, 0] += 0.1  # a loop bent the map: three keyframes 10 cm off
-    # The first build spent what it earned. Then 2, 4, 6 scan draws earned, less than a redraw
-    # costs: the moved scans stay where they were drawn, a new one is drawn at its pose, the
-    # grid is the one drawn in that order.
+    moved[:2, 0] += 0.1  # a loop bent the map: two keyframes 10 cm off
+    # Six scans to redraw, three per update: meanwhile the kept grid, with the moved scans where
+    # they were drawn and a new one drawn at its pose.
     grid = cache.update(settings, moved[:6], scans[:6])
-    assert (cache.rebuilds, cache.stale) == (1, 3) and rebuilt(grid, poses[:6], scans[:6])
-    for _ in range(2):
-        grid = cache.update(settings, moved, scans)
-        assert (cache.rebuilds, cache.stale) == (1, 3)
-        assert rebuilt(grid, np.concatenate([poses[:6], moved[6:]]), scans)
-    grid = cache.update(settings, moved, scans)  # 8 earned, kept up to 7, all 7 spent
-    assert (cache.rebuilds, cache.stale) == (2, 0) and rebuilt(grid, moved, scans)
-    moved[:3, 0] += 0.1
-    for _ in range(3):  # 2, 4, 6 < 7
-        cache.update(settings, moved, scans)
-        assert (cache.rebuilds, cache.stale) == (2, 3)
-    assert rebuilt(cache.update(settings, moved, scans), moved, scans) and cache.rebuilds == 3
-    # Other scans (a new mapper) are drawn at once, whatever the credit.
+    assert (cache.rebuilds, cache.stale) == (1, 2) and drawn_as(grid, poses[:6], scans[:6])
+    grid = cache.update(settings, moved[:7], scans[:7])
+    assert (cache.rebuilds, cache.stale) == (1, 2) and drawn_as(grid, np.concatenate([poses[:6], moved[6:7]]),
+                                                                scans[:7])
+    # The redraw drew scans 0-2, then 3-5, now 6 and 7 (new) at their poses: it replaces the grid.
+    grid = cache.update(settings, moved, scans)
+    assert (cache.rebuilds, cache.stale) == (2, 0) and drawn_as(grid, moved, scans)
+    # A redraw draws each scan at its pose when it gets to it: a later move is drawn again.
+    moved[0, 0] += 0.1
+    cache.update(settings, moved, scans)
+    moved[7, 0] += 0.1
+    cache.update(settings, moved, scans)
+    grid = cache.update(settings, moved, scans)
+    assert (cache.rebuilds, cache.stale) == (3, 0) and drawn_as(grid, moved, scans)
+    # Other scans (a new mapper) are drawn whole at once.
     other = [ScanRays(s.directions, s.ranges_m, s.range_min_m, s.range_max_m) for s in scans]
-    assert rebuilt(cache.update(settings, moved, other), moved, other) and cache.rebuilds == 4
+    assert drawn_as(cache.update(settings, moved, other), moved, other) and cache.rebuilds == 4
     with pytest.raises(OccupancyError, match="redraw_per_update must be an integer >= 1, not 0"):
         GridCache(redraw_per_update=0)
 
