@@ -258,15 +258,20 @@ class LogOddsGrid:
         seen[flat] = True
         occupied[flat[ends[beams.hit[used]]]] = True
         touched = np.flatnonzero(seen)
+        # Window cell (r, c) is storage cell (r + dr, c + dc): flat index r·S + c + dr·S + dc, S
+        # the storage's columns (one-dimensional gathers and scatters are the fast ones).
+        store_cols = self._log_odds.shape[1]
         row, col = np.divmod(touched, cols)
-        row += lo[1] - self._store_lo[1]
-        col += lo[0] - self._store_lo[0]
+        row *= store_cols
+        row += col
+        row += (lo[1] - self._store_lo[1]) * store_cols + lo[0] - self._store_lo[0]
+        log_odds, observed = self._log_odds.reshape(-1), self._observed.reshape(-1)  # views
         change = np.where(occupied[touched], np.float32(self._settings.hit_log_odds),
                           np.float32(self._settings.miss_log_odds))
-        change += self._log_odds[row, col]
+        change += log_odds.take(row)
         clamp = np.float32(self._settings.clamp_log_odds)
-        self._log_odds[row, col] = np.clip(change, -clamp, clamp, out=change)
-        self._observed[row, col] = True
+        log_odds[row] = np.clip(change, -clamp, clamp, out=change)
+        observed[row] = True
 
     def _grow(self, lo: np.ndarray, hi: np.ndarray) -> None:
         """Extend the reported extent to hold world cells [lo, hi); re-allocate storage if needed."""
@@ -366,7 +371,7 @@ class GridCache:
         OccupancyError: ``redraw_per_update`` below 1.
     """
 
-    def __init__(self, redraw_per_update: int = 250) -> None:
+    def __init__(self, redraw_per_update: int = 100) -> None:
         if isinstance(redraw_per_update, bool) or not isinstance(redraw_per_update, int) or redraw_per_update < 1:
             raise OccupancyError(f"redraw_per_update must be an integer >= 1, not {redraw_per_update!r}")
         self.redraw_per_update = redraw_per_update
