@@ -396,16 +396,17 @@ class GridCache:
         poses = poses.reshape(0, 3) if poses.size == 0 else poses
         try:
             if self._grid is None or self._replaced(settings, poses, scans):
-                self._grid, self._redraw, self._redraw_poses = None, None, []
-                self._keep(LogOddsGrid.build(settings, poses, scans), poses, scans)
-                return self._kept()
+                grid = LogOddsGrid.build(settings, poses, scans)
+                self._keep(grid, poses, scans, np.array([self._reach(settings, s) for s in scans]))
+                return grid
             drawn = len(self._scans)
             for pose, scan in zip(poses[drawn:], scans[drawn:], strict=True):
                 self._grid.add_scan(pose, scan)
             self._poses = np.concatenate([self._poses, poses[drawn:]])
             self._scans += scans[drawn:]
             self._reach_m = np.concatenate([self._reach_m, [self._reach(settings, s) for s in scans[drawn:]]])
-            if self._redraw is None and self._moved(settings, poses):
+            moved = self._moved(settings, poses)
+            if self._redraw is None and moved:
                 self._redraw = LogOddsGrid(settings)
             if self._redraw is not None:
                 start = len(self._redraw_poses)
@@ -413,24 +414,21 @@ class GridCache:
                                       scans[start:start + self.redraw_per_update], strict=True):
                     self._redraw.add_scan(pose, scan)
                     self._redraw_poses.append(pose)
-                if len(self._redraw_poses) == len(scans):
-                    self._keep(self._redraw, np.array(self._redraw_poses), scans)
-            self.stale = self._moved(settings, poses)
+                if len(self._redraw_poses) == len(scans):  # the same scans as kept: their reach too
+                    self._keep(self._redraw, np.array(self._redraw_poses), scans, self._reach_m)
+                    moved = self._moved(settings, poses)
+            self.stale = moved
             return self._grid
         except BaseException:
             self._grid = None  # partly drawn: the next update starts over
             raise
 
-    def _keep(self, grid: LogOddsGrid, poses: np.ndarray, scans: Sequence[ScanRays]) -> None:
-        self._grid, self._poses, self._scans = grid, poses.copy(), list(scans)
-        self._reach_m = np.array([self._reach(grid.settings, s) for s in scans])
+    def _keep(self, grid: LogOddsGrid, poses: np.ndarray, scans: Sequence[ScanRays], reach_m: np.ndarray) -> None:
+        """Keep ``grid``, which drew ``scans`` at ``poses``; any redraw under way is dropped."""
+        self._grid, self._poses, self._scans, self._reach_m = grid, poses.copy(), list(scans), reach_m
         self._redraw, self._redraw_poses = None, []
         self.rebuilds += 1
         self.stale = 0
-
-    def _kept(self) -> LogOddsGrid:
-        assert self._grid is not None
-        return self._grid
 
     @staticmethod
     def _reach(settings: OccupancySettings, scan: ScanRays) -> float:
