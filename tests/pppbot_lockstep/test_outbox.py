@@ -6,11 +6,14 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry, Path
+from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from pppbot_common.ros.wait import wait_until
-from pppbot_lockstep.ros.counting import HeldFuture
+from pppbot_lockstep.ros.counting import HeldFuture, copied
 from pppbot_lockstep.ros.node import StepNode
 from pppbot_lockstep.ros.participant import Participant
 
@@ -178,3 +181,30 @@ def test_a_plain_rclpy_publisher_beside_them_is_never_held(ros_node: Any, partic
     pub.publish(String(data="plain"))
     wait_until(lambda: got == ["plain"], 10, "the plain message", node=ros_node)
     assert participant.counters.published.get(TOPIC, 0) == published  # not counted either
+
+
+def test_a_held_request_is_copied_whole_and_apart_from_the_senders_message() -> None:
+    """What a held request sends is the message as it was at the call: every field equal, nothing
+    shared that can change (nested messages, lists of them, arrays), whatever the sender does after."""
+    goal = Path()  # as a FollowPath goal carries it
+    goal.header.frame_id = "map"
+    goal.poses = [PoseStamped() for _ in range(3)]
+    for i, pose in enumerate(goal.poses):
+        pose.pose.position.x, pose.header.stamp.sec = 0.5 * i, i
+    scan = LaserScan(ranges=[1.0, 2.0, float("inf")], intensities=[3.0, 4.0, 5.0])
+    odom = Odometry()
+    odom.pose.covariance[0] = 0.25
+    for message in (goal, scan, odom):
+        twin = copied(message)
+        assert twin == message and twin is not message
+    twin = copied(goal)
+    goal.poses[1].pose.position.x = 9.0
+    goal.poses.append(PoseStamped())
+    goal.header.frame_id = "odom"
+    assert twin.header.frame_id == "map" and len(twin.poses) == 3
+    assert [p.pose.position.x for p in twin.poses] == [0.0, 0.5, 1.0]
+    twin_scan, twin_odom = copied(scan), copied(odom)
+    scan.ranges[0] = 7.0
+    odom.pose.covariance[0] = 1.0
+    assert twin_scan.ranges[0] == 1.0 and twin_odom.pose.covariance[0] == 0.25
+    assert copied(3) == 3 and copied("a") == "a"
