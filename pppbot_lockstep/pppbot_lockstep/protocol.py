@@ -248,6 +248,8 @@ class Publications:
         #: Per participant, the topics it counts, and those it is quiet on (handling sends nothing).
         self._counting: dict[str, frozenset[str]] = {}
         self._quiet: dict[str, frozenset[str]] = {}
+        #: counted_by and reacted_by per (which, own topics): they change only as the above do
+        self._memo: dict[tuple[str, frozenset[str]], list[int]] = {}
 
     def want(self, topics: Sequence[str]) -> None:
         """This process counts receptions on ``topics`` too (from the next step on)."""
@@ -262,12 +264,14 @@ class Publications:
         """``name`` counts receptions on ``topics`` (from the next step on), quiet on ``quiet``."""
         self._counting[name] = frozenset(t for t in topics if t)
         self._quiet[name] = frozenset(quiet) & self._counting[name]
+        self._memo.clear()
         self.want(topics)
 
     def left(self, name: str) -> None:
         """``name`` left: it counts nothing any more."""
         self._counting.pop(name, None)
         self._quiet.pop(name, None)
+        self._memo.clear()
 
     def counted_by(self, own: Collection[str] = ()) -> list[int]:
         """Per topic of :attr:`topics`: how many lockstep processes count it, the simulator's (which
@@ -278,23 +282,29 @@ class Publications:
         ``counted_by`` minus its own count is above zero. What only the simulator's process counts
         (it waits for it after the answers anyway), only the sender itself or nobody goes out at once.
         """
-        counts = []
-        for topic in self.topics:
-            participants = sum(topic in counting for counting in self._counting.values())
-            counts.append(participants + (1 if participants and topic in own else 0))
-        return counts
+        key = ("counted", frozenset(own))
+        counts = self._memo.get(key)
+        if counts is None:
+            counts = self._memo[key] = []
+            for topic in self.topics:
+                participants = sum(topic in counting for counting in self._counting.values())
+                counts.append(participants + (1 if participants and topic in own else 0))
+        return list(counts)
 
     def reacted_by(self, own: Collection[str] = ()) -> list[int]:
         """Per topic of :attr:`topics`: how many of the processes :meth:`counted_by` counts react to
         it (are not quiet on it; the simulator's process reacts to what it counts). A held send asks
         for another round at its time only where a process other than its sender reacts."""
-        counts = []
-        for topic in self.topics:
-            participants = sum(topic in counting for counting in self._counting.values())
-            reacting = sum(topic in counting and topic not in self._quiet.get(name, frozenset())
-                           for name, counting in self._counting.items())
-            counts.append(reacting + (1 if participants and topic in own else 0))
-        return counts
+        key = ("reacted", frozenset(own))
+        counts = self._memo.get(key)
+        if counts is None:
+            counts = self._memo[key] = []
+            for topic in self.topics:
+                participants = sum(topic in counting for counting in self._counting.values())
+                reacting = sum(topic in counting and topic not in self._quiet.get(name, frozenset())
+                               for name, counting in self._counting.items())
+                counts.append(reacting + (1 if participants and topic in own else 0))
+        return list(counts)
 
     def others(self) -> dict[str, int]:
         """Per topic: what the participants have published on it in all, as they last reported."""
@@ -304,6 +314,7 @@ class Publications:
         """The counted topics for the step starting now (sorted; they only grow)."""
         if len(self._wanted) != len(self.topics):
             self.topics = tuple(sorted(self._wanted))
+            self._memo.clear()
         return self.topics
 
     def report(self, name: str, counts: Sequence[int]) -> None:

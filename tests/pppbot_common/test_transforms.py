@@ -3,8 +3,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
+from pppbot_common.se2 import se2_compose, se2_inverse
 from pppbot_common.transforms import TransformBuffer, TransformError, compose, inverse
 
 
@@ -16,6 +18,18 @@ def test_compose_and_inverse_cancel():
     a, b = (1.0, 2.0, 0.7), (-0.3, 0.5, -2.9)
     assert close(compose(inverse(a), compose(a, b)), b)
     assert close(compose(a, inverse(a)), (0.0, 0.0, 0.0))
+
+
+def test_compose_and_inverse_on_floats_agree_with_the_array_forms():
+    """The buffer's float compose and inverse are se2's, yaw wrapped into (−π, π] alike."""
+    rng = np.random.default_rng(7)
+    poses = np.column_stack([rng.uniform(-50, 50, (500, 2)), rng.uniform(-4 * math.pi, 4 * math.pi, 500)])
+    poses[:4, 2] = [math.pi, -math.pi, 0.0, 3 * math.pi]
+    for a, b in zip(poses, poses[::-1], strict=True):
+        a_, b_ = tuple(a.tolist()), tuple(b.tolist())
+        assert compose(a_, b_) == pytest.approx(tuple(se2_compose(a, b).tolist()), abs=1e-9)
+        assert inverse(a_) == pytest.approx(tuple(se2_inverse(a).tolist()), abs=1e-9)
+        assert -math.pi < compose(a_, b_)[2] <= math.pi and -math.pi < inverse(a_)[2] <= math.pi
 
 
 def test_chain_map_odom_base_link_with_a_static_sensor():
