@@ -100,22 +100,42 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     items.sort(key=lambda item: item.path not in heavy)
 
 
+class MachineLock:
+    """The run's lock as one test holds it (shared, or whole: see :func:`_machine_shared_or_whole`)."""
+
+    def __init__(self, file: Any = None) -> None:
+        self._file = file
+
+    def take_whole(self) -> None:
+        """From now until the test ends, no other test runs beside this one (it waits for those
+        running to end): for the part of a test that loads every core."""
+        if self._file is not None:
+            fcntl.flock(self._file, fcntl.LOCK_EX)  # the shared hold is let go while it waits: no deadlock
+
+
 @pytest.fixture(autouse=True)
-def _machine_shared_or_whole(request: pytest.FixtureRequest) -> Iterator[None]:
+def _machine_shared_or_whole(request: pytest.FixtureRequest) -> Iterator[MachineLock]:
     """In a parallel run (pytest-xdist), a test marked ``exclusive`` runs while no other worker runs a
     test, and waits for them: one that loads every core on purpose would leave another worker's
     stack a third of the machine, and one that times the machine by the wall clock would measure
-    the other worker too. Every other test holds the run's lock shared."""
+    the other worker too. Every other test holds the run's lock shared; one that loads the machine
+    only in part of it takes it whole from there (:func:`whole_machine`)."""
     run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
     if not run:
-        yield
+        yield MachineLock()
         return
     with open(Path(tempfile.gettempdir()) / f"pppbot-pytest-{run}.lock", "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX if request.node.get_closest_marker("exclusive") else fcntl.LOCK_SH)
         try:
-            yield
+            yield MachineLock(lock)
         finally:
             fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+@pytest.fixture
+def whole_machine(_machine_shared_or_whole: MachineLock) -> Callable[[], None]:
+    """Call it to have the machine to this test from then on (see :meth:`MachineLock.take_whole`)."""
+    return _machine_shared_or_whole.take_whole
 
 
 def pytest_report_header(config: pytest.Config) -> str:

@@ -1,6 +1,6 @@
 """Lockstep gives the same run to the bit on a machine as loaded as it gets: ``pppbot eval`` twice
-with one seed, once beside the suite and once with both cores taken by busy loops. Each test runs
-alone (``exclusive``)."""
+with one seed, once beside the suite and once with both cores taken by busy loops. The busy run
+has the machine to itself (``whole_machine``): no other test runs beside the busy loops."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -13,14 +13,14 @@ VARYING = {"wall_seconds", "real_time_factor", "out", "map", "posegraph"}
 
 
 @pytest.mark.heavy
-@pytest.mark.exclusive
-def test_lockstep_slam_is_the_same_run_on_a_busy_machine(spawn, tmp_path: Path):
+def test_lockstep_slam_is_the_same_run_on_a_busy_machine(spawn, whole_machine, tmp_path: Path):
     """Lockstep (eval's default): the same seed gives the same run to the bit, once beside the suite
     and once with both cores taken by busy loops: every recorded series (ground truth, odometry,
     SLAM's map -> odom), the saved map and the report."""
     recordings, reports, maps = [], [], []
     for name in ("first", "busy"):
         if name == "busy":
+            whole_machine()
             busy_loops(spawn)
         out = tmp_path / name
         code, report, output = run_eval(spawn, out, "--seed", "3", "--wheel-slip", "0.03", "--timeout", "40",
@@ -40,8 +40,7 @@ def test_lockstep_slam_is_the_same_run_on_a_busy_machine(spawn, tmp_path: Path):
            {k: v for k, v in reports[1].items() if k not in VARYING}
 
 
-@pytest.mark.exclusive
-def test_lockstep_navigation_is_the_same_run_on_a_busy_machine(spawn, tmp_path: Path):
+def test_lockstep_navigation_is_the_same_run_on_a_busy_machine(spawn, whole_machine, tmp_path: Path):
     """Navigation in lockstep (AMCL, and the planner, controller_server and navigator composed):
     the same seed gives the same run to the bit (ground-truth trajectory, goal outcomes,
     collisions), once beside the suite and once with both cores taken by busy loops."""
@@ -49,6 +48,7 @@ def test_lockstep_navigation_is_the_same_run_on_a_busy_machine(spawn, tmp_path: 
     runs = []
     for name in ("first", "busy"):
         if name == "busy":
+            whole_machine()
             busy_loops(spawn)
         out = tmp_path / name
         code, report, output = run_eval(spawn, out, "--seed", "4", "--map", str(map_file), "--goals", "2",
