@@ -1,18 +1,18 @@
 """Lockstep gives the same run to the bit on a machine as loaded as it gets: ``pppbot eval`` twice
 with one seed, once beside the suite and once with both cores taken by busy loops. The busy run
-has the machine to itself (``whole_machine``): no other test runs beside the busy loops."""
+has the machine to itself (``whole_machine``): no other test runs beside the busy loops. Not
+``heavy``: handed out among the short tests, the busy run waits for a short test to end, not for
+the other worker's longest."""
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
-import pytest
 from eval_runs import box_room_map, busy_loops, run_eval
 
 VARYING = {"wall_seconds", "real_time_factor", "out", "map", "posegraph"}
 
 
-@pytest.mark.heavy
 def test_lockstep_slam_is_the_same_run_on_a_busy_machine(spawn, whole_machine, tmp_path: Path):
     """Lockstep (eval's default): the same seed gives the same run to the bit, once beside the suite
     and once with both cores taken by busy loops: every recorded series (ground truth, odometry,
