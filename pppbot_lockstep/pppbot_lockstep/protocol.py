@@ -282,28 +282,29 @@ class Publications:
         ``counted_by`` minus its own count is above zero. What only the simulator's process counts
         (it waits for it after the answers anyway), only the sender itself or nobody goes out at once.
         """
-        key = ("counted", frozenset(own))
-        counts = self._memo.get(key)
-        if counts is None:
-            counts = self._memo[key] = []
-            for topic in self.topics:
-                participants = sum(topic in counting for counting in self._counting.values())
-                counts.append(participants + (1 if participants and topic in own else 0))
-        return list(counts)
+        def counted(topic: str) -> int:
+            participants = sum(topic in counting for counting in self._counting.values())
+            return participants + (1 if participants and topic in own else 0)
+        return self._per_topic("counted", own, counted)
 
     def reacted_by(self, own: Collection[str] = ()) -> list[int]:
         """Per topic of :attr:`topics`: how many of the processes :meth:`counted_by` counts react to
         it (are not quiet on it; the simulator's process reacts to what it counts). A held send asks
         for another round at its time only where a process other than its sender reacts."""
-        key = ("reacted", frozenset(own))
+        def reacting(topic: str) -> int:
+            participants = sum(topic in counting for counting in self._counting.values())
+            reacted = sum(topic in counting and topic not in self._quiet.get(name, frozenset())
+                          for name, counting in self._counting.items())
+            return reacted + (1 if participants and topic in own else 0)
+        return self._per_topic("reacted", own, reacting)
+
+    def _per_topic(self, which: str, own: Collection[str], count: Callable[[str], int]) -> list[int]:
+        """``count`` of each topic of :attr:`topics`, kept (per ``which`` and ``own``) until they or
+        what participants count change."""
+        key = (which, frozenset(own))
         counts = self._memo.get(key)
         if counts is None:
-            counts = self._memo[key] = []
-            for topic in self.topics:
-                participants = sum(topic in counting for counting in self._counting.values())
-                reacting = sum(topic in counting and topic not in self._quiet.get(name, frozenset())
-                               for name, counting in self._counting.items())
-                counts.append(reacting + (1 if participants and topic in own else 0))
+            counts = self._memo[key] = [count(topic) for topic in self.topics]
         return list(counts)
 
     def others(self) -> dict[str, int]:

@@ -172,7 +172,13 @@ def test_counted_by_says_who_else_counts_a_topic_so_a_sender_knows_what_to_hold(
     pubs.left("eval")
     assert pubs.counted_by() == [0, 1, 0, 1]
     pubs.counting("navigation", ["/tf"])  # its counted topics as its answer last said them
-    assert pubs.counted_by() == [0, 0, 0, 1]
+    counts = pubs.counted_by()
+    assert counts == [0, 0, 0, 1]
+    counts[3] = 9  # the caller's list: what is kept between rounds is not changed through it
+    pubs.want(["/scan"])
+    assert pubs.counted_by() == [0, 0, 0, 1]  # a topic counts from the next step on
+    assert pubs.next_topics() == ("/cmd_vel", "/cmd_vel_nav", "/joint_states", "/scan", "/tf")
+    assert pubs.counted_by() == [0, 0, 0, 0, 1]
 
 
 def test_reacted_by_leaves_out_who_only_records_a_topic():
