@@ -209,7 +209,8 @@ def _copy(value: Any) -> Any:
         return value.copy()
     slots = _SLOTS.get(kind)
     if slots is None:
-        if not hasattr(kind, "get_fields_and_field_types") or "__slots__" not in vars(kind):
+        if (not hasattr(kind, "get_fields_and_field_types") or "__slots__" not in vars(kind)
+                or kind.__bases__ != (object,)):  # a subclass's own slots would leave its base's out
             return copy.deepcopy(value)
         slots = _SLOTS[kind] = tuple(vars(kind)["__slots__"])
     twin = object.__new__(kind)
