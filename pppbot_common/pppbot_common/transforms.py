@@ -25,19 +25,14 @@ def compose(a: Pose2D, b: Pose2D) -> Pose2D:
     ax, ay, ayaw = a
     bx, by, byaw = b
     c, s = math.cos(ayaw), math.sin(ayaw)
-    return ax + c * bx - s * by, ay + s * bx + c * by, _wrapped(ayaw + byaw)
+    return ax + c * bx - s * by, ay + s * bx + c * by, wrap_angle(ayaw + byaw)
 
 
 def inverse(a: Pose2D) -> Pose2D:
     """``a⁻¹`` as a tuple (:func:`pppbot_common.se2.se2_inverse` for one pose)."""
     ax, ay, ayaw = a
     c, s = math.cos(ayaw), math.sin(ayaw)
-    return -c * ax - s * ay, s * ax - c * ay, _wrapped(-ayaw)
-
-
-def _wrapped(angle: float) -> float:
-    """``angle`` in (−π, π], as :func:`pppbot_common.se2.wrap_angles` wraps it."""
-    return math.pi - (math.pi - angle) % (2.0 * math.pi)
+    return -c * ax - s * ay, s * ax - c * ay, wrap_angle(-ayaw)
 
 
 @dataclass
