@@ -60,7 +60,7 @@ class PoseSeries:
             i = int(np.argmax(steps < 0))
             raise PoseSeriesError(f"times must be non-decreasing: t_s[{i + 1}] = {t[i + 1]} s "
                                   f"follows t_s[{i}] = {t[i]} s")
-        keep = np.append(steps > 0, True)  # the last of each run of equal times
+        keep = np.append(steps > 0, True) if t.size else np.zeros(0, dtype=bool)  # the last of each equal time
         object.__setattr__(self, "t_s", _frozen(t[keep]))
         object.__setattr__(self, "xy", _frozen(xy[keep]))
         object.__setattr__(self, "yaw_rad", _frozen(yaw[keep]))

@@ -143,6 +143,10 @@ class EvalNode:
             self.behavior.tick(self)
             if self.behavior.outcome is not None:
                 self.finished_wall = time.monotonic()
+                # The record ends with the behaviour, at this sim time on every run: the steps this
+                # process still answers until it stops its stack (their number depends on the
+                # machine) are not part of it.
+                self.driving = False
 
     def drive_wall_seconds(self) -> float:
         """Wall seconds from the start of driving to the behaviour's end (or to now)."""
@@ -227,10 +231,21 @@ class EvalNode:
                 self.recording.edge_rows.setdefault((t.parent, t.child), []).append((t.stamp_s, t.x, t.y, t.yaw))
 
     def _on_collision(self, msg: PointStamped) -> None:
+        if self.finished_wall is not None:  # after the behaviour: the robot stands, and it is not the run
+            return
         t = stamp_seconds(msg.header.stamp)
         self.recording.collisions.append((t, msg.point.x, msg.point.y))
 
+    @property
+    def _final(self) -> bool:
+        """The behaviour has ended and the first map after its end is kept: the record is complete (what
+        comes later depends on how long this process takes to stop, which depends on the machine)."""
+        rec = self.recording
+        return self.finished_wall is not None and rec.final_map is not None and rec.final_map_stamp_s > rec.end_sim_s
+
     def _on_map(self, msg: OccupancyGridMsg) -> None:
+        if self._final:
+            return
         try:
             self.recording.final_map = grid_from_message(msg)
         except ValueError:
@@ -238,6 +253,8 @@ class EvalNode:
         self.recording.final_map_stamp_s = stamp_seconds(msg.header.stamp)
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        if self._final:
+            return
         for status in msg.status:
             if status.name.endswith(": mapping"):  # the slam node's health (its node name first)
                 self.recording.slam_health = {v.key: v.value for v in status.values}
