@@ -14,7 +14,9 @@ setup:
 run:
 	./pppbot launch_sim
 
+# The tests also run the optional Ray extra (pppbot eval batch --ray on a local instance).
 test: check
+	./pppbot setup --quiet --ray
 	./pppbot env python -m pytest -n $(PYTEST_WORKERS) --dist loadfile --no-loadscope-reorder $(PYTEST_ARGS)
 
 # Static checks: lint (ruff, rules in pyproject.toml) and types (mypy) across packages, tools and tests.

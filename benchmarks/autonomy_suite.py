@@ -1,6 +1,7 @@
 """The autonomy suite: SLAM, then AMCL on the SLAM map, then navigation, across generated worlds.
 
-For each world of a set (:mod:`benchmarks.worldgen`: ``tune``, ``held_out``, ``ci``) it
+The suite is a batch (``pppbot eval batch``, :mod:`pppbot_eval.batch`): for each world of a set
+(:mod:`benchmarks.worldgen`: ``tune``, ``held_out``, ``ci``) the batch
 
 1. writes the world and its coverage route (the generator is seeded: the same world on
    every machine);
@@ -12,15 +13,19 @@ For each world of a set (:mod:`benchmarks.worldgen`: ``tune``, ``held_out``, ``c
 4. ``pppbot eval navigation --map <that map>``: ``--goals`` random reachable goals sent
    to ``navigate_to_pose``, judged on ground truth.
 
-Every run is in lockstep with wheel slip 0.01 and the default parameters, so the figures
-are the same on any machine; only the wall time differs. It prints one line per world
-and stage on stderr, and the per-world and aggregate figures (per set, per family, and
-against the issue's targets) as one JSON object on the last line of stdout. Each stage's
-own report stays in ``--out/<world>/<stage>/``; ``--resume`` reuses the reports already
-there, so an interrupted suite picks up where it stopped.
+The spec is written to ``--out/suite.batch.yaml`` (``benchmarks/batches/autonomy_held_out.yaml``
+is the held-out set's, for ``pppbot eval batch`` itself); worlds run ``--workers`` at once, or
+on a Ray cluster (``--ray``). Every run is in lockstep with wheel slip 0.01 and the default
+parameters, so the figures are the same on any machine and any number of workers; only the
+wall time differs. The batch's table and summary go to stderr with one line per world and
+stage, and the per-world and aggregate figures (per set, per family, and against the issue's
+targets) as one JSON object on the last line of stdout. Each stage's own report stays in
+``--out/<world>/<stage>/``; ``--resume`` keeps the reports already there, so an interrupted
+suite picks up where it stopped.
 
     ./pppbot env python benchmarks/autonomy_suite.py --set tune [--set held_out] [--goals 10]
                                                      [--worlds maze_000,hall_001] [--out DIR] [--resume]
+                                                     [--workers N | --ray auto]
 
 The worlds of ``held_out`` are never tuned on: report them separately (the aggregate is
 per set).
@@ -31,22 +36,22 @@ import argparse
 import json
 import math
 import os
-import shutil
 import signal
 import subprocess
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
+
+import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from worldgen import SETS, WorldSpec, write_world  # noqa: E402  (a sibling script)
+from worldgen import SETS, WorldSpec  # noqa: E402  (a sibling script)
 
-from pppbot_common.dds_isolation import isolate_dds  # noqa: E402
 from pppbot_eval.routes import load_routes, routes_file  # noqa: E402
-from pppbot_sim.worldgen.families import generate  # noqa: E402
+from pppbot_sim.worldgen.families import Family, generate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 PPPBOT = str(ROOT / "pppbot")
@@ -62,59 +67,44 @@ GOAL_RATE_MIN = 0.98
 WHEEL_SLIP = 0.01
 
 
-def run_stage(stage: str, world_file: Path, out: Path, arguments: list[str], resume: bool) -> dict[str, Any]:
-    """One ``pppbot eval`` run and its report (from ``out/report.json``; reused with ``resume``).
+def suite_spec(sets: list[str], goals: int, wanted: set[str] | None = None) -> dict[str, Any]:
+    """The suite as a batch spec (:mod:`pppbot_eval.batch`): per world, SLAM, then AMCL and navigation
+    on the map SLAM saved, whose frame is the spawn pose (the coverage route's start)."""
+    runs: list[dict[str, Any]] = []
+    for name in sets:
+        specs = [s for s in SETS[name] if wanted is None or generate(s.family, s.seed, small=s.small).name in wanted]
+        whole = wanted is None and len({s.small for s in specs}) == 1 and len(specs) == len(Family) * len(
+            {s.seed for s in specs})
+        worlds = ([{"family": [f.value for f in Family], "seed": sorted({s.seed for s in specs}),
+                    **({"small": True} if specs[0].small else {})}] if whole
+                  else [{"family": s.family.value, "seed": s.seed, **({"small": True} if s.small else {})}
+                        for s in specs])
+        runs += [{"world": world, "seed": "${world.seed}", "steps": suite_steps(goals)} for world in worlds]
+    return {"defaults": {"lockstep": True, "wheel_slip": WHEEL_SLIP, "view": False}, "runs": runs}
 
-    A run that wrote no report (it could not start) gives ``{"ok": False, "failure": ...}``.
-    """
-    report_file = out / "report.json"
-    if resume and report_file.is_file():
-        report = dict(json.loads(report_file.read_text()))
-        if report.get("failure") != "interrupted":
-            return report
-    shutil.rmtree(out, ignore_errors=True)  # an earlier, unfinished or replaced run
-    command = [PPPBOT, "eval", stage, "--world", str(world_file), "--lockstep", "--wheel-slip", str(WHEEL_SLIP),
-               "--out", str(out), "--json", "--no-view", *arguments]
-    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+def suite_steps(goals: int) -> list[dict[str, Any]]:
+    on_map = {"map": "${slam.map}", "map_pose": "${slam.start}"}
+    return [{"scenario": "slam"}, {"scenario": "localization", **on_map},
+            {"scenario": "navigation", **on_map, "start": "${slam.start}", "goals": goals}]
+
+
+def _report(out: Path, world: str, stage: str, failures: dict[str, str]) -> dict[str, Any]:
+    """A stage's report, or why there is none (the batch's summary says: e.g. no SLAM map)."""
     try:
-        _, stderr = proc.communicate()
-    except KeyboardInterrupt:
-        # Ctrl-C: the eval (in the same process group) stops its stack and writes its report;
-        # killing it instead would leave the stack's nodes running. Signalled alone, the
-        # suite passes the interrupt on.
-        proc.send_signal(signal.SIGINT)
-        proc.wait()
-        _stop_interrupted(stage, world_file, out)
-    if not report_file.is_file():
-        tail = stderr.strip().splitlines()[-5:]
-        return {"ok": False, "failure": f"eval {stage} exited {proc.returncode} without a report: "
-                                        + " | ".join(tail)}
-    report = dict(json.loads(report_file.read_text()))
-    if report.get("failure") == "interrupted":  # the eval alone was signalled: the suite stops too
-        _stop_interrupted(stage, world_file, out)
-    return report
+        return dict(json.loads((out / world / stage / "report.json").read_text()))
+    except (OSError, ValueError):
+        return {"ok": False, "failure": failures.get(f"{world}/{stage}", "no report")}
 
 
-def _stop_interrupted(stage: str, world_file: Path, out: Path) -> NoReturn:
-    """End the suite after an interrupted stage, whose output is no result: --resume runs it again."""
-    shutil.rmtree(out, ignore_errors=True)
-    raise SystemExit(f"autonomy_suite: eval {stage} in {world_file.stem} was interrupted; --resume goes on from there")
-
-
-def _round(value: Any, digits: int = 4) -> Any:
-    return round(value, digits) if isinstance(value, float) else value
-
-
-def run_world(spec: WorldSpec, out: Path, goals: int, resume: bool) -> dict[str, Any]:
+def world_figures(spec: WorldSpec, out: Path, failures: dict[str, str]) -> dict[str, Any]:
     """SLAM, AMCL on its map, navigation on its map in one world: the figures of each stage."""
     layout = generate(spec.family, spec.seed, small=spec.small)
-    world_file, summary = write_world(layout, out / "worlds")
-    route = load_routes(routes_file(world_file))[0]
-    start = [f"{v:.6f}" for v in route.start]  # the spawn pose: where the SLAM map's frame is
+    route = load_routes(routes_file(out / "worlds" / f"{layout.name}.sdf"))[0] if (
+        out / "worlds" / f"{layout.name}.sdf").is_file() else None
     figures: dict[str, Any] = {"world": layout.name, "family": spec.family.value, "seed": spec.seed,
-                               "route_length_m": summary["route_length_m"], "loops": summary["loops"]}
-    here = out / layout.name
-    slam = run_stage("slam", world_file, here / "slam", ["--seed", str(spec.seed)], resume)
+                               "route_length_m": round(route.length_m, 1) if route else None, "loops": layout.loops}
+    slam = _report(out, layout.name, "slam", failures)
     figures["slam"] = {k: _round(slam.get(k)) for k in
                        ("ok", "failure", "map_f1", "map_precision", "map_recall", "ate_rms_m", "ate_max_m",
                         "ate_yaw_rms_rad", "collisions", "sim_seconds", "wall_seconds", "real_time_factor")}
@@ -123,19 +113,12 @@ def run_world(spec: WorldSpec, out: Path, goals: int, resume: bool) -> dict[str,
                                                             "undone_closures", "degenerate_matches", "recoveries",
                                                             "lost", "keyframes_left_out", "largest_correction_m")}
     _say(layout.name, "slam", figures["slam"], ("map_f1", "ate_rms_m", "ate_max_m"))
-    map_file = slam.get("map")
-    if not map_file or not Path(map_file).is_file():
-        figures["localization"] = figures["navigation"] = {"ok": False, "failure": "no SLAM map"}
-        return figures
-    localization = run_stage("localization", world_file, here / "localization",
-                             ["--seed", str(spec.seed), "--map", map_file, "--map-pose", *start], resume)
+    localization = _report(out, layout.name, "localization", failures)
     figures["localization"] = {k: _round(localization.get(k)) for k in
                                ("ok", "failure", "converged", "converged_after_m", "amcl_rms_m", "amcl_max_m",
                                 "amcl_yaw_rms_rad", "collisions", "sim_seconds", "wall_seconds")}
     _say(layout.name, "localization", figures["localization"], ("amcl_rms_m", "amcl_max_m"))
-    navigation = run_stage("navigation", world_file, here / "navigation",
-                           ["--seed", str(spec.seed), "--map", map_file, "--map-pose", *start, "--start", *start,
-                            "--goals", str(goals)], resume)
+    navigation = _report(out, layout.name, "navigation", failures)
     results = navigation.get("goal_results") or []
     figures["navigation"] = {**{k: _round(navigation.get(k)) for k in
                                 ("ok", "failure", "success_rate", "collisions", "ate_rms_m", "sim_seconds",
@@ -143,6 +126,10 @@ def run_world(spec: WorldSpec, out: Path, goals: int, resume: bool) -> dict[str,
                              "goals": len(results), "reached": sum(bool(r["reached"]) for r in results)}
     _say(layout.name, "navigation", figures["navigation"], ("reached", "goals", "collisions"))
     return figures
+
+
+def _round(value: Any, digits: int = 4) -> Any:
+    return round(value, digits) if isinstance(value, float) else value
 
 
 def _say(world: str, stage: str, figures: dict[str, Any], keys: tuple[str, ...]) -> None:
@@ -234,30 +221,42 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--worlds", default=None, help="only these worlds of the sets (comma-separated names)")
     parser.add_argument("--goals", type=int, default=10, help="navigation goals per world (default 10)")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    parser.add_argument("--resume", action="store_true", help="reuse the stage reports already in --out")
+    parser.add_argument("--resume", action="store_true", help="keep the runs in --out that have a report")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="worlds at once on this machine (default: the batch's, one per 2 cores)")
+    parser.add_argument("--ray", default=None, metavar="ADDRESS", help="run on a Ray cluster (pppbot eval batch --ray)")
     args = parser.parse_args(argv)
     if args.goals < 1:
         parser.error(f"--goals {args.goals}: must be at least 1")
     sets = args.sets or ["tune", "held_out"]
     wanted = None if args.worlds is None else set(args.worlds.split(","))
-    # Each world's name, generated once (only to filter by --worlds: run_world generates it again).
-    names = {} if wanted is None else {s: generate(s.family, s.seed, small=s.small).name
-                                       for name in sets for s in SETS[name]}
     if wanted is not None:
-        known = set(names.values())
+        known = {generate(s.family, s.seed, small=s.small).name for name in sets for s in SETS[name]}
         if wanted - known:
             parser.error(f"--worlds: {', '.join(sorted(wanted - known))} not in the sets {', '.join(sets)} "
                          f"(they have {', '.join(sorted(known))})")
-    isolate_dds()
+    if args.out.exists() and any(args.out.iterdir()) and not args.resume:
+        parser.error(f"--out {args.out}: exists and is not empty; --resume goes on with it")
     os.environ.setdefault("MUJOCO_GL", "egl")
+    args.out.mkdir(parents=True, exist_ok=True)
+    spec_file = args.out / "suite.batch.yaml"
+    spec_file.write_text(yaml.safe_dump(suite_spec(sets, args.goals, wanted), sort_keys=False))
     started = time.monotonic()
+    batch = [PPPBOT, "eval", "batch", str(spec_file), "--out", str(args.out), "--resume",
+             *(["--workers", str(args.workers)] if args.workers else []), *(["--ray", args.ray] if args.ray else [])]
+    proc = subprocess.Popen(batch, stdout=sys.stderr)  # its table and summary: stderr; ours: stdout
+    try:
+        code = proc.wait()
+    except KeyboardInterrupt:  # Ctrl-C: the batch stops every stack and writes its summary
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait()
+    if code not in (0, 1):
+        return code  # interrupted (130; --resume goes on), or a bad spec or flag (2)
+    failures = json.loads((args.out / "summary.json").read_text()).get("failures", {})
     result: dict[str, Any] = {"wheel_slip": WHEEL_SLIP, "goals_per_world": args.goals, "lockstep": True, "sets": {}}
     for name in sets:
-        worlds = []
-        for spec in SETS[name]:
-            if wanted is not None and names[spec] not in wanted:
-                continue
-            worlds.append(run_world(spec, args.out, args.goals, args.resume))
+        worlds = [world_figures(spec, args.out, failures) for spec in SETS[name]
+                  if wanted is None or generate(spec.family, spec.seed, small=spec.small).name in wanted]
         families: dict[str, list[dict[str, Any]]] = {}
         for world in worlds:
             families.setdefault(world["family"], []).append(world)

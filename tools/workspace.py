@@ -16,12 +16,14 @@ with a hash of its inputs, so a second run with nothing changed does no work:
 3. ``install/``: pppbot's own packages (``pppbot_interfaces``, an ament_cmake package
    of pppbot's messages, and the ament_python packages), built with
    ``colcon build --symlink-install`` so that source edits apply without a rebuild.
+4. With ``--ray``: the optional Ray packages (``requirements-ray.txt``) in ``.venv/``, for
+   ``pppbot eval batch --ray``.
 
 Nothing is written outside the checkout.
 
 Usage::
 
-    python3 tools/workspace.py setup [--force] [--quiet]
+    python3 tools/workspace.py setup [--force] [--quiet] [--ray]
 """
 from __future__ import annotations
 
@@ -43,6 +45,8 @@ INSTALL = ROOT / "install"
 LOG = ROOT / "log"
 STAMPS = BUILD / ".pppbot-stamps"
 LOCK_FILE = ROOT / "requirements.txt"
+#: Optional extras (``setup --ray``): pinned on top of the lock.
+EXTRAS = {"ray": ROOT / "requirements-ray.txt"}
 INTERFACES = ROOT / "interfaces"
 SUPPORTED_PYTHON = ((3, 10), (3, 13))
 
@@ -328,12 +332,27 @@ def source_environment(script: Path, env: dict[str, str]) -> dict[str, str]:
     return {k.decode(): v.decode() for k, v in pairs}
 
 
+def ensure_extra(name: str, force: bool, quiet: bool) -> bool:
+    """Install the extra ``name``'s pins into .venv; True when something changed."""
+    digest = _digest([EXTRAS[name].read_bytes(), venv_digest().encode()])
+    marker = VENV / f".pppbot-extra-{name}.sha256"
+    if not force and marker.is_file() and marker.read_text().strip() == digest:
+        return False
+    say(f"installing the optional {name} packages from {EXTRAS[name].name}")
+    pip = [str(venv_python()), "-m", "pip", "install", "--disable-pip-version-check", *(["--quiet"] if quiet else [])]
+    _run([*pip, "-r", str(EXTRAS[name])], what="pip install")
+    marker.write_text(digest + "\n")
+    return True
+
+
 # ---------------------------------------------------------------------- main
-def setup(force: bool = False, quiet: bool = False) -> None:
+def setup(force: bool = False, quiet: bool = False, extras: Iterable[str] = ()) -> None:
     BUILD.mkdir(exist_ok=True)
     with open(BUILD / ".pppbot-setup.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         changed = ensure_venv(force, quiet)
+        for extra in extras:
+            changed |= ensure_extra(extra, force or changed, quiet)
         changed |= ensure_interfaces(force or changed, quiet)
         changed |= ensure_packages(force or changed, quiet)
         if changed:
@@ -346,9 +365,11 @@ def main(argv: list[str] | None = None) -> int:
     s = sub.add_parser("setup", help="create or update .venv/ and install/")
     s.add_argument("--force", action="store_true", help="redo every step")
     s.add_argument("--quiet", action="store_true", help="less output from pip and colcon")
+    s.add_argument("--ray", action="store_true",
+                   help=f"also the optional Ray packages ({EXTRAS['ray'].name}): pppbot eval batch --ray")
     args = parser.parse_args(argv)
     try:
-        setup(force=args.force, quiet=args.quiet)
+        setup(force=args.force, quiet=args.quiet, extras=["ray"] if args.ray else [])
     except SetupError as exc:
         print(f"[pppbot setup] error: {exc}", file=sys.stderr)
         return 1

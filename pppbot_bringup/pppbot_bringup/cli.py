@@ -99,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     module_name = verbs[top.verb]
     module = importlib.import_module(module_name)
-    if hasattr(module, "main_argv"):  # verbs with ros2-launch-style name:=value arguments
+    if hasattr(module, "main_argv"):  # verbs that parse their own: name:=value arguments, sub-verbs
         return int(module.main_argv(list(top.arguments)))
     parser = argparse.ArgumentParser(prog=f"pppbot {top.verb}", description=verb_help(module_name))
     module.add_arguments(parser)

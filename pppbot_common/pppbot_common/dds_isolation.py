@@ -1,13 +1,16 @@
 """A ROS_DOMAIN_ID of one's own, for tests and benchmarks, with DDS kept on this machine.
 
 Each claim holds a lock file per domain in the temporary directory for as long as
-the process lives, so concurrent runs (a developer's and CI's) never share one.
+the process lives (or a ``with`` block: a batch's run), so concurrent runs (a developer's
+and CI's, a batch's workers) never share one.
 """
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
@@ -35,25 +38,51 @@ def domain_id_problem(value: str | None) -> str | None:
     return None
 
 
+def _try_claim(domain: int) -> IO[str] | None:
+    """The lock file of ``domain``, locked (the claim), or None when another process holds it."""
+    lock = open(Path(tempfile.gettempdir()) / f"pppbot-ros-domain-{domain}.lock", "w")  # noqa: SIM115
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        lock.close()
+        return None
+    return lock
+
+
+def _claim() -> tuple[int, IO[str]]:
+    start = os.getpid() % len(DOMAIN_IDS)
+    for i in range(len(DOMAIN_IDS)):
+        domain = DOMAIN_IDS[(start + i) % len(DOMAIN_IDS)]
+        lock = _try_claim(domain)
+        if lock is not None:
+            return domain, lock
+    raise RuntimeError("every ROS domain ID is held by another pppbot run")
+
+
 def claim_domain_id() -> int:
     """A domain ID no other claimant on this machine holds (held until this process ends).
 
     Raises:
         RuntimeError: every domain ID is taken.
     """
-    start = os.getpid() % len(DOMAIN_IDS)
-    for i in range(len(DOMAIN_IDS)):
-        domain = DOMAIN_IDS[(start + i) % len(DOMAIN_IDS)]
-        # held open (and locked) for the whole process: the lock is the claim on the domain
-        lock = open(Path(tempfile.gettempdir()) / f"pppbot-ros-domain-{domain}.lock", "w")  # noqa: SIM115
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            lock.close()
-            continue
-        _held.append(lock)
-        return domain
-    raise RuntimeError("every ROS domain ID is held by another pppbot run")
+    domain, lock = _claim()
+    _held.append(lock)  # held open (and locked) for the whole process: the lock is the claim
+    return domain
+
+
+@contextlib.contextmanager
+def claimed_domain_id() -> Iterator[int]:
+    """A domain ID no other claimant on this machine holds, for the ``with`` block (a batch's run:
+    its child processes use it and it is free again after them).
+
+    Raises:
+        RuntimeError: every domain ID is taken.
+    """
+    domain, lock = _claim()
+    try:
+        yield domain
+    finally:
+        lock.close()  # closing the file lets the lock go
 
 
 def isolate_dds() -> int:

@@ -261,3 +261,36 @@ def parameter_file_arguments(args: Sequence[str]) -> list[Path]:
         elif in_ros_args and arg == "--params-file" and i + 1 < len(args):
             files.append(Path(args[i + 1]))
     return files
+
+
+def _flattened(params: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested parameter mappings as dotted names (``laser: {max_beams: 60}`` -> ``laser.max_beams``)."""
+    flat: dict[str, Any] = {}
+    for key, value in params.items():
+        name = f"{prefix}.{key}" if prefix else str(key)
+        if isinstance(value, dict):
+            flat.update(_flattened(value, name))
+        else:
+            flat[name] = value
+    return flat
+
+
+def _name_pattern(key: str) -> re.Pattern[str]:
+    """The node names a file's key applies to, as rcl matches them: ``*`` one token, ``**`` any
+    number; a key without a leading ``/`` is from the root namespace."""
+    tokens = key.lstrip("/").split("/")
+    parts = ["(/[^/]+)*" if t == "**" else "/[^/]+" if t == "*" else "/" + re.escape(t) for t in tokens]
+    return re.compile("".join(parts))
+
+
+def node_parameters(nodes: dict[str, dict[str, Any]], node: str) -> dict[str, Any]:
+    """The parameters a file (:func:`check_parameter_file`'s result) gives node ``node`` (its fully
+    qualified name, e.g. ``/amcl``), by dotted name: the keys with wildcards that match it (``/**``),
+    then its own name's, each in the file's order, so that its own name's win wherever they are."""
+    fqn = node if node.startswith("/") else "/" + node
+    params: dict[str, Any] = {}
+    keys = sorted(nodes, key=lambda k: "*" not in k)  # stable: wildcards first, each in the file's order
+    for key in keys:
+        if _name_pattern(key).fullmatch(fqn):
+            params.update(_flattened(nodes[key]))
+    return params

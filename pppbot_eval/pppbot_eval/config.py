@@ -10,9 +10,14 @@ import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from pppbot_common.errors import ArgumentError
+from pppbot_common.errors import ArgumentError, ParameterFileError
+from pppbot_common.param_files import check_parameter_file, node_parameters
 from pppbot_eval.scenarios import Scenario
+from pppbot_nav.controller.dwb import DWBSettings
+from pppbot_nav.controller.plugin_settings import DEFAULT_CONTROLLER_TYPES, DWB, RPP
+from pppbot_nav.controller.pure_pursuit import PurePursuitSettings
 
 #: The default real-time factor of each scenario without lockstep (``--real-time-factor``):
 #: what the nodes keep up with on 2 cores.
@@ -107,3 +112,62 @@ class EvalConfig:
         if self.timeout is not None and not (math.isfinite(self.timeout) and self.timeout > 0):
             raise ArgumentError(f"--timeout {self.timeout}: must be a positive number of sim seconds")
         return dataclasses.replace(self, real_time_factor=rtf)
+
+
+#: The velocity smoother's default ``max_velocity`` x (m/s; pppbot_nav's ``velocity_smoother``, Nav2's).
+SMOOTHER_MAX_X_DEFAULT = 0.5
+
+
+def _controller_speed(plugin: str, kind: str, params: dict[str, Any]) -> tuple[str, float]:
+    """The parameter that sets controller ``plugin``'s top forward speed, and its value (the stack's
+    default where the file is silent): DWB's ``max_vel_x``, Regulated Pure Pursuit's ``desired_linear_vel``."""
+    settings = {DWB: ("max_vel_x", DWBSettings), RPP: ("desired_linear_vel", PurePursuitSettings)}
+    name, cls = settings.get(kind, settings[RPP])
+    default = next(f.default for f in dataclasses.fields(cls) if f.name == name)
+    return f"{plugin}.{name}", params.get(f"{plugin}.{name}", default)
+
+
+@dataclass(frozen=True)
+class ScoredParameters:
+    """The Nav2 parameters a score depends on, read from the one file the stack is given.
+
+    ``amcl_transform_tolerance``: how far ahead AMCL stamps map -> odom (s); the localization
+    scenario compares its estimate at the time it is valid for. ``max_speed_mps``: the speed goals
+    are timed against (the navigation report's time ratios and each goal's time limit): the
+    controller's (the first of ``controller_plugins``; without a ``plugin``, Nav2's default, DWB)
+    capped by the velocity smoother's ``max_velocity``. Where the file is silent, the stack's defaults.
+    """
+
+    file: Path
+    amcl_transform_tolerance: float = 1.0
+    max_speed_mps: float = 0.5
+
+    @classmethod
+    def read(cls, path: Path) -> ScoredParameters:
+        """The parameters ``path`` gives.
+
+        Raises:
+            ArgumentError: the file is not a ROS 2 parameter file, or a scored value is not a
+                positive number (naming the file, node and parameter).
+        """
+        try:
+            nodes = check_parameter_file(path)
+        except ParameterFileError as exc:
+            raise ArgumentError(f"--params-file {exc}") from exc
+
+        def number(node: str, name: str, value: Any) -> float:
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
+                raise ArgumentError(f"--params-file {path}: {node} {name} = {value!r}: the evaluation needs a "
+                                    "positive number")
+            return float(value)
+
+        controller = node_parameters(nodes, "controller_server")
+        plugins = controller.get("controller_plugins", ["FollowPath"])
+        plugin = str(plugins if isinstance(plugins, str) else (plugins or ["FollowPath"])[0])
+        kind = str(controller.get(f"{plugin}.plugin", DEFAULT_CONTROLLER_TYPES.get(plugin, DWB)))
+        speed = number("controller_server", *_controller_speed(plugin, kind, controller))
+        smoother = node_parameters(nodes, "velocity_smoother").get("max_velocity", [SMOOTHER_MAX_X_DEFAULT])
+        if isinstance(smoother, list) and smoother:
+            speed = min(speed, number("velocity_smoother", "max_velocity[0]", smoother[0]))
+        amcl = node_parameters(nodes, "amcl")
+        return cls(path, number("amcl", "transform_tolerance", amcl.get("transform_tolerance", 1.0)), speed)

@@ -46,3 +46,11 @@ class NoPath(PathError):
 
 class GoalSamplingError(EvalError):
     """No navigation goals can be drawn as asked; the message names the value or the place."""
+
+
+class BatchSpecError(EvalError):
+    """A batch spec or batch flag that cannot be run: the message names the file, the entry and the key."""
+
+
+class RayError(EvalError):
+    """Ray is missing, or its cluster cannot be reached."""

@@ -9,9 +9,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
 from pppbot_common.maps import OCCUPIED, load_map
 from pppbot_common.process import ChildProcess
+from pppbot_eval.batch import filled, load_batch
+from pppbot_eval.ros.batch_cli import eval_parser
+from pppbot_eval.scenarios import Scenario
+from pppbot_sim.wheel_slip import MAX_SLIP_STDDEV
 
 ROOT = Path(__file__).resolve().parents[2]
 SUITE = str(ROOT / "benchmarks" / "autonomy_suite.py")
@@ -33,30 +38,20 @@ def world(name: str, family: str, f1: float | None, ate: float | None, ate_max: 
                            "wall_seconds": 5.0}}
 
 
-def test_an_interrupted_stage_stops_the_suite_and_runs_again_on_resume(suite, tmp_path, monkeypatch):
-    """An eval stopped by a signal reports "interrupted", which is no result: the suite stops
-    there (not on to the next world), and --resume runs that stage again."""
-    out = tmp_path / "slam"
-    failures = ["interrupted", None]
-
-    class FakeEval:  # writes the report an eval run would, then has nothing to say
-        returncode = 0
-
-        def __init__(self, command, **kwargs):
-            out.mkdir(parents=True, exist_ok=True)
-            (out / "report.json").write_text(json.dumps({"ok": failures[0] is None, "failure": failures.pop(0)}))
-
-        def communicate(self):
-            return "", ""
-    monkeypatch.setattr(suite.subprocess, "Popen", FakeEval)
-    with pytest.raises(SystemExit, match="interrupted"):
-        suite.run_stage("slam", tmp_path / "w.sdf", out, [], resume=False)
-    assert not out.exists()  # nothing left for --resume to take as a result
-    out.mkdir()
-    (out / "report.json").write_text(json.dumps({"ok": False, "failure": "interrupted"}))  # an older suite's
-    failures = [None]
-    assert suite.run_stage("slam", tmp_path / "w.sdf", out, [], resume=True) == {"ok": True, "failure": None}
-    assert suite.run_stage("slam", tmp_path / "w.sdf", out, [], resume=True) == {"ok": True, "failure": None}
+def test_the_suite_is_a_batch_spec_and_the_shipped_one_is_its_held_out_set(suite):
+    shipped = ROOT / "benchmarks" / "batches" / "autonomy_held_out.yaml"
+    assert yaml.safe_load(shipped.read_text()) == suite.suite_spec(["held_out"], 10)
+    batch = load_batch(shipped, eval_parser(), [s.value for s in Scenario], MAX_SLIP_STDDEV)
+    assert len(batch.chains) == 21 and len(batch.steps) == 63
+    slam, localization, navigation = batch.chains[0].steps
+    assert [slam.id, localization.id, navigation.id] == ["maze_100/slam", "maze_100/localization",
+                                                          "maze_100/navigation"]
+    assert filled(navigation, {"slam": {"map": "/m.yaml", "start": [1.0, 2.0, 0.0]}}) == {
+        "lockstep": True, "wheel_slip": 0.01, "view": False, "seed": 100, "map": "/m.yaml",
+        "map_pose": [1.0, 2.0, 0.0], "start": [1.0, 2.0, 0.0], "goals": 10}
+    # a few worlds: one entry each, the ci set's small worlds among them
+    picked = suite.suite_spec(["ci"], 3, {"office_small_001"})
+    assert [r["world"] for r in picked["runs"]] == [{"family": "office", "seed": 1, "small": True}]
 
 
 def test_the_aggregate_counts_worlds_against_each_target(suite):

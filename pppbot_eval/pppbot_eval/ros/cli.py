@@ -3,6 +3,7 @@
     ./pppbot eval drive --world maze [--route coverage] [--seed 0] [--no-lockstep --real-time-factor 3]
                         [--wheel-slip 0.02] [--speed 0.3] [--out DIR] [--json]
     ./pppbot eval navigation --world maze [--goals 50] [--seed 0] [--out DIR] [--json]
+    ./pppbot eval batch SPEC.yaml [--workers N] [--resume] [--ray auto]   (many runs: pppbot_eval.ros.batch_cli)
 
 The stack starts through the same supervisor and node plan as ``launch_sim``
 (no teleop, no RViz, no viewer), spawned at the route's start. A route driver
@@ -23,7 +24,6 @@ import argparse
 import functools
 import math
 import os
-import random
 import signal
 import sys
 import threading
@@ -39,12 +39,13 @@ from pppbot_bringup.paths import config_directory
 from pppbot_bringup.ros.graph_probe import GraphProbe, domain_taken_message, free_domain
 from pppbot_bringup.run import RunError, find_executable
 from pppbot_bringup.supervisor import Output, Supervisor
+from pppbot_common.dds_isolation import claim_domain_id
 from pppbot_common.errors import PppbotError
 from pppbot_common.launch_args import ArgumentError
 from pppbot_common.maps import MapFileError, OccupancyGrid, save_map
 from pppbot_description.errors import DescriptionError
 from pppbot_description.xacro_model import process_xacro
-from pppbot_eval.config import EvalConfig
+from pppbot_eval.config import EvalConfig, ScoredParameters
 from pppbot_eval.driver import DriverSettings, RouteDriver
 from pppbot_eval.errors import GoalSamplingError, MapQualityError, RouteError
 from pppbot_eval.goals import sample_goals
@@ -98,8 +99,11 @@ class Run:
     """
 
     def __init__(self, config: EvalConfig, world_file: Path, route: Route | None,
-                 out: Path, truth_map: OccupancyGrid, goals: list[tuple[float, float, float]] | None = None) -> None:
+                 out: Path, truth_map: OccupancyGrid, goals: list[tuple[float, float, float]] | None = None, *,
+                 scored: ScoredParameters) -> None:
         self.config = config
+        #: Nav2's parameters, read once: the stack is given this file and the scores use these values.
+        self.scored = scored
         self.scenario = config.scenario
         self.world_file = world_file
         self.route = route
@@ -107,8 +111,8 @@ class Run:
         self.out = out
         self.truth_map = truth_map
         self.goals = goals or []
-        #: The speed limit goals are timed against, read once: the goal loop and the report agree.
-        self.max_speed_mps = nav_max_speed()
+        #: The speed limit goals are timed against: the goal loop and the report agree.
+        self.max_speed_mps = self.scored.max_speed_mps
         self.recording = Recording()
         self.interrupted = False
         self.stop = threading.Event()
@@ -131,7 +135,7 @@ class Run:
             localization=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION),
             # The route scenarios drive themselves: no navigation nodes to share the CPU.
             navigation=NavigationMode.TRUE if navigates else NavigationMode.FALSE,
-            map=str(self.config.map or ""), params_file=str(self.config.params_file or ""),
+            map=str(self.config.map or ""), params_file=str(self.scored.file),
             slam_params_file=str(self._slam_params()) if self.scenario is Scenario.SLAM else "")
 
     def _slam_params(self) -> Path:
@@ -305,23 +309,9 @@ class Run:
             self.recording.posegraph = str(path.resolve())
 
 
-def _nav2_parameter(node: str, name: str, default: float) -> float:
-    """A number from the parameter file the bringup gives the nodes (``config/nav2_params.yaml``)."""
-    values = yaml.safe_load((config_directory() / "nav2_params.yaml").read_text()) or {}
-    parameters = values.get(node, {}).get("ros__parameters", {})
-    for part in name.split(".")[:-1]:
-        parameters = parameters.get(part, {})
-    return float(parameters.get(name.rsplit(".", maxsplit=1)[-1], default))
-
-
-def amcl_transform_tolerance() -> float:
-    """How far ahead AMCL stamps map → odom: its ``transform_tolerance``."""
-    return _nav2_parameter("amcl", "transform_tolerance", 1.0)
-
-
-def nav_max_speed() -> float:
-    """The speed limit goals are timed against: the controller's ``FollowPath.desired_linear_vel``."""
-    return _nav2_parameter("controller_server", "FollowPath.desired_linear_vel", 0.5)
+def default_nav2_params() -> Path:
+    """The parameter file the bringup gives Nav2's nodes when ``--params-file`` names none."""
+    return config_directory() / "nav2_params.yaml"
 
 
 def slam_health(values: dict[str, str]) -> dict[str, Any]:
@@ -352,7 +342,7 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
             localizing = run.scenario is Scenario.LOCALIZATION
             map_pose = run.config.map_pose if localizing else None
             metrics, problem = route_metrics(run.scenario, rec, run.route, truth_map, run.out, title, map_pose,
-                                             amcl_transform_tolerance() if localizing else 0.0)
+                                             run.scored.amcl_transform_tolerance if localizing else 0.0)
             if run.scenario is Scenario.SLAM and rec.final_map is not None:
                 # The map as map_saver would save it: the localization and navigation scenarios take it.
                 metrics["map"] = str(save_map(rec.final_map, run.out / "map.yaml"))
@@ -371,7 +361,7 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     if failure is None and metrics.get("converged") is False:
         failure = (f"AMCL never converged (error within {CONVERGED_M} m and {CONVERGED_RAD} rad for "
                    f"{CONVERGED_TRAVEL_M} m of travel)")
-    return _result(run, failure or problem, {"speed_mps": run.config.speed, **metrics})
+    return _result(run, failure or problem, {"start": list(run.start), "speed_mps": run.config.speed, **metrics})
 
 
 def navigation_report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
@@ -522,6 +512,21 @@ def _score_map(config: EvalConfig, world_file: Path) -> int:
     return 0
 
 
+def _own_domain(tries: int = 8) -> int:
+    """A ROS domain for this run: claimed (a lock no other pppbot run, a batch's among them, takes) and
+    without nodes on it (a stack started by hand holds no lock).
+
+    Raises:
+        RuntimeError: ``tries`` claimed domains all have nodes on them.
+    """
+    for _ in range(tries):
+        try:
+            return free_domain([claim_domain_id()])
+        except RuntimeError:
+            continue
+    raise RuntimeError(f"the {tries} ROS domains tried have nodes on them")
+
+
 def main(args: argparse.Namespace) -> int:
     goals = None
     try:
@@ -539,6 +544,7 @@ def main(args: argparse.Namespace) -> int:
             route_path = config.route_file or routes_file(world_file)
             route = select_route(load_routes(route_path), config.route, route_path)
             truth_map = world_truth(world_file, route)
+        scored = ScoredParameters.read(config.params_file or default_nav2_params())
         out = _output_dir(config, world_file)
         out.mkdir(parents=True, exist_ok=True)
     except (ArgumentError, RouteError, GoalSamplingError, WorldError, DescriptionError, ValueError) as exc:
@@ -550,7 +556,7 @@ def main(args: argparse.Namespace) -> int:
     os.environ["PYTHONUNBUFFERED"] = "1"
     if "ROS_DOMAIN_ID" not in os.environ:  # a domain of its own: nothing else's nodes mix with the run's
         try:
-            domain = free_domain(random.Random().sample(range(1, 102), 8))
+            domain = _own_domain()
         except RuntimeError as exc:
             print(f"pppbot eval: {exc}; set ROS_DOMAIN_ID to one that is free", file=sys.stderr)
             return 2
@@ -558,7 +564,7 @@ def main(args: argparse.Namespace) -> int:
         print(f"pppbot eval: on ROS_DOMAIN_ID={domain}, which nothing else uses (set ROS_DOMAIN_ID to choose)",
               file=sys.stderr)
     progress = Progress(sys.stderr, f"{scenario.value} {world_file.stem}/{route.name if route else 'goals'}")
-    run = Run(config, world_file, route, out, truth_map, goals)
+    run = Run(config, world_file, route, out, truth_map, goals, scored=scored)
     # Ctrl-C, SIGTERM, SIGHUP: stop the stack and still write the report.
     previous = {s: signal.signal(s, run.interrupt) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
     try:
@@ -572,3 +578,23 @@ def main(args: argparse.Namespace) -> int:
     if run.interrupted:
         return 130
     return 0 if result["ok"] else 1
+
+
+def main_argv(argv: list[str]) -> int:
+    """``pppbot eval``: a scenario, or ``batch`` (:mod:`pppbot_eval.ros.batch_cli`)."""
+    if argv[:1] == ["batch"]:
+        from pppbot_eval.ros import batch_cli
+        parser = argparse.ArgumentParser(prog="pppbot eval batch")
+        batch_cli.add_arguments(parser)
+        try:
+            return batch_cli.main(parser.parse_args(argv[1:]))
+        except KeyboardInterrupt:  # before the batch's own handler is in place: nothing runs yet
+            return 130
+    parser = argparse.ArgumentParser(prog="pppbot eval", formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     epilog="pppbot eval batch SPEC.yaml runs many scenarios, several at once or on "
+                                            "a Ray cluster (pppbot eval batch --help)")
+    add_arguments(parser)
+    try:
+        return main(parser.parse_args(argv))
+    except KeyboardInterrupt:  # before the run's own handler is in place
+        return 130
