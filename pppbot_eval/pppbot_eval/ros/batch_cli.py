@@ -49,7 +49,8 @@ def eval_parser() -> argparse.ArgumentParser:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.description = __doc__.strip().splitlines()[0]
+    parser.description = ("Many scenarios, several at once on this machine or on a Ray cluster, with one summary "
+                          "(the spec's format: docs/evaluation.md).")
     parser.add_argument("spec", type=Path, help="the batch spec (YAML; see docs/evaluation.md)")
     parser.add_argument("--out", type=Path, default=None,
                         help="the batch's folder (default: the spec's 'out', else eval_batch_<spec name>)")
