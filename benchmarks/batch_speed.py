@@ -29,7 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from stack_speed import _children, _rss_mb  # noqa: E402  (a sibling script)
 
 from pppbot_common.dds_isolation import isolate_dds  # noqa: E402
-from pppbot_eval.batch_summary import WALL_KEYS  # noqa: E402
+from pppbot_eval.batch_summary import comparable_reports  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 PPPBOT = str(ROOT / "pppbot")
@@ -70,12 +70,6 @@ def run_batch(spec: Path, out: Path, workers: int) -> dict[str, Any]:
             "peak_rss_mb": round(peak[0]), "sim_seconds": summary["overall"]["sim_seconds"]}
 
 
-def reports(out: Path) -> dict[str, dict[str, Any]]:
-    found = {}
-    for path in sorted(out.glob("**/report.json")):
-        report = json.loads(path.read_text().replace(str(out), "<out>"))
-        found[str(path.parent.relative_to(out))] = {k: v for k, v in report.items() if k not in WALL_KEYS}
-    return found
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -95,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     for workers in args.workers:
         out = folder / f"workers_{workers}"
         result = run_batch(spec, out, workers)
-        these = reports(out)
+        these = comparable_reports(out)
         result["same_reports_as_first"] = first is None or these == first
         first = first or these
         print(f"{workers} worker(s): {result}", file=sys.stderr)

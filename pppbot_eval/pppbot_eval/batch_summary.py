@@ -113,6 +113,17 @@ def _cell(value: Any) -> str:
     return "-" if value is None else f"{value:.4g}" if isinstance(value, float) else str(value)
 
 
+def comparable_reports(out: Path) -> dict[str, dict[str, Any]]:
+    """Every run's report in a batch's folder ``out``, by run id, without what depends on the machine and
+    the moment (:data:`WALL_KEYS`, and ``out`` itself as ``<out>``): two batches of one spec, on any
+    number of workers or machines, give equal ones."""
+    found = {}
+    for path in sorted(out.glob("**/report.json")):
+        report = json.loads(path.read_text().replace(str(out), "<out>"))
+        found[str(path.parent.relative_to(out))] = {k: v for k, v in report.items() if k not in WALL_KEYS}
+    return found
+
+
 def write_files(out: Path, results: Sequence[RunResult], summary: Mapping[str, Any]) -> str:
     """``summary.csv`` (a row per run) and ``summary.json`` in ``out``; the JSON as one line."""
     keys = sorted({k for r in results for k in FIGURES.get(r.scenario, ())})

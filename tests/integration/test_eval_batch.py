@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 
 from pppbot_common.ros.wait import wait_until
-from pppbot_eval.batch_summary import WALL_KEYS
+from pppbot_eval.batch_summary import comparable_reports as reports
 
 from .eval_runs import BOX_ROOM, PPPBOT
 
@@ -47,13 +47,6 @@ def run_batch(spawn: Any, spec_file: Path, out: Path, *flags: str,
     return code, json.loads(batch.output.strip().splitlines()[-1])
 
 
-def reports(out: Path) -> dict[str, dict[str, Any]]:
-    """Each run's report without what depends on the machine and the moment (wall times, the folder)."""
-    found = {}
-    for path in sorted(out.glob("**/report.json")):
-        report = json.loads(path.read_text().replace(str(out), "<out>"))
-        found[str(path.parent.relative_to(out))] = {k: v for k, v in report.items() if k not in WALL_KEYS}
-    return found
 
 
 def test_one_worker_two_workers_and_ray_give_the_same_reports(spawn, tmp_path):
