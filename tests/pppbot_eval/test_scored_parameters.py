@@ -12,7 +12,8 @@ from pppbot_common.errors import ArgumentError
 from pppbot_common.maps import OccupancyGrid
 from pppbot_common.param_files import check_parameter_file, node_parameters
 from pppbot_eval.config import SMOOTHER_MAX_X_DEFAULT, EvalConfig, ScoredParameters
-from pppbot_eval.ros.cli import Run, default_nav2_params, navigation_report
+from pppbot_eval.ros.cli import Run, default_nav2_params
+from pppbot_eval.ros.run_report import navigation_report
 from pppbot_eval.scenarios import GoalAnswer, GoalRecord, Scenario
 from pppbot_nav.controller.dwb import DWBSettings
 from pppbot_nav.controller.plugin_settings import RPP

@@ -40,9 +40,8 @@ from pppbot_bringup.ros.graph_probe import GraphProbe, domain_taken_message, fre
 from pppbot_bringup.run import RunError, find_executable
 from pppbot_bringup.supervisor import Output, Supervisor
 from pppbot_common.dds_isolation import claim_domain_id
-from pppbot_common.errors import PppbotError
 from pppbot_common.launch_args import ArgumentError
-from pppbot_common.maps import MapFileError, OccupancyGrid, save_map
+from pppbot_common.maps import MapFileError, OccupancyGrid
 from pppbot_description.errors import DescriptionError
 from pppbot_description.xacro_model import process_xacro
 from pppbot_eval.config import EvalConfig, ScoredParameters
@@ -53,19 +52,12 @@ from pppbot_eval.progress import Progress
 from pppbot_eval.report import write_json
 from pppbot_eval.ros.behaviors import Behavior, Chain, DriveRoute, NavigateGoals, StartLocalization
 from pppbot_eval.ros.node import PARTICIPANT, EvalNode
+from pppbot_eval.ros.run_report import VIEW_FILE, report
 from pppbot_eval.routes import Route, load_routes, routes_file, select_route
 from pppbot_eval.scenarios import (
-    CONVERGED_M,
-    CONVERGED_RAD,
-    CONVERGED_TRAVEL_M,
     ESTIMATES,
-    GOAL_XY_TOLERANCE_M,
     Recording,
     Scenario,
-    map_metrics,
-    navigation_metrics,
-    route_metrics,
-    save_recording,
     score_saved_map,
     world_truth,
 )
@@ -74,8 +66,6 @@ from pppbot_sim.wheel_slip import MAX_SLIP_STDDEV
 from pppbot_sim.worlds import find_world
 
 READY_TIMEOUT_S = 120.0
-#: The live view's rerun recording in ``--out`` (``--view``).
-VIEW_FILE = "view.rrd"
 #: Wall seconds without a ground-truth message before the run is declared stuck.
 STALL_TIMEOUT_S = 30.0
 #: Wall seconds to wait for SLAM's map after the route (it updates every map_update_interval sim s).
@@ -312,106 +302,6 @@ class Run:
 def default_nav2_params() -> Path:
     """The parameter file the bringup gives Nav2's nodes when ``--params-file`` names none."""
     return config_directory() / "nav2_params.yaml"
-
-
-def slam_health(values: dict[str, str]) -> dict[str, Any]:
-    """The slam node's last /diagnostics values, as numbers and booleans where they are."""
-    def parse(text: str) -> Any:
-        if text in ("true", "false"):
-            return text == "true"
-        try:
-            return int(text)
-        except ValueError:
-            try:
-                return float(text)
-            except ValueError:
-                return text
-    return {key: parse(value) for key, value in values.items()}
-
-
-def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
-    if run.route is None:
-        return navigation_report(run, truth_map)
-    rec = run.recording
-    title = f"{run.scenario.value} in {run.world_file.stem}, route {run.route.name}"
-    save_recording(run.out / "recording.npz", rec)
-    metrics: dict[str, Any] = {}
-    problem = None
-    if rec.truth_rows:
-        try:
-            localizing = run.scenario is Scenario.LOCALIZATION
-            map_pose = run.config.map_pose if localizing else None
-            metrics, problem = route_metrics(run.scenario, rec, run.route, truth_map, run.out, title, map_pose,
-                                             run.scored.amcl_transform_tolerance if localizing else 0.0)
-            if run.scenario is Scenario.SLAM and rec.final_map is not None:
-                # The map as map_saver would save it: the localization and navigation scenarios take it.
-                metrics["map"] = str(save_map(rec.final_map, run.out / "map.yaml"))
-                map_truth = world_truth(run.world_file, run.route, rec.final_map.resolution)
-                metrics.update(map_metrics(rec.final_map, map_truth, run.route.start, run.out, title + " — map"))
-                metrics["slam_health"] = slam_health(rec.slam_health)
-                if rec.posegraph:
-                    metrics["posegraph"] = rec.posegraph
-        except (PppbotError, ValueError, OSError) as exc:
-            problem = f"metrics: {exc}"
-    failure = rec.failure
-    if failure is None and not rec.route_finished:
-        failure = "route not finished"
-    if failure is None and metrics.get("collisions", 0):
-        failure = f"{metrics['collisions']} collision(s)"
-    if failure is None and metrics.get("converged") is False:
-        failure = (f"AMCL never converged (error within {CONVERGED_M} m and {CONVERGED_RAD} rad for "
-                   f"{CONVERGED_TRAVEL_M} m of travel)")
-    return _result(run, failure or problem, {"start": list(run.start), "speed_mps": run.config.speed, **metrics})
-
-
-def navigation_report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
-    """The navigation scenario's report: ok when every goal was sent, the success rate is at least
-    ``--min-success-rate`` and nothing was touched."""
-    rec = run.recording
-    save_recording(run.out / "recording.npz", rec)
-    metrics: dict[str, Any] = {}
-    problem = None
-    if rec.truth_rows and rec.goals:
-        try:
-            metrics = navigation_metrics(rec, truth_map, run.config.map_pose, run.max_speed_mps, run.out,
-                                         f"navigation in {run.world_file.stem}, {len(run.goals)} goals "
-                                         f"(seed {run.config.seed})")
-        except (PppbotError, ValueError, OSError) as exc:
-            problem = f"metrics: {exc}"
-    failure = rec.failure
-    if failure is None and len(rec.goals) < len(run.goals):
-        failure = f"only {len(rec.goals)} of {len(run.goals)} goals were sent"
-    if failure is None and metrics.get("collisions", 0):
-        failure = f"{metrics['collisions']} collision(s)"
-    rate = metrics.get("success_rate")
-    if failure is None and rate is not None and rate < run.config.min_success_rate:
-        failure = (f"success rate {rate:.3f} < {run.config.min_success_rate} (a goal counts when the navigator "
-                   f"succeeds and the true pose is within {GOAL_XY_TOLERANCE_M:g} m of it)")
-    return _result(run, failure or problem, {"start": list(run.start), "map_pose": list(run.config.map_pose),
-                                             **metrics})
-
-
-def _result(run: Run, failure: str | None, metrics: dict[str, Any]) -> dict[str, Any]:
-    rec = run.recording
-    drive_wall = rec.drive_wall_seconds
-    return {
-        "scenario": run.scenario.value,
-        "world": run.world_file.stem,
-        "ok": failure is None,
-        "failure": failure,
-        "sim_seconds": round(rec.sim_seconds, 3),
-        "wall_seconds": round(rec.wall_seconds, 3),
-        "real_time_factor": round(rec.sim_seconds / drive_wall, 3) if drive_wall > 0 else None,
-        "target_real_time_factor": run.config.real_time_factor,
-        "lockstep": run.config.lockstep,
-        "seed": run.config.seed,
-        "wheel_slip": run.config.wheel_slip,
-        "params_file": str(run.config.params_file) if run.config.params_file else None,
-        **metrics,
-        "out": str(run.out),
-        "plots": sorted(p.name for p in run.out.glob("*.png")),
-        "view": VIEW_FILE if (run.out / VIEW_FILE).is_file() else None,
-    }
 
 
 # ------------------------------------------------------------ command line
