@@ -40,6 +40,7 @@ from pppbot_bringup.parameter_files import (
     NOT_IN_PPP_BOTS_BRINGUP,
     PARAMETER_FILES,
     check_slam_localization,
+    map_free_navigation_problem,
     missing_sections_note,
     parameter_file,
     sections_missing,
@@ -86,7 +87,8 @@ class LaunchArgs:
     use_slam: bool = _arg(True, "with localization:=false, map with the SLAM node (false: drive on odometry only)")
     navigation: NavigationMode = _arg(NavigationMode.AUTO, "Nav2's navigation servers: planner, controller, "
                                                            "behaviours, bt_navigator, waypoints (auto: with "
-                                                           "localization:=true)",
+                                                           "localization:=true; with neither localization nor "
+                                                           "SLAM, in odom if params_file says so)",
                                       tuple(m.value for m in NavigationMode))
     use_velocity_smoother: bool = _arg(True, "the velocity_smoother between the controller and twist_mux, as in "
                                              "Nav2's bringup (false: leave it out)")
@@ -405,9 +407,12 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
     localizer = (("localization" if args.use_composition else "lifecycle_manager_localization") if args.localization
                  else "slam_toolbox" if args.use_slam else None)
     if args.navigation.enabled(args.localization):
-        if localizer is None:
-            raise ArgumentError("navigation:=true needs a map frame: localization:=true or use_slam:=true")
         given = parameter_file(args.params_file, config / "nav2_params.yaml", "params_file")
+        if localizer is None:  # Nav2 without a map: it navigates in odom, its global costmap rolling
+            problem = map_free_navigation_problem(given)
+            if problem is not None:
+                raise ArgumentError(f"navigation:=true without localization or SLAM navigates in odom, but "
+                                    f"params_file:={given} does not: {problem}")
         nav2_params = adapted_file(given, robot, urdf_file.parent, files, start_info)
         missing += sections_missing(given, NAVIGATION_NODES)
         left_out = [name for name in missing if name in NOT_IN_PPP_BOTS_BRINGUP]
@@ -426,7 +431,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                                lambda: active.probe() and lockstep_joined())
             leave_out = [arg for name in without for arg in ("--without", name)]
             nodes.append(NodeSpec("navigation", [resolve("pppbot_nav", "navigation"), *leave_out, *ros_args(
-                level, extra, params_file=nav2_params, remaps=remaps)], after=(localizer,), required=True,
+                level, extra, params_file=nav2_params, remaps=remaps)], after=(localizer or base,), required=True,
                 pppbot_node=True, ready=check))
         else:
             joins = []
@@ -438,7 +443,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                 joins.append(joined.probe)
                 own = {old: new for old, new in remaps.items() if old.startswith(f"{name}:")}
                 nodes.append(NodeSpec(name, [resolve("pppbot_nav", name), *ros_args(
-                    level, extra, params_file=nav2_params, remaps=own)], after=(localizer,), required=True,
+                    level, extra, params_file=nav2_params, remaps=own)], after=(localizer or base,), required=True,
                     pppbot_node=True, ready=serving))
             nodes.append(manager_spec("lifecycle_manager_navigation", managed, nav2_params, ReadyCheck(
                 active.description + (" (joined lockstep)" if lockstep else ""),

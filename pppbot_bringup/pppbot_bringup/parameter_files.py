@@ -8,7 +8,7 @@ import yaml
 
 from pppbot_common.errors import ParameterFileError
 from pppbot_common.launch_args import ArgumentError
-from pppbot_common.param_files import check_parameter_file
+from pppbot_common.param_files import check_parameter_file, node_parameters
 
 
 def parameter_file(given: str, default: Path, argument: str) -> Path:
@@ -50,6 +50,26 @@ def check_slam_localization(path: Path) -> None:
     if not stem.with_name(stem.name + ".posegraph").is_file() and not stem.is_file():
         raise ArgumentError(f"slam_params_file:={path}: map_file_name: {graph}: no pose graph "
                             f"{stem.name}.posegraph there")
+
+
+def map_free_navigation_problem(path: Path, odom_frame: str = "odom") -> str | None:
+    """Why Nav2's parameters at ``path`` (already checked) cannot navigate without a map frame, or
+    None when they can: as Nav2 runs with no map (outdoors, exploring), the navigator's and the
+    behaviours' ``global_frame`` and the global costmap's are ``odom_frame``, and the global costmap
+    rolls with the robot (``rolling_window: true``) and has no ``static_layer``."""
+    nodes = check_parameter_file(path)
+    wrong = []
+    for node, key, wanted in (("/bt_navigator", "global_frame", odom_frame),
+                              ("/behavior_server", "global_frame", odom_frame),
+                              ("/global_costmap/global_costmap", "global_frame", odom_frame),
+                              ("/global_costmap/global_costmap", "rolling_window", True)):
+        value = node_parameters(nodes, node).get(key, "map" if key == "global_frame" else False)
+        if value != wanted:
+            wrong.append(f"{node.lstrip('/')} {key}: {value} (not {str(wanted).lower()})")
+    plugins = node_parameters(nodes, "/global_costmap/global_costmap").get("plugins", ["static_layer"])
+    if isinstance(plugins, list) and "static_layer" in plugins:
+        wrong.append("global_costmap plugins include static_layer (it waits for a /map)")
+    return "; ".join(wrong) or None
 
 
 #: The arguments that name ROS 2 parameter files.

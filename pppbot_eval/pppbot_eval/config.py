@@ -12,6 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from pppbot_common.errors import ArgumentError, ParameterFileError
 from pppbot_common.param_files import check_parameter_file, node_parameters
 from pppbot_eval.scenarios import Scenario
@@ -55,6 +57,8 @@ class EvalConfig:
     goal_distance: float = 2.0
     start: Triple = (0.0, 0.0, 0.0)
     min_success_rate: float = 0.98
+    goal: Triple | None = None
+    no_map: bool = False
     view: bool = False
     json: bool = False
     log_level: str = "info"
@@ -64,8 +68,8 @@ class EvalConfig:
         """The config of parsed flags (an argparse namespace with these fields' names), checked."""
         values = {f.name: getattr(flags, f.name) for f in dataclasses.fields(cls) if hasattr(flags, f.name)}
         values["scenario"] = Scenario(values["scenario"])
-        for name in ("map_pose", "initial_offset", "start"):
-            if name in values:
+        for name in ("map_pose", "initial_offset", "start", "goal"):
+            if values.get(name) is not None:
                 values[name] = tuple(float(v) for v in values[name])
         return cls(**values).checked(max_wheel_slip)
 
@@ -91,7 +95,7 @@ class EvalConfig:
         if not (math.isfinite(self.wheel_slip) and 0.0 <= self.wheel_slip <= max_wheel_slip):
             raise ArgumentError(f"--wheel-slip {self.wheel_slip}: must be in [0, {max_wheel_slip}]")
         for flag, triple in (("--map-pose", self.map_pose), ("--start", self.start),
-                             ("--initial-offset", self.initial_offset)):
+                             ("--initial-offset", self.initial_offset), ("--goal", self.goal or (0.0, 0.0, 0.0))):
             if not all(math.isfinite(v) for v in triple):
                 raise ArgumentError(f"{flag} {' '.join(map(str, triple))}: must be three finite numbers")
         if self.scenario is Scenario.MAP and self.map is None:
@@ -101,17 +105,58 @@ class EvalConfig:
                                 f"not {self.scenario.value}")
         if self.params_file is not None and not self.params_file.is_file():
             raise ArgumentError(f"--params-file {self.params_file}: no such file")
+        self._check_navigation()
+        if self.seed < 0:
+            raise ArgumentError(f"--seed {self.seed}: must be a non-negative integer")
+        if self.timeout is not None and not (math.isfinite(self.timeout) and self.timeout > 0):
+            raise ArgumentError(f"--timeout {self.timeout}: must be a positive number of sim seconds")
+        return dataclasses.replace(self, real_time_factor=rtf)
+
+    def _check_navigation(self) -> None:
         if self.goals < 1:
             raise ArgumentError(f"--goals {self.goals}: must be at least 1")
         if not (math.isfinite(self.goal_distance) and self.goal_distance >= 0):
             raise ArgumentError(f"--goal-distance {self.goal_distance}: must be a non-negative number of metres")
         if not (0.0 <= self.min_success_rate <= 1.0):
             raise ArgumentError(f"--min-success-rate {self.min_success_rate}: must be in [0, 1]")
-        if self.seed < 0:
-            raise ArgumentError(f"--seed {self.seed}: must be a non-negative integer")
-        if self.timeout is not None and not (math.isfinite(self.timeout) and self.timeout > 0):
-            raise ArgumentError(f"--timeout {self.timeout}: must be a positive number of sim seconds")
-        return dataclasses.replace(self, real_time_factor=rtf)
+        if self.scenario is not Scenario.NAVIGATION and (self.no_map or self.goal is not None):
+            raise ArgumentError(f"{'--no-map' if self.no_map else '--goal'}: only the navigation scenario takes it, "
+                                f"not {self.scenario.value}")
+        if self.no_map and self.map is not None:
+            raise ArgumentError("--map and --no-map: a run navigates on a map or without one, not both")
+
+
+def map_free_params(path: Path, out_file: Path, window_m: int, odom_frame: str = "odom") -> Path:
+    """Nav2's parameters at ``path`` made to navigate without a map, as Nav2 runs where none exists
+    (outdoors, exploring), written to ``out_file``: the navigator, the behaviours and the global
+    costmap in ``odom_frame``, the global costmap a ``window_m`` square rolling with the robot, marked
+    and cleared by the lidar alone (its ``static_layer`` left out). The rest as the file says.
+
+    Raises:
+        ArgumentError: the file is not a ROS 2 parameter file (naming it and what is wrong).
+    """
+    try:
+        check_parameter_file(path)
+        document = yaml.safe_load(path.read_text()) or {}
+    except (ParameterFileError, OSError, yaml.YAMLError) as exc:
+        raise ArgumentError(f"--params-file {path}: {exc}") from exc
+
+    def section(*keys: str) -> dict[str, Any]:
+        node = document
+        for key in (*keys, "ros__parameters"):
+            node = node.setdefault(key, {})
+        return node
+
+    section("bt_navigator")["global_frame"] = odom_frame
+    section("behavior_server")["global_frame"] = odom_frame
+    costmap = section("global_costmap", "global_costmap")
+    plugins = [p for p in costmap.get("plugins", ["obstacle_layer", "inflation_layer"]) if p != "static_layer"]
+    costmap.update(global_frame=odom_frame, rolling_window=True, width=window_m, height=window_m, plugins=plugins)
+    costmap.pop("static_layer", None)
+    out_file.parent.mkdir(parents=True, exist_ok=True)
+    out_file.write_text(f"# {path} without a map (pppbot eval navigation --no-map)\n"
+                        + yaml.safe_dump(document, sort_keys=False))
+    return out_file
 
 
 #: The velocity smoother's default ``max_velocity`` x (m/s; pppbot_nav's ``velocity_smoother``, Nav2's).

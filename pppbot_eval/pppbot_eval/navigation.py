@@ -188,7 +188,8 @@ def summarize_navigation(outcomes: Sequence[GoalOutcome], max_speed_mps: float) 
     * over successful goals: ``mean_time_s``, ``mean_path_ratio`` (driven / shortest) and
       ``mean_time_ratio`` (time / (shortest / ``max_speed_mps``)), the ratios over those with a
       positive shortest path;
-    * over all goals: ``min_clearance_m``, ``mean_position_error_m``.
+    * over all goals: ``min_clearance_m``, ``mean_position_error_m``, and ``barn_score``, the mean
+      of :func:`barn_score` (a goal neither reached nor clear of collisions scores 0).
 
     Raises:
         NavigationMetricError: ``max_speed_mps`` is not positive.
@@ -208,4 +209,17 @@ def summarize_navigation(outcomes: Sequence[GoalOutcome], max_speed_mps: float) 
                                   if o.shortest_path_m]),
         "min_clearance_m": float(min(clearances)) if clearances and math.isfinite(min(clearances)) else None,
         "mean_position_error_m": _mean([o.position_error_m for o in outcomes]),
+        "barn_score": _mean([barn_score(o, max_speed_mps) for o in outcomes]),
     }
+
+
+def barn_score(outcome: GoalOutcome, max_speed_mps: float) -> float:
+    """The BARN challenge's score of one goal: ``success × OT / clip(AT, 2·OT, 8·OT)``, OT the
+    shortest path's time at ``max_speed_mps``, AT the time taken; success is reached without a
+    collision. 0.5 at best (twice the optimal time or faster), 0.0625 at eight times, 0 when
+    failed (or without a shortest path to time against)."""
+    shortest = outcome.shortest_path_m
+    if not (outcome.reached and not outcome.collisions and shortest):
+        return 0.0
+    optimal_s = shortest / max_speed_mps
+    return optimal_s / float(np.clip(outcome.time_s, 2.0 * optimal_s, 8.0 * optimal_s))

@@ -33,6 +33,7 @@ from pppbot_eval.map_quality import compare_maps
 from pppbot_eval.navigation import (
     PPP_BOT_FOOTPRINT,
     GoalOutcome,
+    barn_score,
     clearance_along,
     goal_reached,
     pose_error,
@@ -75,6 +76,8 @@ CONVERGED_TRAVEL_M = 1.0
 #: localization may be off by (the navigator judges on AMCL's estimate): CONVERGED_M, CONVERGED_RAD.
 GOAL_XY_TOLERANCE_M = 0.25 + CONVERGED_M
 GOAL_YAW_TOLERANCE_RAD = 0.25 + CONVERGED_RAD
+#: A map-less navigation goal counts as reached within this of it (m), as BARN judges its runs.
+BARN_ARRIVAL_M = 1.0
 
 @dataclass(frozen=True)
 class Estimate:
@@ -95,6 +98,8 @@ ESTIMATES = {Scenario.DRIVE: Estimate(("odom", "base_link"), topic="/odom"),
              Scenario.SLAM: Estimate(("map", "odom", "base_link")),
              Scenario.LOCALIZATION: Estimate(("map", "odom", "base_link")),
              Scenario.NAVIGATION: Estimate(("map", "odom", "base_link"))}
+#: Navigation without a map has only odometry to go by.
+MAP_FREE_ESTIMATE = ESTIMATES[Scenario.DRIVE]
 #: How each scenario's estimate is labelled in plots.
 ESTIMATE_LABELS = {Scenario.DRIVE: "wheel odometry", Scenario.SLAM: "SLAM (map → base_link)",
                    Scenario.LOCALIZATION: "AMCL (map → base_link)",
@@ -309,10 +314,14 @@ def turning_in_place_s(driven: PoseSeries) -> float:
 
 
 def goal_outcome(record: GoalRecord, truth: PoseSeries, truth_map: OccupancyGrid,
-                 collisions: list[tuple[float, float, float]]) -> GoalOutcome:
+                 collisions: list[tuple[float, float, float]], arrival_m: float | None = None) -> GoalOutcome:
     """A goal judged on ground truth: reached when the navigator succeeded and the true pose at the
     result is within :data:`GOAL_XY_TOLERANCE_M` and :data:`GOAL_YAW_TOLERANCE_RAD`; the time, the
     length driven, collisions and clearance between sending the goal and its result.
+
+    With ``arrival_m`` (BARN's rule, :data:`BARN_ARRIVAL_M`), reached when the true position comes
+    within ``arrival_m`` of the goal before the goal's time limit, without a collision, whatever the
+    navigator answers; the time and the length driven are up to that moment.
 
     Raises:
         PoseSeriesError: no ground truth at the goal's start or end.
@@ -321,23 +330,31 @@ def goal_outcome(record: GoalRecord, truth: PoseSeries, truth_map: OccupancyGrid
     if span is None:
         raise PoseSeriesError("no ground truth recorded")
     start_s, end_s = max(record.start_s, span[0]), min(record.end_s, span[1])
+    collided = sum(1 for t, _, _ in collisions if record.start_s <= t <= end_s)
+    if arrival_m is not None:
+        during = truth.within(start_s, end_s)
+        near = np.flatnonzero(np.hypot(*(during.xy - np.asarray(record.goal[:2])).T) <= arrival_m)
+        timely = record.status not in (GoalAnswer.TIMEOUT, GoalAnswer.UNANSWERED)
+        if len(near) and timely:
+            end_s = float(during.t_s[near[0]])
+            collided = sum(1 for t, _, _ in collisions if record.start_s <= t <= end_s)
+        reached = bool(len(near)) and timely and not collided
     final = truth.interpolate([end_s]).poses[0]
     driven = truth.within(start_s, end_s)
     position_m, yaw_rad = pose_error(final, record.goal)
     clearance = clearance_along(driven, truth_map, PPP_BOT_FOOTPRINT) if len(driven) else np.array([np.nan])
+    if arrival_m is None:
+        reached = record.status is GoalAnswer.SUCCEEDED and goal_reached(final, record.goal, GOAL_XY_TOLERANCE_M,
+                                                                        GOAL_YAW_TOLERANCE_RAD)
     return GoalOutcome(
-        goal=record.goal,
-        reached=record.status is GoalAnswer.SUCCEEDED and goal_reached(final, record.goal, GOAL_XY_TOLERANCE_M,
-                                                              GOAL_YAW_TOLERANCE_RAD),
-        final_pose=(float(final[0]), float(final[1]), float(final[2])),
-        position_error_m=position_m, yaw_error_rad=yaw_rad, time_s=record.end_s - record.start_s,
+        goal=record.goal, reached=reached, final_pose=(float(final[0]), float(final[1]), float(final[2])),
+        position_error_m=position_m, yaw_error_rad=yaw_rad, time_s=end_s - record.start_s,
         path_length_m=driven.path_length_m(), shortest_path_m=record.shortest_path_m,
-        collisions=sum(1 for t, _, _ in collisions if record.start_s <= t <= record.end_s),
-        min_clearance_m=float(np.min(clearance)))
+        collisions=collided, min_clearance_m=float(np.min(clearance)))
 
 
 def navigation_metrics(recording: Recording, truth_map: OccupancyGrid, map_to_world: tuple[float, float, float],
-                       max_speed_mps: float, out: Path, title: str) -> dict[str, Any]:
+                       max_speed_mps: float, out: Path, title: str, map_free: bool = False) -> dict[str, Any]:
     """The goals' outcomes and their summary (:func:`summarize_navigation`: ``success_rate``,
     ``collisions``, ``mean_time_ratio`` against the shortest path at ``max_speed_mps``, ...),
     ``total_time_ratio`` (all successful goals' time over all their shortest times), the time spent
@@ -348,7 +365,8 @@ def navigation_metrics(recording: Recording, truth_map: OccupancyGrid, map_to_wo
         PoseSeriesError: no ground truth was recorded.
     """
     truth = PoseSeries.from_rows(recording.truth_rows)
-    outcomes = [goal_outcome(r, truth, truth_map, recording.collisions) for r in recording.goals]
+    arrival = BARN_ARRIVAL_M if map_free else None
+    outcomes = [goal_outcome(r, truth, truth_map, recording.collisions, arrival) for r in recording.goals]
     metrics: dict[str, Any] = dict(summarize_navigation(outcomes, max_speed_mps))
     metrics["collisions"] = len(recording.collisions)  # also those outside a goal's time (there should be none)
     rated = [o for o in outcomes if o.reached and o.shortest_path_m]
@@ -363,7 +381,8 @@ def navigation_metrics(recording: Recording, truth_map: OccupancyGrid, map_to_wo
     metrics["max_speed_mps"] = max_speed_mps
     metrics["distance_m"] = round(truth.path_length_m(), 3)
     metrics["recoveries"] = sum(r.recoveries for r in recording.goals)
-    estimate = estimate_series(recording, ESTIMATES[Scenario.NAVIGATION])
+    kind = MAP_FREE_ESTIMATE if map_free else ESTIMATES[Scenario.NAVIGATION]
+    estimate = estimate_series(recording, kind)
     if len(estimate) >= 2 and len(truth) >= 2:
         ate = absolute_trajectory_error(estimate, truth, map_to_world)
         metrics.update(ate.as_dict("ate"))
@@ -374,10 +393,11 @@ def navigation_metrics(recording: Recording, truth_map: OccupancyGrid, map_to_wo
          "path_length_m": round(o.path_length_m, 3), "position_error_m": round(o.position_error_m, 3),
          "yaw_error_rad": round(o.yaw_error_rad, 3), "collisions": o.collisions,
          "min_clearance_m": round(o.min_clearance_m, 3), "recoveries": r.recoveries, "start_s": round(r.start_s, 3),
-         "turning_in_place_s": round(t, 3)}
+         "turning_in_place_s": round(t, 3), "barn_score": round(barn_score(o, max_speed_mps), 4)}
         for r, o, t in zip(recording.goals, outcomes, turning, strict=True)]
     plot_trajectories(out / "trajectory.png", truth_map, truth, estimate.transformed(map_to_world),
-                      ESTIMATE_LABELS[Scenario.NAVIGATION], [(x, y) for _, x, y in recording.collisions], title,
+                      ESTIMATE_LABELS[Scenario.DRIVE if map_free else Scenario.NAVIGATION],
+                      [(x, y) for _, x, y in recording.collisions], title,
                       goals=[(o.goal[0], o.goal[1], o.reached) for o in outcomes])
     return metrics
 

@@ -13,6 +13,7 @@ from pppbot_viz.errors import VizError
 
 from pppbot_bringup.launch_sim import ARGUMENTS, LaunchArgs, NavigationMode, plan
 from pppbot_common.launch_args import ArgumentError, describe
+from pppbot_eval.config import map_free_params
 from pppbot_nav.lifecycle import NAVIGATION_NODES
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -291,6 +292,17 @@ def test_localization_serves_the_worlds_map_and_starts_amcl_at_the_spawn_pose_in
     assert "velocity_smoother:cmd_vel:=cmd_vel_nav" in by_name["velocity_smoother"].cmd
     other = {n.name: n for n in fake_plan("localization:=true", f"map:={ROOT / 'maps' / 'room.yaml'}")[0].nodes}
     assert f"yaml_filename:={ROOT / 'maps' / 'room.yaml'}" in " ".join(other["localization"].cmd)
+
+
+def test_navigation_without_localization_or_slam_needs_parameters_that_navigate_in_odom(tmp_path):
+    with pytest.raises(ArgumentError) as info:
+        fake_plan("use_slam:=false", "navigation:=true")
+    assert "navigates in odom" in str(info.value) and "bt_navigator global_frame: map (not odom)" in str(info.value)
+    free = map_free_params(ROOT / "config" / "nav2_params.yaml", tmp_path / "free.yaml", 20)
+    p, _ = fake_plan("use_slam:=false", "navigation:=true", "lockstep:=true", f"params_file:={free}")
+    by_name = {n.name: n for n in p.nodes}
+    assert "localization" not in by_name and "slam_toolbox" not in by_name
+    assert by_name["navigation"].after == ("simulator",) and str(free) in " ".join(by_name["navigation"].cmd)
 
 
 def test_lockstep_makes_the_data_path_participants_and_tells_the_simulator_whom_to_wait_for():

@@ -8,12 +8,15 @@ from pathlib import Path
 
 import pytest
 
+from pppbot_bringup.parameter_files import map_free_navigation_problem
 from pppbot_common.errors import ArgumentError
-from pppbot_eval.config import EvalConfig
+from pppbot_common.param_files import check_parameter_file, node_parameters
+from pppbot_eval.config import EvalConfig, ScoredParameters, map_free_params
 from pppbot_eval.ros.cli import add_arguments
 from pppbot_eval.scenarios import Scenario
 
 MAX_SLIP = 0.05
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def flags(*argv: str) -> argparse.Namespace:
@@ -57,6 +60,10 @@ def test_flags_become_typed_values():
     (["navigation", "--min-success-rate", "1.5"], "--min-success-rate 1.5: must be in [0, 1]"),
     (["slam", "--seed", "-3"], "--seed -3: must be a non-negative integer"),
     (["slam", "--timeout", "0"], "--timeout 0.0: must be a positive number of sim seconds"),
+    (["localization", "--no-map"], "--no-map: only the navigation scenario takes it, not localization"),
+    (["slam", "--goal", "1", "2", "0"], "--goal: only the navigation scenario takes it, not slam"),
+    (["navigation", "--goal", "1", "nan", "0"], "--goal 1.0 nan 0.0: must be three finite numbers"),
+    (["navigation", "--no-map", "--map", "m.yaml"], "--map and --no-map: a run navigates on a map or without one"),
 ])
 def test_a_bad_flag_is_refused_naming_it_its_value_and_the_rule(argv: list[str], words: str):
     with pytest.raises(ArgumentError) as caught:
@@ -68,3 +75,22 @@ def test_a_config_made_in_code_is_checked_the_same_way():
     assert math.isclose(EvalConfig(Scenario.DRIVE, speed=0.5).checked(MAX_SLIP).speed, 0.5)
     with pytest.raises(ArgumentError, match="--speed 0"):
         EvalConfig(Scenario.DRIVE, speed=0.0).checked(MAX_SLIP)
+
+
+def test_map_free_parameters_navigate_in_odom_and_the_bringup_takes_them(tmp_path: Path):
+    default = ROOT / "config" / "nav2_params.yaml"
+    problem = map_free_navigation_problem(default)
+    assert problem is not None
+    for words in ("bt_navigator global_frame: map (not odom)", "global_costmap/global_costmap rolling_window: False",
+                  "global_costmap plugins include static_layer"):
+        assert words in problem
+    made = map_free_params(default, tmp_path / "free.yaml", 24)
+    assert map_free_navigation_problem(made) is None
+    nodes = check_parameter_file(made)
+    costmap = node_parameters(nodes, "/global_costmap/global_costmap")
+    assert (costmap["width"], costmap["height"], costmap["plugins"]) == (24, 24, ["obstacle_layer", "inflation_layer"])
+    assert "static_layer.plugin" not in costmap and costmap["obstacle_layer.scan.topic"] == "/scan"
+    # What the score reads is unchanged: the stack and the scoring agree whichever file runs.
+    assert ScoredParameters.read(made).max_speed_mps == ScoredParameters.read(default).max_speed_mps
+    assert node_parameters(nodes, "/controller_server") == node_parameters(check_parameter_file(default),
+                                                                           "/controller_server")

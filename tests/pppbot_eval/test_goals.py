@@ -13,6 +13,7 @@ from pppbot_eval.errors import GoalSamplingError
 from pppbot_eval.goals import reachable_region, sample_goals
 from pppbot_eval.map_quality import cells_of
 from pppbot_eval.scenarios import (
+    BARN_ARRIVAL_M,
     GOAL_XY_TOLERANCE_M,
     GoalAnswer,
     GoalRecord,
@@ -108,6 +109,24 @@ def test_a_goal_counts_when_the_navigator_succeeds_and_the_truth_is_there():
     assert not goal_outcome(off, truth, grid, []).reached
     # There, but the navigator gave up: not reached.
     assert not goal_outcome(GoalRecord((3.0, 1.0, 0.1), 10.0, 20.0, GoalAnswer.ABORTED), truth, grid, []).reached
+
+
+def test_without_a_map_a_goal_counts_within_a_metre_in_time_and_untouched_as_barn_judges():
+    grid = two_rooms_and_a_closet()
+    truth = PoseSeries.from_rows(straight_drive(10.0, 20.0, (1.0, 1.0, 0.0), (3.0, 1.0, 0.0), n=101))
+    # 1.5 m past the end of the drive: within 1 m from x = 2.5 m on, at t = 17.5 s; the navigator aborted.
+    record = GoalRecord((3.5, 1.0, 0.0), 10.0, 20.0, GoalAnswer.ABORTED, shortest_path_m=2.5)
+    outcome = goal_outcome(record, truth, grid, [], arrival_m=BARN_ARRIVAL_M)
+    assert outcome.reached and outcome.time_s == pytest.approx(7.5)
+    assert outcome.path_length_m == pytest.approx(1.5) and outcome.position_error_m == pytest.approx(1.0)
+    # A collision before arriving fails it; one after does not count against it.
+    assert not goal_outcome(record, truth, grid, [(12.0, 1.2, 1.0)], arrival_m=BARN_ARRIVAL_M).reached
+    assert goal_outcome(record, truth, grid, [(19.0, 3.0, 1.0)], arrival_m=BARN_ARRIVAL_M).reached
+    # Past its time limit (canceled) or never nearer than 1 m: not reached.
+    late = GoalRecord((3.5, 1.0, 0.0), 10.0, 20.0, GoalAnswer.TIMEOUT, shortest_path_m=2.5)
+    assert not goal_outcome(late, truth, grid, [], arrival_m=BARN_ARRIVAL_M).reached
+    far = GoalRecord((4.2, 1.0, 0.0), 10.0, 20.0, GoalAnswer.SUCCEEDED, shortest_path_m=3.2)
+    assert not goal_outcome(far, truth, grid, [], arrival_m=BARN_ARRIVAL_M).reached
 
 
 def test_navigation_metrics_summarize_the_goals_and_plot_them(tmp_path: Path):

@@ -13,6 +13,7 @@ from pppbot_eval.navigation import (
     Footprint,
     GoalOutcome,
     NavigationMetricError,
+    barn_score,
     clearance_along,
     goal_reached,
     summarize_navigation,
@@ -125,6 +126,19 @@ def test_summary_of_mixed_outcomes():
     assert summary["min_clearance_m"] == pytest.approx(0.05)
     assert summary["mean_position_error_m"] == pytest.approx(3.3 / 3)
     json.dumps(summary, allow_nan=False)
+
+
+def test_barn_score_is_optimal_time_over_the_clipped_actual_time():
+    # OT = 5 m / 0.5 m/s = 10 s: faster than 2·OT scores 0.5, between 2·OT and 8·OT it falls as OT/AT,
+    # beyond 8·OT it stays at 1/8; a failure, a collision or no shortest path scores 0.
+    assert barn_score(outcome(True, 12.0, 5.0, 5.0, 0.1), 0.5) == pytest.approx(0.5)
+    assert barn_score(outcome(True, 40.0, 5.0, 5.0, 0.1), 0.5) == pytest.approx(10 / 40)
+    assert barn_score(outcome(True, 200.0, 5.0, 5.0, 0.1), 0.5) == pytest.approx(1 / 8)
+    assert barn_score(outcome(False, 40.0, 5.0, 5.0, 0.1), 0.5) == 0.0
+    assert barn_score(outcome(True, 40.0, 5.0, 5.0, 0.1, collisions=1), 0.5) == 0.0
+    assert barn_score(outcome(True, 40.0, 5.0, None, 0.1), 0.5) == 0.0
+    summary = summarize_navigation([outcome(True, 40.0, 5.0, 5.0, 0.1), outcome(False, 9.0, 1.0, 5.0, 3.0)], 0.5)
+    assert summary["barn_score"] == pytest.approx((0.25 + 0.0) / 2)
 
 
 def test_summary_without_successes_or_goals_is_json_safe():

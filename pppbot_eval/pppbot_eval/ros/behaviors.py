@@ -35,6 +35,7 @@ class EvalActions(Protocol):
     sim_now_s: float | None
     truth_pose: tuple[float, float, float] | None
     amcl_poses: int
+    localizes: bool
     driving: bool
 
     @property
@@ -156,8 +157,9 @@ class GoalLimits:
 
 
 class NavigateGoals:
-    """Goals (world frame) to ``navigate_to_pose`` one after another, each sent in ``map`` (at
-    ``map_to_world`` in the world), judged later on ground truth. A goal past its time limit
+    """Goals (world frame) to ``navigate_to_pose`` one after another, each sent in the node's goal
+    frame (``map``, or ``odom`` without a map; at ``map_to_world`` in the world), judged later on
+    ground truth. A goal past its time limit
     is canceled and recorded as ``timeout``; one the server never answers is recorded as
     ``unanswered`` once past its limit (a lost request must not hang the run)."""
 
@@ -192,7 +194,7 @@ class NavigateGoals:
             if self.index == len(self.goals):
                 self.outcome = ""
                 return
-            if self.index == 0 and node.amcl_poses == 0:
+            if self.index == 0 and node.localizes and node.amcl_poses == 0:
                 # As BasicNavigator's waitUntilNav2Active: the localizer's first pose (and with it
                 # map -> odom) before the first goal, which the navigator would abort without it.
                 return

@@ -44,7 +44,7 @@ from pppbot_common.launch_args import ArgumentError
 from pppbot_common.maps import MapFileError, OccupancyGrid
 from pppbot_description.errors import DescriptionError
 from pppbot_description.xacro_model import process_xacro
-from pppbot_eval.config import EvalConfig, ScoredParameters
+from pppbot_eval.config import EvalConfig, ScoredParameters, map_free_params
 from pppbot_eval.driver import DriverSettings, RouteDriver
 from pppbot_eval.errors import GoalSamplingError, MapQualityError, RouteError
 from pppbot_eval.goals import sample_goals
@@ -56,6 +56,7 @@ from pppbot_eval.ros.run_report import VIEW_FILE, report
 from pppbot_eval.routes import Route, load_routes, routes_file, select_route
 from pppbot_eval.scenarios import (
     ESTIMATES,
+    MAP_FREE_ESTIMATE,
     Recording,
     Scenario,
     score_saved_map,
@@ -66,6 +67,8 @@ from pppbot_sim.wheel_slip import MAX_SLIP_STDDEV
 from pppbot_sim.worlds import find_world
 
 READY_TIMEOUT_S = 120.0
+#: Without a map, the global costmap's rolling window reaches this far past the start and the goal (m).
+WINDOW_MARGIN_M = 2.0
 #: Wall seconds without a ground-truth message before the run is declared stuck.
 STALL_TIMEOUT_S = 30.0
 #: Wall seconds to wait for SLAM's map after the route (it updates every map_update_interval sim s).
@@ -101,6 +104,9 @@ class Run:
         self.out = out
         self.truth_map = truth_map
         self.goals = goals or []
+        #: Navigation without a map: in odom, which starts at the spawn pose; else in the map, at --map-pose.
+        self.map_free = config.no_map
+        self.frame_in_world = self.start if self.map_free else config.map_pose
         #: The speed limit goals are timed against: the goal loop and the report agree.
         self.max_speed_mps = self.scored.max_speed_mps
         self.recording = Recording()
@@ -122,11 +128,21 @@ class Run:
             record=False, real_time_factor=self.config.target_real_time_factor, lockstep=self.config.lockstep,
             seed=self.config.seed, wheel_slip=self.config.wheel_slip, log_level=self.config.log_level,
             use_slam=self.scenario is Scenario.SLAM,
-            localization=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION),
+            localization=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION) and not self.map_free,
             # The route scenarios drive themselves: no navigation nodes to share the CPU.
             navigation=NavigationMode.TRUE if navigates else NavigationMode.FALSE,
-            map=str(self.config.map or ""), params_file=str(self.scored.file),
+            map=str(self.config.map or ""), params_file=str(self._nav2_params()),
             slam_params_file=str(self._slam_params()) if self.scenario is Scenario.SLAM else "")
+
+    def _nav2_params(self) -> Path:
+        """The file the stack's Nav2 nodes read: ``--params-file`` (or the default), made map-free with
+        ``--no-map`` (:func:`map_free_params`: the global costmap's window holds start and goal with
+        :data:`WINDOW_MARGIN_M` around them); the scored parameters are the same in both."""
+        if not self.map_free:
+            return self.scored.file
+        reach = max(math.dist(self.start[:2], goal[:2]) for goal in self.goals)
+        window = 2 * math.ceil(reach + WINDOW_MARGIN_M)
+        return map_free_params(self.scored.file, self.out / "logs" / "nav2_params_map_free.yaml", window)
 
     def _slam_params(self) -> Path:
         """The bringup's slam parameters with ``map_save_name`` in ``--out``: serialize_map writes
@@ -164,7 +180,7 @@ class Run:
 
     def _behavior(self) -> Behavior:
         if self.route is None:
-            return NavigateGoals(self.goals, self.truth_map, self.config.map_pose, self.max_speed_mps)
+            return NavigateGoals(self.goals, self.truth_map, self.frame_in_world, self.max_speed_mps)
         driver = RouteDriver(self.route.points, DriverSettings(speed_mps=self.config.speed))
         limit_s = self.config.timeout or 2.5 * self.route.length_m / self.config.speed + 60.0
         drive = DriveRoute(driver, limit_s)
@@ -175,9 +191,11 @@ class Run:
 
     def _run_stack(self, supervisor: Supervisor, names: list[str], probe: GraphProbe, progress: Progress) -> None:
         thread = threading.Thread(target=supervisor.run, kwargs={"until": self.stop.is_set}, name="supervisor")
-        node = EvalNode(ESTIMATES[self.scenario], self.recording, wants_map=self.scenario is Scenario.SLAM,
-                        localizes=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION),
-                        navigates=self.scenario is Scenario.NAVIGATION, lockstep=self.config.lockstep)
+        node = EvalNode(MAP_FREE_ESTIMATE if self.map_free else ESTIMATES[self.scenario], self.recording,
+                        wants_map=self.scenario is Scenario.SLAM,
+                        localizes=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION) and not self.map_free,
+                        navigates=self.scenario is Scenario.NAVIGATION, lockstep=self.config.lockstep,
+                        goal_frame="odom" if self.map_free else "map")
         behavior = node.behavior = self._behavior()
         if self.config.lockstep:
             # Time starts only once every participant (this node among them) has joined: the
@@ -195,7 +213,9 @@ class Run:
                 progress.message("global localization: particles over the whole map" if self.config.global_localization
                                  else f"initial pose off by ({dx:g} m, {dy:g} m, {dyaw:g} rad)")
             if self.scenario is Scenario.NAVIGATION:
-                progress.message(f"{len(self.goals)} goals, drawn with seed {self.config.seed}")
+                progress.message("one goal without a map, in odom" if self.map_free else
+                                 f"{len(self.goals)} goal(s)" + ("" if self.config.goal else
+                                                                f", drawn with seed {self.config.seed}"))
             node.start()
             self._run(node, behavior, thread, progress)
             if self.scenario is Scenario.SLAM and self.recording.failure is None:
@@ -352,6 +372,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default 2)")
     parser.add_argument("--start", type=float, nargs=3, default=(0.0, 0.0, 0.0), metavar=("X", "Y", "YAW"),
                         help="navigation: the spawn pose in the world, also AMCL's initial pose (default 0 0 0)")
+    parser.add_argument("--goal", type=float, nargs=3, default=None, metavar=("X", "Y", "YAW"),
+                        help="navigation: this one goal (world frame) instead of random ones; with --no-map the "
+                             "default is the end of the world's first route (a clutter world's crossing)")
+    parser.add_argument("--no-map", action="store_true",
+                        help="navigation: no map_server or AMCL; Nav2 navigates in odom, its global costmap "
+                             "rolling with the robot from the lidar, and a goal counts when the robot comes within "
+                             "1 m of it without touching anything (BARN's rule; scored with BARN's metric)")
     parser.add_argument("--min-success-rate", type=float, default=0.98,
                         help="navigation: the report is ok from this success rate on (default 0.98)")
     parser.add_argument("--view", action=argparse.BooleanOptionalAction, default=False,
@@ -402,6 +429,22 @@ def _score_map(config: EvalConfig, world_file: Path) -> int:
     return 0
 
 
+def _route_end(config: EvalConfig, world_file: Path) -> tuple[float, float, float]:
+    """The goal of a map-less run without ``--goal``: where the world's route ends (``--route``, or the
+    first: a clutter world's crossing), facing along its last leg.
+
+    Raises:
+        RouteError: no routes file, or no such route (the message says to give ``--goal``).
+    """
+    path = config.route_file or routes_file(world_file)
+    if not path.is_file():
+        raise RouteError(f"--no-map without --goal takes the goal from the world's route, but {path} does not "
+                         "exist: give --goal X Y YAW")
+    points = select_route(load_routes(path), config.route, path).points
+    (x0, y0), (x1, y1) = points[-2], points[-1]
+    return float(x1), float(y1), math.atan2(y1 - y0, x1 - x0)
+
+
 def _own_domain(tries: int = 8) -> int:
     """A ROS domain for this run: claimed (a lock no other pppbot run, a batch's among them, takes) and
     without nodes on it (a stack started by hand holds no lock).
@@ -428,8 +471,13 @@ def main(args: argparse.Namespace) -> int:
         if scenario is Scenario.NAVIGATION:
             route = None
             truth_map = world_truth(world_file)
-            goals = sample_goals(truth_map, config.start[:2], config.goals, np.random.default_rng(config.seed),
-                                 min_distance_m=config.goal_distance)
+            if config.goal is not None:
+                goals = [config.goal]
+            elif config.no_map:
+                goals = [_route_end(config, world_file)]
+            else:
+                goals = sample_goals(truth_map, config.start[:2], config.goals, np.random.default_rng(config.seed),
+                                     min_distance_m=config.goal_distance)
         else:
             route_path = config.route_file or routes_file(world_file)
             route = select_route(load_routes(route_path), config.route, route_path)

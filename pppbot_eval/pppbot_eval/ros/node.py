@@ -48,7 +48,8 @@ class EvalNode:
     :meth:`start` is called."""
 
     def __init__(self, estimate: Estimate, recording: Recording, wants_map: bool = False,
-                 localizes: bool = False, navigates: bool = False, lockstep: bool = False) -> None:
+                 localizes: bool = False, navigates: bool = False, lockstep: bool = False,
+                 goal_frame: str = "map") -> None:
         self.context = rclpy.Context()
         rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
         self.participant = Participant(PARTICIPANT, rclpy.create_node(
@@ -97,6 +98,8 @@ class EvalNode:
             node.create_subscription(OccupancyGridMsg, "/map", self._on_map, LATCHED)
             node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 10)
         self.amcl_poses = 0
+        self.localizes = localizes
+        self.goal_frame = goal_frame
         if localizes:
             self.initial_pose_pub = node.create_publisher(PoseWithCovarianceStamped, "/initialpose", DEFAULT)
             port.require_match(node, self.initial_pose_pub)
@@ -159,10 +162,10 @@ class EvalNode:
         self.cmd_pub.publish(Twist(linear=_vector(linear_mps), angular=_vector(0.0, 0.0, angular_radps)))
 
     def send_goal(self, x: float, y: float, yaw: float) -> Future:
-        """A NavigateToPose goal at (x, y, yaw) in ``map``; the future's result is its goal handle."""
+        """A NavigateToPose goal at (x, y, yaw) in ``goal_frame``; the future's result is its goal handle."""
         goal = NavigateToPose.Goal()
         goal.pose = PoseStamped()
-        goal.pose.header.frame_id = "map"
+        goal.pose.header.frame_id = self.goal_frame
         goal.pose.header.stamp = self.node.get_clock().now().to_msg()
         goal.pose.pose.position.x, goal.pose.pose.position.y = float(x), float(y)
         o = goal.pose.pose.orientation

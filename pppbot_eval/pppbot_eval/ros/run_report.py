@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING, Any
 from pppbot_common.errors import PppbotError
 from pppbot_common.maps import OccupancyGrid, save_map
 from pppbot_eval.scenarios import (
+    BARN_ARRIVAL_M,
     CONVERGED_M,
     CONVERGED_RAD,
     CONVERGED_TRAVEL_M,
@@ -85,9 +86,9 @@ def navigation_report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
     problem = None
     if rec.truth_rows and rec.goals:
         try:
-            metrics = navigation_metrics(rec, truth_map, run.config.map_pose, run.max_speed_mps, run.out,
-                                         f"navigation in {run.world_file.stem}, {len(run.goals)} goals "
-                                         f"(seed {run.config.seed})")
+            what = "without a map" if run.map_free else f"{len(run.goals)} goals (seed {run.config.seed})"
+            metrics = navigation_metrics(rec, truth_map, run.frame_in_world, run.max_speed_mps, run.out,
+                                         f"navigation in {run.world_file.stem}, {what}", map_free=run.map_free)
         except (PppbotError, ValueError, OSError) as exc:
             problem = f"metrics: {exc}"
     failure = rec.failure
@@ -97,10 +98,11 @@ def navigation_report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
         failure = f"{metrics['collisions']} collision(s)"
     rate = metrics.get("success_rate")
     if failure is None and rate is not None and rate < run.config.min_success_rate:
-        failure = (f"success rate {rate:.3f} < {run.config.min_success_rate} (a goal counts when the navigator "
-                   f"succeeds and the true pose is within {GOAL_XY_TOLERANCE_M:g} m of it)")
-    return _result(run, failure or problem, {"start": list(run.start), "map_pose": list(run.config.map_pose),
-                                             **metrics})
+        rule = (f"the robot comes within {BARN_ARRIVAL_M:g} m of it in time without a collision" if run.map_free
+                else f"the navigator succeeds and the true pose is within {GOAL_XY_TOLERANCE_M:g} m of it")
+        failure = f"success rate {rate:.3f} < {run.config.min_success_rate} (a goal counts when {rule})"
+    where = {"map_free": True, "goal": list(run.goals[0])} if run.map_free else {"map_pose": list(run.config.map_pose)}
+    return _result(run, failure or problem, {"start": list(run.start), **where, **metrics})
 
 
 def _result(run: Run, failure: str | None, metrics: dict[str, Any]) -> dict[str, Any]:

@@ -86,8 +86,10 @@ class LifecycleManager(Node):
     def __init__(self, name: str = "lifecycle_manager", node_names: Sequence[str] = (), autostart: bool = False,
                  port: Any = None, retry: Retry = RETRY, **kwargs: Any) -> None:
         """``node_names`` and ``autostart``: the defaults of the parameters (a bringup's), which a
-        parameters file overrides. ``port``: the process's step port, not used: a lifecycle manager
-        is a plain rclpy node that spins itself (its services answer at once, in lockstep too).
+        parameters file overrides. ``port``: the process's step port. A lifecycle manager is a plain
+        rclpy node that spins itself (its services answer at once, in lockstep too); with
+        ``autostart`` in a lockstep process (the composed navigation) the process joins only once
+        the nodes are active, so sim time starts with them serving, as it does on every run.
         ``retry``: how long each request to a node is waited for and how often sent again."""
         super().__init__(name, **kwargs)
         # Its clock is never read (its timeouts are wall time): following /clock at 100 Hz in its own
@@ -117,6 +119,8 @@ class LifecycleManager(Node):
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self)
         self._stop = threading.Event()
+        if p.autostart and port is not None:
+            port.require_when(f"{name}: the managed nodes active", lambda: self.state == "active")
         self._thread = threading.Thread(target=self._spin, name=name, daemon=True)
         self._thread.start()
 
