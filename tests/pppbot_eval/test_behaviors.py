@@ -1,9 +1,11 @@
 """The evaluation's navigation behaviour against a navigator that answers, or never does."""
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
+import pytest
 from rclpy.task import Future
 
 from pppbot_common.maps import OccupancyGrid
@@ -22,6 +24,7 @@ class FakeNode:
         self.sim_now_s: float | None = 0.0
         self.truth_pose: tuple[float, float, float] | None = (0.0, 0.0, 0.0)
         self.amcl_poses = 1  # the localizer has published its first pose
+        self.localizes = True  # navigating on a map (False: without one, in odom)
         self.driving = False
         self.answer = answer
         self.sent: list[tuple[float, float, float]] = []
@@ -86,3 +89,9 @@ def test_the_first_goal_waits_for_the_localizers_first_pose() -> None:
     node.amcl_poses = 1
     run(node, behavior, until_s=4.0)
     assert len(node.sent) == 1 and [g.status for g in node.recording.goals] == ["rejected"]
+    # Without a map nothing localizes: the goal (in odom, which starts at the spawn pose) goes at once.
+    free = FakeNode("rejects")
+    free.amcl_poses, free.localizes = 0, False
+    spawn = (1.0, 2.0, math.pi / 2)
+    run(free, NavigateGoals([(1.0, 3.0, math.pi / 2)], FREE_ROOM, spawn, max_speed_mps=0.5), until_s=0.5)
+    assert len(free.sent) == 1 and free.sent[0] == pytest.approx((1.0, 0.0, 0.0))
