@@ -10,7 +10,8 @@ A spec is YAML::
         seed: [0, 1, 2]
         goals: 3
       - name: autonomy               # optional: a prefix of the entry's run ids
-        world: {family: [maze, office], seed: [100, 101]}   # generated worlds (small: true for small)
+        world: {family: [maze, office], seed: [100, 101]}   # generated worlds (small: true for small;
+                                                            # seed: {first: 100, last: 199} a range)
         seed: ${world.seed}
         steps:                       # runs in order in one world; later ones take earlier reports' values
           - scenario: slam
@@ -43,7 +44,7 @@ from pppbot_eval.errors import BatchSpecError
 from pppbot_sim.worldgen.families import WorldGenError, family_of, world_name
 
 #: Flags that take three numbers: a list of triples is an axis of them.
-TRIPLES = ("map_pose", "start", "initial_offset")
+TRIPLES = ("map_pose", "start", "initial_offset", "goal")
 #: Flags that name a file, checked to exist before anything runs.
 FILES = ("map", "route_file", "params_file")
 #: Flags a spec cannot set: the batch sets them for every run.
@@ -262,6 +263,17 @@ def _check_reference(value: Any, earlier: Sequence[str], generated: bool, where:
                                  + (f" (they are {', '.join(earlier)})" if earlier else ""))
 
 
+def _seeds(value: Any, where: str) -> list[Any]:
+    """A generated world's seeds: one, a list, or ``{first: A, last: B}`` (A to B inclusive)."""
+    if isinstance(value, dict):
+        first, last = value.get("first"), value.get("last")
+        if set(value) != {"first", "last"} or not all(isinstance(v, int) and not isinstance(v, bool)
+                                                       for v in (first, last)):
+            raise BatchSpecError(f"{where}: world seed {value!r}: a range is {{first: A, last: B}}, two integers")
+        return list(range(int(first), int(last) + 1))  # type: ignore[arg-type]  # checked above
+    return value if isinstance(value, list) else [value]
+
+
 def _worlds(value: Any, where: str) -> list[World]:
     if isinstance(value, str):
         return [World(value)]
@@ -272,8 +284,7 @@ def _worlds(value: Any, where: str) -> list[World]:
         if unknown or "family" not in value:
             raise BatchSpecError(f"{where}: world: a generated world is {{family: ..., seed: ..., small: ...}}")
         names = value["family"] if isinstance(value["family"], list) else [value["family"]]
-        seeds = value.get("seed", 0)
-        seeds = seeds if isinstance(seeds, list) else [seeds]
+        seeds = _seeds(value.get("seed", 0), where)
         if not names:
             raise BatchSpecError(f"{where}: world family []: give at least one")
         if not isinstance(value.get("small", False), bool):

@@ -22,6 +22,8 @@ FIGURES: dict[str, tuple[str, ...]] = {
     "localization": ("amcl_rms_m", "converged_after_m"),
     "navigation": ("success_rate", "mean_time_ratio", "barn_score"),
 }
+#: Figures whose mean is the benchmark's own figure too (BARN ranks by the mean score over its worlds).
+MEAN_FIGURES = ("barn_score",)
 #: Report values that depend on the machine and the moment, not on the scenario: a batch's reports
 #: are the same on any number of workers or machines apart from these (and the folders they name).
 WALL_KEYS = ("wall_seconds", "real_time_factor")
@@ -74,6 +76,8 @@ def group_figures(results: Sequence[RunResult]) -> dict[str, Any]:
         values = [v for r in results if (v := _number(r.report.get(key))) is not None]
         if values:
             figures[f"{key}_median"] = _median(values)
+            if key in MEAN_FIGURES:
+                figures[f"{key}_mean"] = round(statistics.fmean(values), 4)
     return figures
 
 
@@ -97,8 +101,9 @@ def summarize(results: Sequence[RunResult], wall_seconds: float) -> dict[str, An
 
 def table(summary: Mapping[str, Any]) -> str:
     """The summary per world family and scenario as a text table."""
-    keys = sorted({k for ss in summary["families"].values() for g in ss.values() for k in g if k.endswith("_median")})
-    header = ["family", "scenario", "runs", "ok", "collisions", *[k.removesuffix("_median") for k in keys]]
+    keys = sorted({k for ss in summary["families"].values() for g in ss.values() for k in g
+                   if k.endswith(("_median", "_mean"))})
+    header = ["family", "scenario", "runs", "ok", "collisions", *[k.replace("_median", "") for k in keys]]
     rows = [[family, scenario, str(g["runs"]), str(g["ok"]), str(g["collisions"]),
              *[_cell(g.get(k)) for k in keys]]
             for family, ss in summary["families"].items() for scenario, g in ss.items()]

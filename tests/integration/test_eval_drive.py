@@ -12,8 +12,15 @@ from eval_runs import box_room_map, run_eval
 from PIL import Image
 
 from pppbot_common.maps import OCCUPIED, load_map
+from pppbot_common.param_files import check_parameter_file, node_parameters
+from pppbot_eval.generated_worlds import write_world
+from pppbot_eval.routes import load_routes, routes_file
+from pppbot_sim.worldgen.families import Family, generate
 from pppbot_slam.mapper import MapperSettings
 from pppbot_slam.serialization import load_posegraph
+
+#: A small clutter world whose straight line from the spawn to the goal is blocked.
+CLUTTER_SEED = 4
 
 
 def test_drive_scenario_reports_odometry_drift_against_ground_truth(spawn, tmp_path: Path):
@@ -144,3 +151,31 @@ def test_navigation_scenario_reaches_random_goals_judged_on_ground_truth(spawn, 
     for log in ("navigation-1.log", "localization-1.log"):  # composed: planner, controller, navigator; map_server, amcl
         assert (out / "logs" / log).is_file()
     assert "process has died" not in output
+
+
+def test_navigation_without_a_map_crosses_a_clutter_field_judged_as_barn_judges(spawn, tmp_path: Path):
+    world, summary = write_world(generate(Family.CLUTTER, CLUTTER_SEED, small=True), tmp_path / "worlds")
+    crossing = load_routes(routes_file(world))[0]
+    assert crossing.name == "crossing"
+    out = tmp_path / "no_map"
+    code, report, output = run_eval(spawn, out, "--world", str(world), "--no-map", scenario="navigation")
+    assert code == 0, output
+    assert report["ok"] is True and report["map_free"] is True and report["collisions"] == 0
+    # The goal is where the world's crossing ends, facing along its last leg.
+    (x0, y0), (x1, y1) = crossing.points[-2:]
+    assert report["goal"] == pytest.approx([x1, y1, math.atan2(y1 - y0, x1 - x0)])
+    assert report["goal"][:2] == pytest.approx(summary["goal"][:2])
+    [result] = report["goal_results"]
+    # Arrived (within 1 m, BARN's rule) through the field, never touching it, timed to that moment.
+    assert result["reached"] is True and result["position_error_m"] <= 1.0 and result["min_clearance_m"] > 0.0
+    optimal_s = result["shortest_path_m"] / report["max_speed_mps"]
+    assert result["shortest_path_m"] >= math.dist((0, 0), (x1, y1)) - 1e-6
+    assert result["time_s"] >= optimal_s * 0.9  # never faster than the shortest path at top speed
+    assert report["barn_score"] == result["barn_score"] == pytest.approx(optimal_s / min(max(
+        result["time_s"], 2 * optimal_s), 8 * optimal_s), abs=1e-3)
+    # No map_server, AMCL or SLAM: Nav2 in odom, its global costmap rolling; judged on odometry.
+    logs = {p.name for p in (out / "logs").iterdir()}
+    assert "navigation-1.log" in logs and not {"localization-1.log", "slam_toolbox-1.log"} & logs
+    params = check_parameter_file(out / "logs" / "nav2_params_map_free.yaml")
+    assert node_parameters(params, "/bt_navigator")["global_frame"] == "odom"
+    assert report["ate_rms_m"] < 0.1

@@ -77,16 +77,18 @@ def test_the_summary_counts_per_family_and_scenario_and_the_csv_has_a_row_per_ru
     results = [
         RunResult("maze_000/navigation", "navigation", "maze_000", "maze", {"seed": 0},
                   {"ok": True, "collisions": 0, "success_rate": 1.0, "sim_seconds": 100.0, "wall_seconds": 20.0,
-                   "goal_results": [{"reached": True}, {"reached": True}]}),
+                   "barn_score": 0.5, "goal_results": [{"reached": True}, {"reached": True}]}),
         RunResult("maze_001/navigation", "navigation", "maze_001", "maze", {"seed": 1},
                   {"ok": False, "failure": "1 collision(s)", "collisions": 1, "success_rate": 0.5,
-                   "sim_seconds": 80.0, "wall_seconds": 16.0, "goal_results": [{"reached": True}, {"reached": False}]}),
+                   "sim_seconds": 80.0, "wall_seconds": 16.0, "barn_score": 0.1,
+                   "goal_results": [{"reached": True}, {"reached": False}]}),
         RunResult("room/drive", "drive", "room", "room", {}, {"ok": True, "collisions": 0, "ate_rms_m": 0.02}),
     ]
     summary = summarize(results, wall_seconds=36.0)
     maze = summary["families"]["maze"]["navigation"]
     assert (maze["runs"], maze["ok"], maze["collisions"], maze["goals"], maze["goals_reached"]) == (2, 1, 1, 4, 3)
     assert maze["success_rate_median"] == 0.75 and maze["sim_seconds"] == 180.0
+    assert maze["barn_score_mean"] == 0.3  # BARN's figure is the mean score
     assert summary["overall"]["runs"] == 3 and summary["runs_per_hour"] == 300.0
     assert summary["failures"] == {"maze_001/navigation": "1 collision(s)"}
     lines = table(summary).splitlines()

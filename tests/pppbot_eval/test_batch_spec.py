@@ -11,6 +11,7 @@ from pppbot_eval.scenarios import Scenario
 from pppbot_sim.wheel_slip import MAX_SLIP_STDDEV
 
 SCENARIOS = [s.value for s in Scenario]
+SHIPPED = Path(__file__).resolve().parents[2] / "benchmarks" / "batches"
 
 
 def load(tmp_path: Path, text: str):
@@ -66,12 +67,28 @@ runs:
         filled(localization, {"slam": {"ok": False, "failure": "route not finished"}})
 
 
+def test_a_seed_range_of_clutter_worlds_navigated_without_a_map(tmp_path):
+    batch = load(tmp_path, """
+runs:
+  - scenario: navigation
+    world: {family: clutter, seed: {first: 100, last: 199}}
+    no-map: true
+    goal: [[10, 0, 0], [9, 1, 0]]
+""")
+    assert len(batch.steps) == 200 and batch.steps[0].id == "clutter_100/goal=10_0_0/navigation"
+    last = batch.steps[-1]
+    assert last.world.seed == 199 and argv(last, last.flags, eval_parser()) == [
+        "navigation", "--no-map", "--goal", "9", "1", "0"]
+
+
 @pytest.mark.parametrize("text, message", [
     ("runs: []", r"'runs' must be a non-empty list"),
     ("runs:\n  - {scenario: fly}", r"scenario 'fly': one of map, drive"),
     ("runs:\n  - {scenario: slam, speeed: 0.3}", r"runs\[0\]: 'speeed' is not a flag of pppbot eval"),
     ("runs:\n  - {scenario: slam, world: {family: castle}}", r"world: .*castle.*maze"),
     ("runs:\n  - {scenario: slam, seed: []}", r"'seed' is an empty list"),
+    ("runs:\n  - {scenario: slam, world: {family: maze, seed: {first: 3}}}", r"a range is \{first: A, last: B\}"),
+    ("runs:\n  - {scenario: slam, no_map: true}", r"--no-map: only the navigation scenario takes it"),
     ("runs:\n  - steps: [{scenario: localization, map: '${slam.map}'}]", r"'slam' is not a step before this one"),
     ("runs:\n  - {scenario: slam, seed: 'x${world.seed}'}", r"a placeholder is the whole value"),
     ("runs:\n  - {scenario: slam, world: [maze, maze]}", r"two runs have the id 'maze/slam'"),
@@ -90,3 +107,10 @@ runs:
 def test_a_bad_spec_is_refused_naming_the_entry_and_key(tmp_path, text, message):
     with pytest.raises(BatchSpecError, match=message):
         load(tmp_path, text)
+
+
+@pytest.mark.parametrize("spec", sorted(SHIPPED.glob("*.yaml")), ids=lambda p: p.stem)
+def test_every_shipped_batch_spec_loads(spec: Path):
+    batch = load_batch(spec, eval_parser(), SCENARIOS, MAX_SLIP_STDDEV)
+    assert batch.steps and all(s.scenario in SCENARIOS for s in batch.steps)
+    assert batch.out in (None, Path(f"eval_batch_{spec.stem}"))

@@ -16,7 +16,11 @@ free space with at least 0.45 m around it. Families:
 * ``hall`` — a large hall (up to 28 × 22 m) with a few sparse pillars;
 * ``symmetric`` — a row of identical rooms between two corridors, each room with a door
   on both at the same place: near-symmetric and repetitive (one box tells two ends apart);
-* ``cones`` — outdoor ground with traffic cones (ppp_bot's cones world), no walls.
+* ``cones`` — outdoor ground with traffic cones (ppp_bot's cones world), no walls;
+* ``clutter`` — BARN's kind of world (:mod:`pppbot_sim.worldgen.clutter`): a field of blob-like
+  obstacles grown by a cellular automaton across a 4.5 m corridor, a goal 10 m ahead beyond it,
+  always reachable through gaps wider than 0.8 m; the layout carries the goal and the shortest
+  passable path to it.
 
 A layout also carries its coverage route's settings; the route itself is computed from
 the world by :func:`pppbot_eval.coverage.coverage_route`.
@@ -33,7 +37,7 @@ from shapely.geometry import box as shapely_box
 from shapely.ops import unary_union
 
 from pppbot_sim.errors import WorldGenError
-from pppbot_sim.worldgen import mazes, sdf
+from pppbot_sim.worldgen import clutter, mazes, sdf
 from pppbot_sim.worldgen.sdf import WALL_T, Segment, door_wall
 
 #: Free radius around the spawn pose (m).
@@ -50,6 +54,7 @@ class Family(str, Enum):
     HALL = "hall"
     SYMMETRIC = "symmetric"
     CONES = "cones"
+    CLUTTER = "clutter"
 
 
 @dataclass(frozen=True)
@@ -98,6 +103,10 @@ class Layout:
     longest_run_m: float | None = None
     #: what else the generator chose (sizes, counts), for reports
     parameters: dict[str, float] = field(default_factory=dict)
+    #: the goal (x, y, yaw; m, rad) of a world made to be crossed; None in the others
+    goal: tuple[float, float, float] | None = None
+    #: the shortest passable path (m) from the spawn to ``goal``, both included; None without a goal
+    path: tuple[tuple[float, float], ...] | None = None
 
     def obstacles(self) -> list[Polygon]:
         """Every wall, box and pillar as a footprint polygon (cones as 0.16 m discs)."""
@@ -286,6 +295,14 @@ def _cones(rng: np.random.Generator, small: bool) -> dict:
                 parameters={"half_size_m": half, "cones": len(cones)})
 
 
+# -------------------------------------------------------------------- clutter
+def _clutter(rng: np.random.Generator, small: bool) -> dict:
+    world = clutter.clutter(rng, small)
+    return dict(walls=world.walls, boxes=tuple(Box(*b) for b in world.boxes), goal=world.goal, path=world.path,
+                corridor_width_m=(clutter.CORRIDOR_M, clutter.CORRIDOR_M),
+                route=RouteSettings(1.0, clutter.CLEARANCE_M, resolution_m=0.05), parameters=world.parameters)
+
+
 _MAKERS = {
     Family.MAZE: lambda rng, small: _maze(rng, small, loops=False),
     Family.LOOPED_MAZE: lambda rng, small: _maze(rng, small, loops=True),
@@ -294,6 +311,7 @@ _MAKERS = {
     Family.HALL: _hall,
     Family.SYMMETRIC: _symmetric,
     Family.CONES: _cones,
+    Family.CLUTTER: _clutter,
 }
 
 
