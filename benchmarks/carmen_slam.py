@@ -25,7 +25,10 @@ Figures per log, against the corrected poses:
   between every pair of scans closer than 3 m whose headings differ by less than 90°
   (``overlap_relation_*``: places seen twice, which the loop closures must agree on);
 * ATE: the estimated trajectory aligned to the reference by the best rotation and
-  translation (Umeyama), RMS and maximum position error (m).
+  translation (Umeyama), RMS and maximum position error (m);
+* ``false_closures``: loop closures whose keyframes' solved relative pose is off the
+  reference's by more than 0.5 m or 5° (:mod:`pppbot_eval.closures`), and the largest such
+  error (``closure_max_error_m``).
 
 The published relation errors are Kümmerle et al.'s, on their manually verified
 relations; these relations come from the corrected poses, so the figures compare in
@@ -62,6 +65,7 @@ from pppbot_bag.carmen import (  # noqa: F401 (the log's reading, re-exported fo
 )
 from pppbot_common.params import ParameterError, from_values
 from pppbot_common.se2 import se2_compose, se2_inverse, wrap_angles
+from pppbot_eval.closures import closure_errors, closure_figures
 from pppbot_slam.mapper import Mapper
 from pppbot_slam.occupancy import ScanRays
 from pppbot_slam.ros.slam import SlamParameters
@@ -160,6 +164,14 @@ def aligned_ate(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
     return np.linalg.norm((p - mp) @ rotation.T + mq - q, axis=1)
 
 
+def keyframe_closures(log: CarmenLog, mapper: Mapper) -> dict[str, Any]:
+    """The mapper's loop closures judged against the corrected poses (:mod:`pppbot_eval.closures`):
+    a closure is false when its keyframes' solved relative pose is off by more than 0.5 m or 5°."""
+    scans = np.searchsorted(log.stamps_s, [k.stamp_s for k in mapper.keyframes])
+    solved = np.array([mapper.map_pose(k.index) for k in mapper.keyframes])
+    return closure_figures(closure_errors(solved, log.poses[scans], [e for e in mapper.graph.edges if e.loop]))
+
+
 def evaluate(log: CarmenLog, params: SlamParameters, alphas: tuple[float, float, float, float],
              seed: int) -> dict[str, Any]:
     odom = synthesize_odometry(log.poses, alphas, np.random.default_rng(seed))
@@ -171,11 +183,13 @@ def evaluate(log: CarmenLog, params: SlamParameters, alphas: tuple[float, float,
     ate = aligned_ate(estimate, log.poses)
     odom_ate = aligned_ate(odom, log.poses)
     path_m = float(np.hypot(*np.diff(log.poses[:, :2], axis=0).T).sum())
+    closures = keyframe_closures(log, mapper)
     return {
         "log": log.name, "scans": len(odom), "path_m": round(path_m, 1),
         "duration_s": round(log.duration_s, 1),
         "keyframes": len(mapper.keyframes), "loop_closures": len(mapper.loop_closures),
-        "rejected_closures": mapper.rejected_closures,
+        "rejected_closures": mapper.rejected_closures, "false_closures": closures["false_closures"],
+        "closure_max_error_m": closures["closure_max_error_m"],
         "relation_mean_m": round(float(trans.mean()), 4), "relation_std_m": round(float(trans.std()), 4),
         "relation_mean_deg": round(math.degrees(float(rot.mean())), 3),
         "relation_std_deg": round(math.degrees(float(rot.std())), 3), "relations": len(trans),
@@ -215,7 +229,8 @@ def main(argv: list[str] | None = None) -> int:
                       f"{result['relation_mean_deg']:.2f}°; overlap {result['overlap_relation_mean_m']} m; "
                       f"ATE RMS {result['ate_rms_m']:.3f} m, max {result['ate_max_m']:.3f} m (odometry "
                       f"{result['odometry_ate_rms_m']:.2f} m); {result['loop_closures']} closures "
-                      f"({result['rejected_closures']} rejected); {result['processing_s']} s for "
+                      f"({result['rejected_closures']} rejected, {result['false_closures']} false); "
+                      f"{result['processing_s']} s for "
                       f"{result['duration_s']} s of data ({result['real_time_factor']}x)", flush=True)
                 results.append(result)
     except (CarmenError, ParameterError) as exc:

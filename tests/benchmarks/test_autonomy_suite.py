@@ -91,6 +91,7 @@ def test_the_smallest_suite_maps_localizes_and_navigates_two_small_worlds_in_loc
         assert slam["ok"] and localization["ok"] and navigation["ok"], figures
         # Deliver 3's targets, world by world.
         assert slam["map_f1"] >= 0.95 and slam["ate_rms_m"] <= 0.05 and slam["ate_max_m"] <= 0.5, slam
+        assert slam["closures"] is not None and slam["false_closures"] == 0, slam  # judged on ground truth
         assert localization["converged"] and localization["amcl_rms_m"] <= 0.05, localization
         assert navigation["goals"] == 3 and navigation["reached"] == 3 and navigation["collisions"] == 0, navigation
         # AMCL and navigation ran on the map SLAM saved.

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from pppbot_common.errors import PppbotError
 from pppbot_common.maps import OccupancyGrid, save_map
+from pppbot_eval.closures import closure_errors, closure_figures
 from pppbot_eval.scenarios import (
     BARN_ARRIVAL_M,
     CONVERGED_M,
@@ -19,6 +22,8 @@ from pppbot_eval.scenarios import (
     save_recording,
     world_truth,
 )
+from pppbot_eval.trajectory import PoseSeries
+from pppbot_slam.serialization import load_posegraph
 
 if TYPE_CHECKING:
     from pppbot_eval.ros.cli import Run
@@ -40,6 +45,19 @@ def slam_health(values: dict[str, str]) -> dict[str, Any]:
             except ValueError:
                 return text
     return {key: parse(value) for key, value in values.items()}
+
+
+def posegraph_closures(posegraph: str, truth_rows: list[Any]) -> dict[str, Any]:
+    """The saved pose graph's loop closures against ground truth (:mod:`pppbot_eval.closures`): each
+    keyframe's true pose at its scan's stamp, beside its solved one."""
+    mapper = load_posegraph(posegraph)
+    truth = PoseSeries.from_rows(truth_rows)
+    span = truth.span_s()
+    assert span is not None  # the caller has truth rows
+    stamps = np.clip([k.stamp_s for k in mapper.keyframes], *span)
+    solved = np.array([mapper.map_pose(k.index) for k in mapper.keyframes])
+    loops = [e for e in mapper.graph.edges if e.loop]
+    return closure_figures(closure_errors(solved, truth.interpolate(stamps).poses, loops))
 
 
 def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
@@ -64,6 +82,7 @@ def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:
                 metrics["slam_health"] = slam_health(rec.slam_health)
                 if rec.posegraph:
                     metrics["posegraph"] = rec.posegraph
+                    metrics.update(posegraph_closures(rec.posegraph, rec.truth_rows))
         except (PppbotError, ValueError, OSError) as exc:
             problem = f"metrics: {exc}"
     failure = rec.failure
