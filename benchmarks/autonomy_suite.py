@@ -1,7 +1,8 @@
 """The autonomy suite: SLAM, then AMCL on the SLAM map, then navigation, across generated worlds.
 
 The suite is a batch (``pppbot eval batch``, :mod:`pppbot_eval.batch`): for each world of a set
-(:mod:`benchmarks.worldgen`: ``tune``, ``held_out``, ``ci``) the batch
+(:mod:`benchmarks.worldgen`: ``tune``, ``held_out``, ``ci``, ``self_similar_tune``,
+``self_similar_held_out``) the batch
 
 1. writes the world and its coverage route (the generator is seeded: the same world on
    every machine);
@@ -165,6 +166,7 @@ def aggregate(worlds: list[dict[str, Any]]) -> dict[str, Any]:
     goals = sum(_get(w, "navigation", "goals") or 0 for w in worlds)
     reached = sum(_get(w, "navigation", "reached") or 0 for w in worlds)
     collisions = sum((_get(w, s, "collisions") or 0) for w in worlds for s in STAGES)
+    false_closures = sum(_get(w, "slam", "false_closures") or 0 for w in worlds)
     ate_max = [_get(w, "slam", "ate_max_m") for w in worlds]
     over = [w["world"] for w, a in zip(worlds, ate_max, strict=True) if a is None or a > ATE_MAX_LIMIT_M]
     figures: dict[str, Any] = {
@@ -178,7 +180,7 @@ def aggregate(worlds: list[dict[str, Any]]) -> dict[str, Any]:
         "amcl_good_fraction": _fraction(sum(map(amcl_good, worlds)), n),
         "amcl_rms_m_median": _median(_get(w, "localization", "amcl_rms_m") for w in worlds),
         "goals": goals, "goals_reached": reached, "goal_rate": _fraction(reached, goals),
-        "collisions": collisions,
+        "collisions": collisions, "false_closures": false_closures,
         "wall_seconds": round(sum((_get(w, s, "wall_seconds") or 0.0) for w in worlds for s in STAGES), 1),
     }
     figures["targets"] = {
@@ -187,6 +189,7 @@ def aggregate(worlds: list[dict[str, Any]]) -> dict[str, Any]:
         "amcl_rms": _target(figures["amcl_good_fraction"], WORLDS_FRACTION, lambda v, t: v >= t),
         "goal_rate": _target(figures["goal_rate"], GOAL_RATE_MIN, lambda v, t: v >= t),
         "collisions": {"value": collisions, "target": 0, "met": collisions == 0},
+        "no_false_closures": {"value": false_closures, "target": 0, "met": false_closures == 0},
     }
     return figures
 

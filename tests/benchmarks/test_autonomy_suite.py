@@ -28,10 +28,10 @@ def suite(load_benchmark):
 
 
 def world(name: str, family: str, f1: float | None, ate: float | None, ate_max: float | None, amcl: float | None,
-          reached: int, goals: int, collisions: int = 0) -> dict[str, Any]:
+          reached: int, goals: int, collisions: int = 0, false_closures: int = 0) -> dict[str, Any]:
     return {"world": name, "family": family,
             "slam": {"ok": f1 is not None, "map_f1": f1, "ate_rms_m": ate, "ate_max_m": ate_max, "collisions": 0,
-                     "wall_seconds": 10.0},
+                     "false_closures": false_closures, "wall_seconds": 10.0},
             "localization": {"ok": amcl is not None, "converged": amcl is not None, "amcl_rms_m": amcl,
                              "collisions": collisions, "wall_seconds": 5.0},
             "navigation": {"ok": reached == goals, "goals": goals, "reached": reached, "collisions": 0,
@@ -56,7 +56,7 @@ def test_the_suite_is_a_batch_spec_and_the_shipped_one_is_its_held_out_set(suite
 
 def test_the_aggregate_counts_worlds_against_each_target(suite):
     worlds = [world("a", "maze", 0.99, 0.03, 0.1, 0.02, 10, 10),
-              world("b", "maze", 0.96, 0.06, 0.2, 0.04, 9, 10),  # ATE RMS over 5 cm: not a good map
+              world("b", "maze", 0.96, 0.06, 0.2, 0.04, 9, 10, false_closures=2),  # ATE RMS over 5 cm
               world("c", "hall", 0.97, 0.02, 0.7, None, 10, 10, collisions=1),  # peak over 0.5 m; AMCL lost
               world("d", "hall", None, None, None, None, 0, 0)]  # SLAM failed: counts against every target
     figures = suite.aggregate(worlds)
@@ -65,6 +65,7 @@ def test_the_aggregate_counts_worlds_against_each_target(suite):
     assert figures["worlds_ate_max_over_limit"] == ["c", "d"]
     assert figures["goals"] == 30 and figures["goals_reached"] == 29 and figures["goal_rate"] == pytest.approx(0.9667)
     assert figures["collisions"] == 1 and figures["map_f1_min"] == 0.96 and figures["ate_max_m_max"] == 0.7
+    assert figures["false_closures"] == 2
     targets = figures["targets"]
     assert not any(t["met"] for t in targets.values())
     good = suite.aggregate(worlds[:1])

@@ -148,4 +148,4 @@ def test_every_set_world_is_named_once(load_benchmark):
     names = [generate(s.family, s.seed, small=s.small).name for specs in worldgen.SETS.values() for s in specs]
     assert len(names) == len(set(names)) >= 44
     assert not {s.seed for s in worldgen.SETS["tune"]} & {s.seed for s in worldgen.SETS["held_out"]}
-    assert len(worldgen.SETS["tune"]) == (len(Family) - 1) * 3  # clutter has sets of its own
+    assert len(worldgen.SETS["tune"]) == (len(Family) - 2) * 3  # clutter and self_similar have sets of their own

@@ -20,7 +20,10 @@ free space with at least 0.45 m around it. Families:
 * ``clutter`` — BARN's kind of world (:mod:`pppbot_sim.worldgen.clutter`): a field of blob-like
   obstacles grown by a cellular automaton across a 4.5 m corridor, a goal 10 m ahead beyond it,
   always reachable through gaps wider than 0.8 m; the layout carries the goal and the shortest
-  passable path to it.
+  passable path to it;
+* ``self_similar`` — places that look alike (:mod:`pppbot_sim.worldgen.self_similar`): 2–3 identical
+  wings, each a corridor with the same row of identical rooms, the corridors parallel and joined at
+  both ends, above a hall with 15–21 m of plain walls; one small box is the only cue.
 
 A layout also carries its coverage route's settings; the route itself is computed from
 the world by :func:`pppbot_eval.coverage.coverage_route`.
@@ -37,7 +40,7 @@ from shapely.geometry import box as shapely_box
 from shapely.ops import unary_union
 
 from pppbot_sim.errors import WorldGenError
-from pppbot_sim.worldgen import clutter, mazes, sdf
+from pppbot_sim.worldgen import clutter, mazes, sdf, self_similar
 from pppbot_sim.worldgen.sdf import WALL_T, Segment, door_wall
 
 #: Free radius around the spawn pose (m).
@@ -55,6 +58,7 @@ class Family(str, Enum):
     SYMMETRIC = "symmetric"
     CONES = "cones"
     CLUTTER = "clutter"
+    SELF_SIMILAR = "self_similar"  # last: each family's rng is seeded with its index
 
 
 @dataclass(frozen=True)
@@ -303,6 +307,15 @@ def _clutter(rng: np.random.Generator, small: bool) -> dict:
                 route=RouteSettings(1.0, clutter.CLEARANCE_M, resolution_m=0.05), parameters=world.parameters)
 
 
+# --------------------------------------------------------------- self-similar
+def _self_similar(rng: np.random.Generator, small: bool) -> dict:
+    plan = self_similar.draw(rng, small)
+    return dict(walls=plan.walls(), boxes=(Box(*plan.cue()),), corridor_width_m=(plan.corridor_m, plan.hall_m),
+                longest_run_m=plan.longest_run_m, parameters=plan.parameters(),
+                route=RouteSettings(plan.route_spacing_m, self_similar.ROUTE_CLEARANCE_M,
+                                    resolution_m=self_similar.ROUTE_RESOLUTION_M))
+
+
 _MAKERS = {
     Family.MAZE: lambda rng, small: _maze(rng, small, loops=False),
     Family.LOOPED_MAZE: lambda rng, small: _maze(rng, small, loops=True),
@@ -312,6 +325,7 @@ _MAKERS = {
     Family.SYMMETRIC: _symmetric,
     Family.CONES: _cones,
     Family.CLUTTER: _clutter,
+    Family.SELF_SIMILAR: _self_similar,
 }
 
 
