@@ -111,7 +111,8 @@ def world_figures(spec: WorldSpec, out: Path, failures: dict[str, str]) -> dict[
     slam = _report(out, layout.name, "slam", failures)
     figures["slam"] = {k: _round(slam.get(k)) for k in
                        ("ok", "failure", "map_f1", "map_precision", "map_recall", "ate_rms_m", "ate_max_m",
-                        "ate_yaw_rms_rad", "collisions", "closures", "false_closures", "closure_max_error_m",
+                        "ate_yaw_rms_rad", "collisions", "closures", "false_closures", "false_claims",
+                        "closure_max_error_m",
                         "sim_seconds", "wall_seconds", "real_time_factor")}
     health = slam.get("slam_health") or {}
     figures["slam"]["health"] = {k: health.get(k) for k in ("keyframes", "loop_closures", "rejected_closures",

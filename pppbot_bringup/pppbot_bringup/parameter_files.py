@@ -66,9 +66,12 @@ def map_free_navigation_problem(path: Path, odom_frame: str = "odom") -> str | N
         value = node_parameters(nodes, node).get(key, "map" if key == "global_frame" else False)
         if value != wanted:
             wrong.append(f"{node.lstrip('/')} {key}: {value} (not {str(wanted).lower()})")
-    plugins = node_parameters(nodes, "/global_costmap/global_costmap").get("plugins", ["static_layer"])
-    if isinstance(plugins, list) and "static_layer" in plugins:
-        wrong.append("global_costmap plugins include static_layer (it waits for a /map)")
+    costmap = node_parameters(nodes, "/global_costmap/global_costmap")
+    plugins = costmap.get("plugins", ["static_layer"])
+    static = [p for p in (plugins if isinstance(plugins, list) else [plugins])
+              if p == "static_layer" or "StaticLayer" in str(costmap.get(f"{p}.plugin", ""))]
+    if static:
+        wrong.append(f"global_costmap plugins include {', '.join(map(str, static))} (a StaticLayer waits for a /map)")
     return "; ".join(wrong) or None
 
 

@@ -38,7 +38,13 @@ class ClosureError:
 
     @property
     def false(self) -> bool:
+        """The solved graph holds the two keyframes wrong: the harm a closure did (or failed to undo)."""
         return self.position_m > FALSE_CLOSURE_M or abs(self.yaw_rad) > FALSE_CLOSURE_RAD
+
+    @property
+    def false_claim(self) -> bool:
+        """The match itself was wrong: a place taken for another, whether or not the graph followed it."""
+        return self.claimed_position_m > FALSE_CLOSURE_M or abs(self.claimed_yaw_rad) > FALSE_CLOSURE_RAD
 
 
 def _error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
@@ -68,11 +74,13 @@ def closure_errors(poses: np.ndarray, truth: np.ndarray, closures: Sequence[Edge
 
 
 def closure_figures(errors: Sequence[ClosureError]) -> dict[str, Any]:
-    """The report's figures: ``closures``, ``false_closures``, the largest corrected and claimed
-    errors (m; None without closures) and the false ones' keyframes (older, newer)."""
+    """The report's figures: ``closures``, ``false_closures`` (solved wrong), ``false_claims`` (wrong
+    matches), the largest corrected and claimed errors (m; None without closures) and the false
+    ones' keyframes (older, newer)."""
     return {
         "closures": len(errors),
         "false_closures": sum(e.false for e in errors),
+        "false_claims": sum(e.false_claim for e in errors),
         "closure_max_error_m": round(max(e.position_m for e in errors), 4) if errors else None,
         "closure_max_claim_error_m": round(max(e.claimed_position_m for e in errors), 4) if errors else None,
         "false_closure_keyframes": [[e.source, e.target] for e in errors if e.false],

@@ -150,9 +150,15 @@ def map_free_params(path: Path, out_file: Path, window_m: int, odom_frame: str =
     section("bt_navigator")["global_frame"] = odom_frame
     section("behavior_server")["global_frame"] = odom_frame
     costmap = section("global_costmap", "global_costmap")
-    plugins = [p for p in costmap.get("plugins", ["obstacle_layer", "inflation_layer"]) if p != "static_layer"]
+
+    def static(name: str) -> bool:
+        layer = costmap.get(name)
+        return name == "static_layer" or (isinstance(layer, dict) and "StaticLayer" in str(layer.get("plugin", "")))
+
+    plugins = [p for p in costmap.get("plugins", ["obstacle_layer", "inflation_layer"]) if not static(p)]
+    for name in [k for k in costmap if static(k)]:
+        costmap.pop(name)
     costmap.update(global_frame=odom_frame, rolling_window=True, width=window_m, height=window_m, plugins=plugins)
-    costmap.pop("static_layer", None)
     out_file.parent.mkdir(parents=True, exist_ok=True)
     out_file.write_text(f"# {path} without a map (pppbot eval navigation --no-map)\n"
                         + yaml.safe_dump(document, sort_keys=False))

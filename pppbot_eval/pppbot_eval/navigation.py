@@ -216,7 +216,7 @@ def summarize_navigation(outcomes: Sequence[GoalOutcome], max_speed_mps: float) 
 def barn_score(outcome: GoalOutcome, max_speed_mps: float) -> float:
     """The BARN challenge's score of one goal: ``success × OT / clip(AT, 2·OT, 8·OT)``, OT the
     shortest path's time at ``max_speed_mps``, AT the time taken; success is reached without a
-    collision. 0.5 at best (twice the optimal time or faster), 0.0625 at eight times, 0 when
+    collision. 0.5 at best (twice the optimal time or faster), 0.125 at eight times or more, 0 when
     failed (or without a shortest path to time against)."""
     shortest = outcome.shortest_path_m
     if not (outcome.reached and not outcome.collisions and shortest):

@@ -132,6 +132,7 @@ class GoalRecord:
     error_msg: str = ""
     recoveries: int = 0
     shortest_path_m: float | None = None
+    limit_s: float | None = None  # how long it was given (sim s); None: not known
 
 
 @dataclass
@@ -320,8 +321,9 @@ def goal_outcome(record: GoalRecord, truth: PoseSeries, truth_map: OccupancyGrid
     length driven, collisions and clearance between sending the goal and its result.
 
     With ``arrival_m`` (BARN's rule, :data:`BARN_ARRIVAL_M`), reached when the true position comes
-    within ``arrival_m`` of the goal before the goal's time limit, without a collision, whatever the
-    navigator answers; the time and the length driven are up to that moment.
+    within ``arrival_m`` of the goal within the goal's time limit (``record.limit_s``; without one,
+    before the navigator's answer unless it timed out), without a collision, whatever the navigator
+    answers; the time and the length driven are up to that moment.
 
     Raises:
         PoseSeriesError: no ground truth at the goal's start or end.
@@ -334,11 +336,14 @@ def goal_outcome(record: GoalRecord, truth: PoseSeries, truth_map: OccupancyGrid
     if arrival_m is not None:
         during = truth.within(start_s, end_s)
         near = np.flatnonzero(np.hypot(*(during.xy - np.asarray(record.goal[:2])).T) <= arrival_m)
-        timely = record.status not in (GoalAnswer.TIMEOUT, GoalAnswer.UNANSWERED)
-        if len(near) and timely:
-            end_s = float(during.t_s[near[0]])
+        arrived_s = float(during.t_s[near[0]]) if len(near) else None
+        timely = arrived_s is not None and (
+            arrived_s - record.start_s <= record.limit_s if record.limit_s is not None
+            else record.status not in (GoalAnswer.TIMEOUT, GoalAnswer.UNANSWERED))
+        if arrived_s is not None and timely:
+            end_s = arrived_s
             collided = sum(1 for t, _, _ in collisions if record.start_s <= t <= end_s)
-        reached = bool(len(near)) and timely and not collided
+        reached = timely and not collided
     final = truth.interpolate([end_s]).poses[0]
     driven = truth.within(start_s, end_s)
     position_m, yaw_rad = pose_error(final, record.goal)

@@ -38,7 +38,7 @@ def test_a_closure_is_false_when_the_solved_keyframes_are_off_by_half_a_metre_or
     assert errors[0].position_m == pytest.approx(0.0, abs=1e-9) and errors[0].claimed_position_m < 1e-9
     assert errors[1].position_m == pytest.approx(0.6) and errors[1].claimed_position_m == pytest.approx(1.5)
     figures = closure_figures(errors)
-    assert figures == {"closures": 2, "false_closures": 1, "closure_max_error_m": 0.6,
+    assert figures == {"closures": 2, "false_closures": 1, "false_claims": 1, "closure_max_error_m": 0.6,
                        "closure_max_claim_error_m": 1.5, "false_closure_keyframes": [[0, 3]]}
 
 
@@ -46,12 +46,12 @@ def test_a_wrong_claim_the_graph_did_not_follow_is_not_a_false_closure_and_turns
     solved = in_map(TRUTH)
     shrugged = edge(1, 3, se2_compose(true_relative(1, 3), (2.0, 0.0, 0.0)))
     [error] = closure_errors(solved, TRUTH, [shrugged])
-    assert not error.false and error.claimed_position_m == pytest.approx(2.0)
+    assert not error.false and error.false_claim and error.claimed_position_m == pytest.approx(2.0)
     turned = solved.copy()
     turned[2] = se2_compose(turned[2], (0.0, 0.0, FALSE_CLOSURE_RAD * 1.2))
     [error] = closure_errors(turned, TRUTH, [edge(0, 2, true_relative(0, 2))])
     assert error.false and error.position_m < FALSE_CLOSURE_M
-    assert closure_figures([]) == {"closures": 0, "false_closures": 0, "closure_max_error_m": None,
+    assert closure_figures([]) == {"closures": 0, "false_closures": 0, "false_claims": 0, "closure_max_error_m": None,
                                    "closure_max_claim_error_m": None, "false_closure_keyframes": []}
 
 

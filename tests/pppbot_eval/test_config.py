@@ -6,6 +6,7 @@ import dataclasses
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pppbot_bringup.parameter_files import map_free_navigation_problem
@@ -94,3 +95,35 @@ def test_map_free_parameters_navigate_in_odom_and_the_bringup_takes_them(tmp_pat
     assert ScoredParameters.read(made).max_speed_mps == ScoredParameters.read(default).max_speed_mps
     assert node_parameters(nodes, "/controller_server") == node_parameters(check_parameter_file(default),
                                                                            "/controller_server")
+
+
+def test_a_static_layer_is_known_by_its_plugin_type_whatever_its_name(tmp_path: Path):
+    text = (ROOT / "config" / "nav2_params.yaml").read_text().replace('"static_layer"', '"map_layer"').replace(
+        "      static_layer:\n", "      map_layer:\n")
+    renamed = tmp_path / "renamed.yaml"
+    renamed.write_text(text)
+    assert "global_costmap plugins include map_layer" in (map_free_navigation_problem(renamed) or "")
+    made = map_free_params(renamed, tmp_path / "free.yaml", 20)
+    assert map_free_navigation_problem(made) is None
+    costmap = node_parameters(check_parameter_file(made), "/global_costmap/global_costmap")
+    assert costmap["plugins"] == ["obstacle_layer", "inflation_layer"] and "map_layer.plugin" not in costmap
+
+
+def test_one_goal_must_be_reachable_and_without_a_map_within_the_rolling_windows_reach():
+    from pppbot_common.maps import FREE, OCCUPIED, OccupancyGrid
+    from pppbot_eval.ros.cli import MAX_WINDOW_M, _one_goal
+
+    data = np.full((40, 800), FREE, dtype=np.int8)  # a hall 40 m long, 2 m wide at 0.05 m, walled
+    data[0, :] = data[-1, :] = data[:, 0] = data[:, -1] = OCCUPIED
+    data[:, 400] = OCCUPIED  # a wall across it at x = 20 m
+    hall = OccupancyGrid(data, 0.05, origin=(-1.0, -1.0, 0.0))
+    free = EvalConfig.from_flags(flags("navigation", "--no-map", "--goal", "15", "0", "0"), MAX_SLIP)
+    assert _one_goal((15.0, 0.0, 0.0), free, hall) == (15.0, 0.0, 0.0)
+    with pytest.raises(ArgumentError, match=r"goal \(25, 0\): ppp_bot cannot reach it from the start \(0, 0\)"):
+        _one_goal((25.0, 0.0, 0.0), free, hall)
+    data[:, 400] = FREE
+    far = (MAX_WINDOW_M / 2 + 1.0, 0.0, 0.0)
+    with pytest.raises(ArgumentError, match=f"at most {MAX_WINDOW_M} m across"):
+        _one_goal(far, free, OccupancyGrid(data, 0.05, origin=(-1.0, -1.0, 0.0)))
+    on_map = EvalConfig.from_flags(flags("navigation", "--goal", "29", "0", "0"), MAX_SLIP)
+    assert _one_goal(far, on_map, OccupancyGrid(data, 0.05, origin=(-1.0, -1.0, 0.0))) == far  # a map has no window

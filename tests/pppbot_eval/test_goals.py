@@ -122,9 +122,14 @@ def test_without_a_map_a_goal_counts_within_a_metre_in_time_and_untouched_as_bar
     # A collision before arriving fails it; one after does not count against it.
     assert not goal_outcome(record, truth, grid, [(12.0, 1.2, 1.0)], arrival_m=BARN_ARRIVAL_M).reached
     assert goal_outcome(record, truth, grid, [(19.0, 3.0, 1.0)], arrival_m=BARN_ARRIVAL_M).reached
-    # Past its time limit (canceled) or never nearer than 1 m: not reached.
-    late = GoalRecord((3.5, 1.0, 0.0), 10.0, 20.0, GoalAnswer.TIMEOUT, shortest_path_m=2.5)
+    # Arrived after its time limit (7.5 s in, 7 s given): not reached; within it, reached even though the
+    # navigator, still turning to the goal's heading, timed out. Without a limit known: the answer says.
+    late = GoalRecord((3.5, 1.0, 0.0), 10.0, 20.0, GoalAnswer.ABORTED, shortest_path_m=2.5, limit_s=7.0)
     assert not goal_outcome(late, truth, grid, [], arrival_m=BARN_ARRIVAL_M).reached
+    canceled = GoalRecord((3.5, 1.0, 0.0), 10.0, 20.0, GoalAnswer.TIMEOUT, shortest_path_m=2.5, limit_s=8.0)
+    assert goal_outcome(canceled, truth, grid, [], arrival_m=BARN_ARRIVAL_M).reached
+    unknown = GoalRecord((3.5, 1.0, 0.0), 10.0, 20.0, GoalAnswer.TIMEOUT, shortest_path_m=2.5)
+    assert not goal_outcome(unknown, truth, grid, [], arrival_m=BARN_ARRIVAL_M).reached
     far = GoalRecord((4.2, 1.0, 0.0), 10.0, 20.0, GoalAnswer.SUCCEEDED, shortest_path_m=3.2)
     assert not goal_outcome(far, truth, grid, [], arrival_m=BARN_ARRIVAL_M).reached
 

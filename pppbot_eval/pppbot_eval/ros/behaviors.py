@@ -242,7 +242,8 @@ class NavigateGoals:
     def _record(self, node: EvalActions, status: GoalAnswer, error_code: int = 0, error_msg: str = "") -> None:
         node.recording.goals.append(GoalRecord(
             goal=self.goals[self.index], start_s=self._start_s, end_s=node.sim_now_s or self._start_s, status=status,
-            error_code=error_code, error_msg=error_msg, recoveries=node.recoveries(), shortest_path_m=self._shortest))
+            error_code=error_code, error_msg=error_msg, recoveries=node.recoveries(), shortest_path_m=self._shortest,
+            limit_s=self._limit_s))
         self.index += 1
         self._sent = self._handle = self._result = None
 

@@ -21,6 +21,7 @@ one JSON object. Exit code 0 when the scenario succeeded, 1 when not, 2 for bad 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import functools
 import math
 import os
@@ -60,6 +61,7 @@ from pppbot_eval.scenarios import (
     Recording,
     Scenario,
     score_saved_map,
+    shortest_path_m,
     world_truth,
 )
 from pppbot_sim.errors import WorldError
@@ -67,8 +69,10 @@ from pppbot_sim.wheel_slip import MAX_SLIP_STDDEV
 from pppbot_sim.worlds import find_world
 
 READY_TIMEOUT_S = 120.0
-#: Without a map, the global costmap's rolling window reaches this far past the start and the goal (m).
+#: Without a map, the global costmap's rolling window reaches this far past the start and the goal (m),
+#: and is at most this wide (m): 1200 × 1200 cells of 0.05 m.
 WINDOW_MARGIN_M = 2.0
+MAX_WINDOW_M = 60
 #: Wall seconds without a ground-truth message before the run is declared stuck.
 STALL_TIMEOUT_S = 30.0
 #: Wall seconds to wait for SLAM's map after the route (it updates every map_update_interval sim s).
@@ -429,9 +433,28 @@ def _score_map(config: EvalConfig, world_file: Path) -> int:
     return 0
 
 
-def _route_end(config: EvalConfig, world_file: Path) -> tuple[float, float, float]:
-    """The goal of a map-less run without ``--goal``: where the world's route ends (``--route``, or the
-    first: a clutter world's crossing), facing along its last leg.
+def _one_goal(goal: tuple[float, float, float], config: EvalConfig,
+              truth_map: OccupancyGrid) -> tuple[float, float, float]:
+    """``goal``, checked: reachable from the start, and (without a map) within the rolling window's reach.
+
+    Raises:
+        ArgumentError: naming the goal and what is wrong.
+    """
+    x, y = goal[:2]
+    if shortest_path_m(truth_map, config.start[:2], (x, y)) is None:
+        raise ArgumentError(f"goal ({x:g}, {y:g}): ppp_bot cannot reach it from the start ({config.start[0]:g}, "
+                            f"{config.start[1]:g}) in this world (no path keeps its footprint clear)")
+    reach = math.dist(config.start[:2], (x, y))
+    if config.no_map and 2 * math.ceil(reach + WINDOW_MARGIN_M) > MAX_WINDOW_M:
+        raise ArgumentError(f"goal ({x:g}, {y:g}) is {reach:.1f} m from the start: without a map the global costmap "
+                            f"is a window holding both, at most {MAX_WINDOW_M} m across (goals within "
+                            f"{MAX_WINDOW_M / 2 - WINDOW_MARGIN_M:g} m)")
+    return goal
+
+
+def _route_end(config: EvalConfig, world_file: Path) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """The start and goal of a map-less run without ``--goal``: the world's route (``--route``, or the
+    first: a clutter world's crossing) from its start to where it ends, facing along its last leg.
 
     Raises:
         RouteError: no routes file, or no such route (the message says to give ``--goal``).
@@ -440,9 +463,9 @@ def _route_end(config: EvalConfig, world_file: Path) -> tuple[float, float, floa
     if not path.is_file():
         raise RouteError(f"--no-map without --goal takes the goal from the world's route, but {path} does not "
                          "exist: give --goal X Y YAW")
-    points = select_route(load_routes(path), config.route, path).points
-    (x0, y0), (x1, y1) = points[-2], points[-1]
-    return float(x1), float(y1), math.atan2(y1 - y0, x1 - x0)
+    route = select_route(load_routes(path), config.route, path)
+    (x0, y0), (x1, y1) = route.points[-2], route.points[-1]
+    return route.start, (float(x1), float(y1), math.atan2(y1 - y0, x1 - x0))
 
 
 def _own_domain(tries: int = 8) -> int:
@@ -471,10 +494,11 @@ def main(args: argparse.Namespace) -> int:
         if scenario is Scenario.NAVIGATION:
             route = None
             truth_map = world_truth(world_file)
-            if config.goal is not None:
-                goals = [config.goal]
-            elif config.no_map:
-                goals = [_route_end(config, world_file)]
+            if config.goal is not None or config.no_map:
+                if config.goal is None:
+                    start, goal = _route_end(config, world_file)
+                    config = dataclasses.replace(config, start=start)
+                goals = [_one_goal(config.goal or goal, config, truth_map)]
             else:
                 goals = sample_goals(truth_map, config.start[:2], config.goals, np.random.default_rng(config.seed),
                                      min_distance_m=config.goal_distance)

@@ -55,9 +55,9 @@ def posegraph_closures(posegraph: str, truth_rows: list[Any]) -> dict[str, Any]:
     span = truth.span_s()
     assert span is not None  # the caller has truth rows
     stamps = np.clip([k.stamp_s for k in mapper.keyframes], *span)
-    solved = np.array([mapper.map_pose(k.index) for k in mapper.keyframes])
+    solved = np.array([mapper.map_pose(k.index) for k in mapper.keyframes]).reshape(-1, 3)
     loops = [e for e in mapper.graph.edges if e.loop]
-    return closure_figures(closure_errors(solved, truth.interpolate(stamps).poses, loops))
+    return closure_figures(closure_errors(solved, truth.interpolate(stamps).poses.reshape(-1, 3), loops))
 
 
 def report(run: Run, truth_map: OccupancyGrid) -> dict[str, Any]:

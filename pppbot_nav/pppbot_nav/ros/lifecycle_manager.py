@@ -88,8 +88,8 @@ class LifecycleManager(Node):
         """``node_names`` and ``autostart``: the defaults of the parameters (a bringup's), which a
         parameters file overrides. ``port``: the process's step port. A lifecycle manager is a plain
         rclpy node that spins itself (its services answer at once, in lockstep too); with
-        ``autostart`` in a lockstep process (the composed navigation) the process joins only once
-        the nodes are active, so sim time starts with them serving, as it does on every run.
+        ``autostart`` in a lockstep process (the composed navigation, and localization) the process
+        joins only once the nodes are active, so sim time starts with them serving, on every run.
         ``retry``: how long each request to a node is waited for and how often sent again."""
         super().__init__(name, **kwargs)
         # Its clock is never read (its timeouts are wall time): following /clock at 100 Hz in its own
