@@ -8,7 +8,7 @@ import yaml
 
 from pppbot_common.errors import ParameterFileError
 from pppbot_common.launch_args import ArgumentError
-from pppbot_common.param_files import check_parameter_file, node_parameters
+from pppbot_common.param_files import check_parameter_file, is_static_layer, node_parameters
 
 
 def parameter_file(given: str, default: Path, argument: str) -> Path:
@@ -69,7 +69,7 @@ def map_free_navigation_problem(path: Path, odom_frame: str = "odom") -> str | N
     costmap = node_parameters(nodes, "/global_costmap/global_costmap")
     plugins = costmap.get("plugins", ["static_layer"])
     static = [p for p in (plugins if isinstance(plugins, list) else [plugins])
-              if p == "static_layer" or "StaticLayer" in str(costmap.get(f"{p}.plugin", ""))]
+              if is_static_layer(p, costmap.get(f"{p}.plugin"))]
     if static:
         wrong.append(f"global_costmap plugins include {', '.join(map(str, static))} (a StaticLayer waits for a /map)")
     return "; ".join(wrong) or None

@@ -294,3 +294,9 @@ def node_parameters(nodes: dict[str, dict[str, Any]], node: str) -> dict[str, An
         if _name_pattern(key).fullmatch(fqn):
             params.update(_flattened(nodes[key]))
     return params
+
+
+def is_static_layer(name: object, plugin: object) -> bool:
+    """Whether the costmap layer ``name`` with ``plugin`` (its ``plugin`` parameter, or None) is
+    Nav2's StaticLayer, which waits for a /map: named ``static_layer`` or of that plugin type."""
+    return name == "static_layer" or "StaticLayer" in str(plugin or "")

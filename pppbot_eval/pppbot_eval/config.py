@@ -15,7 +15,7 @@ from typing import Any
 import yaml
 
 from pppbot_common.errors import ArgumentError, ParameterFileError
-from pppbot_common.param_files import check_parameter_file, node_parameters
+from pppbot_common.param_files import check_parameter_file, is_static_layer, node_parameters
 from pppbot_eval.scenarios import Scenario
 from pppbot_nav.controller.dwb import DWBSettings
 from pppbot_nav.controller.plugin_settings import DEFAULT_CONTROLLER_TYPES, DWB, RPP
@@ -153,7 +153,7 @@ def map_free_params(path: Path, out_file: Path, window_m: int, odom_frame: str =
 
     def static(name: str) -> bool:
         layer = costmap.get(name)
-        return name == "static_layer" or (isinstance(layer, dict) and "StaticLayer" in str(layer.get("plugin", "")))
+        return is_static_layer(name, layer.get("plugin") if isinstance(layer, dict) else None)
 
     plugins = [p for p in costmap.get("plugins", ["obstacle_layer", "inflation_layer"]) if not static(p)]
     for name in [k for k in costmap if static(k)]:

@@ -113,7 +113,7 @@ def test_the_slam_node_maps_the_bag_as_the_core_maps_the_log(ros_node, spawn, tm
     assert play.wait(timeout_s=120) == 0, play.output
     log = read_carmen(log_path)
     odometry = synthesize_odometry(log.poses, (0.05, 0.05, 0.05, 0.05), np.random.default_rng(0))
-    _, core, _ = carmen.run_slam(log, odometry, carmen.slam_parameters(params_file))
+    _, core, _, _ = carmen.run_slam(log, odometry, carmen.slam_parameters(params_file))
     client = ros_node.create_client(SerializePoseGraph, "/slam_toolbox/serialize_map")
     assert client.wait_for_service(timeout_sec=10)
 

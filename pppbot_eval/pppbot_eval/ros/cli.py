@@ -73,6 +73,12 @@ READY_TIMEOUT_S = 120.0
 #: and is at most this wide (m): 1200 × 1200 cells of 0.05 m.
 WINDOW_MARGIN_M = 2.0
 MAX_WINDOW_M = 60
+
+
+def window_size_m(reach_m: float) -> int:
+    """The map-free global costmap's width (m): a square holding everything ``reach_m`` from the start
+    with :data:`WINDOW_MARGIN_M` more, in whole metres."""
+    return 2 * math.ceil(reach_m + WINDOW_MARGIN_M)
 #: Wall seconds without a ground-truth message before the run is declared stuck.
 STALL_TIMEOUT_S = 30.0
 #: Wall seconds to wait for SLAM's map after the route (it updates every map_update_interval sim s).
@@ -145,8 +151,7 @@ class Run:
         if not self.map_free:
             return self.scored.file
         reach = max(math.dist(self.start[:2], goal[:2]) for goal in self.goals)
-        window = 2 * math.ceil(reach + WINDOW_MARGIN_M)
-        return map_free_params(self.scored.file, self.out / "logs" / "nav2_params_map_free.yaml", window)
+        return map_free_params(self.scored.file, self.out / "logs" / "nav2_params_map_free.yaml", window_size_m(reach))
 
     def _slam_params(self) -> Path:
         """The bringup's slam parameters with ``map_save_name`` in ``--out``: serialize_map writes
@@ -445,7 +450,7 @@ def _one_goal(goal: tuple[float, float, float], config: EvalConfig,
         raise ArgumentError(f"goal ({x:g}, {y:g}): ppp_bot cannot reach it from the start ({config.start[0]:g}, "
                             f"{config.start[1]:g}) in this world (no path keeps its footprint clear)")
     reach = math.dist(config.start[:2], (x, y))
-    if config.no_map and 2 * math.ceil(reach + WINDOW_MARGIN_M) > MAX_WINDOW_M:
+    if config.no_map and window_size_m(reach) > MAX_WINDOW_M:
         raise ArgumentError(f"goal ({x:g}, {y:g}) is {reach:.1f} m from the start: without a map the global costmap "
                             f"is a window holding both, at most {MAX_WINDOW_M} m across (goals within "
                             f"{MAX_WINDOW_M / 2 - WINDOW_MARGIN_M:g} m)")
