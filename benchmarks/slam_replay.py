@@ -75,6 +75,7 @@ def mapper_overrides(items: list[str]) -> dict[str, float]:
 
 
 def replay(ds: SlamDataset, matcher: dict[str, float], mapper_fields: dict[str, float] | None = None) -> dict[str, Any]:
+    from pppbot_eval.closures import closure_errors, closure_figures
     from pppbot_slam.mapper import Mapper
     from pppbot_slam.ros.slam import SlamParameters
 
@@ -99,6 +100,8 @@ def replay(ds: SlamDataset, matcher: dict[str, float], mapper_fields: dict[str, 
     truth = ds.truth_in_map(first)[first:]
     errors = np.linalg.norm(np.array(online)[:, :2] - truth[:, :2], axis=1)
     final = np.array([mapper.map_pose(k) for k in range(len(keyframe_scans))])
+    closures = closure_figures(closure_errors(final, truth[np.array(keyframe_scans) - first],
+                                              [e for e in mapper.graph.edges if e.loop]))
     final_errors = np.linalg.norm(final[:, :2] - truth[np.array(keyframe_scans) - first, :2], axis=1)
     moments = np.linspace(0, len(errors) - 1, TIMELINE_POINTS).round().astype(int)
     return {"online_rms_cm": round(float(np.sqrt(np.mean(errors ** 2))) * 100, 2),
@@ -106,6 +109,8 @@ def replay(ds: SlamDataset, matcher: dict[str, float], mapper_fields: dict[str, 
             "online_timeline_cm": [round(float(errors[k]) * 100, 1) for k in moments],
             "final_keyframes_rms_cm": round(float(np.sqrt(np.mean(final_errors ** 2))) * 100, 2),
             "keyframes": len(keyframe_scans), "loop_closures": len(mapper.loop_closures),
+            "rejected_closures": mapper.rejected_closures, "false_closures": closures["false_closures"],
+            "false_claims": closures["false_claims"], "closure_max_error_m": closures["closure_max_error_m"],
             "wall_s": round(time.perf_counter() - started, 1)}
 
 
@@ -129,7 +134,8 @@ def main(argv: list[str] | None = None) -> int:
               "wheel_slip": ds.wheel_slip, "matcher": overrides, "mapper": mapper_fields,
               **replay(ds, overrides, mapper_fields)}
     print(f"{ds.world}: SLAM pose error RMS {result['online_rms_cm']} cm, max {result['online_max_cm']} cm; "
-          f"final keyframes {result['final_keyframes_rms_cm']} cm; {result['loop_closures']} loop closures")
+          f"final keyframes {result['final_keyframes_rms_cm']} cm; {result['loop_closures']} loop closures "
+          f"({result['rejected_closures']} rejected, {result['false_closures']} false)")
     print(json.dumps(result))
     return 0
 

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from pppbot_common.maps import OccupancyGrid
-from pppbot_slam.loops import LOOP_SEE_THROUGH_MAX, LoopMatch, solve_loops
+from pppbot_slam.loops import LoopMatch, solve_loops
 from pppbot_slam.mapper import Mapper
 from pppbot_slam.occupancy import GridCache, LogOddsGrid, ScanRays
 
@@ -80,7 +80,8 @@ class KeyframeAdded:
 class LoopsMerged:
     """Keyframe ``index``'s loop search, solved and merged: the closures accepted, how far the
     newest keyframe moved (dx, dy, dyaw), the matches rejected (``see_through`` of them because
-    their scans saw through each other's walls) and the earlier closures undone."""
+    their scans saw through each other's walls), the earlier closures undone and the matches
+    held for evidence (a large correction that no other keyframe's match confirms yet)."""
 
     index: int
     stamp_s: float
@@ -89,6 +90,7 @@ class LoopsMerged:
     rejected: int
     see_through: int
     undone: list[tuple[int, int]]
+    held: int = 0
 
 
 def _ignore(*_args: Any) -> None:
@@ -228,18 +230,17 @@ class AsyncMapper:
         with self.lock:
             if mapper is not self._mapper:
                 return None
-            graph = mapper.graph.copy()
-        solution = solve_loops(graph, matches)
+            graph, held, last_closed = mapper.graph.copy(), mapper.held_matches, mapper.last_closed
+        solution = solve_loops(graph, matches, held, last_closed)
         with self.lock:
             if mapper is not self._mapper:
                 return None
             moved = mapper.merge_loops(solution)
             stamp = mapper.keyframes[index].stamp_s
-        taken = {id(match) for match in solution.accepted}
         merged = LoopsMerged(
             index=index, stamp_s=stamp, accepted=list(solution.accepted), moved=moved, rejected=solution.rejected,
-            see_through=sum(1 for m in matches if id(m) not in taken and m.see_through > LOOP_SEE_THROUGH_MAX),
-            undone=sorted(solution.undone))
+            see_through=solution.why.get("see_through", 0),
+            undone=sorted(solution.undone), held=len(solution.held))
         self.events.loops(merged)
         return merged
 

@@ -4,16 +4,21 @@ closures the pose graph can agree with.
 :class:`LoopSearch` is one keyframe's search as taken from the mapper (it runs without it, in a
 loop-closing thread); :func:`solve_loops` adds its matches to a copy of the pose graph: those
 implausible for what the graph already knows, or whose scans see through each other's walls,
-are left out (:func:`plausible`), and after the
+are left out (:func:`plausible`); the rest must agree with each other (pairwise consistency,
+:func:`consistent_set`), and one that would move the map a lot for the way travelled since the
+last closure waits for a second match that agrees with it (:func:`needs_evidence`); after the
 solve every loop edge, old or new, is checked again — a closure the rest cannot agree with
 goes, and one accepted earlier is undone (:class:`LoopSolution`). No ROS here.
 """
 from __future__ import annotations
 
 import math
+from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
+import networkx as nx
 import numpy as np
 
 from pppbot_common.se2 import se2_apply, se2_compose, se2_inverse, wrap_angles
@@ -50,6 +55,26 @@ LOOP_AGREE_RAD = 0.15
 #: see through people and glass (true closures of the CARMEN logs reach several %), which is
 #: why corrections within LOOP_AGREE_M are taken without it.
 LOOP_SEE_THROUGH_MAX = 0.01
+#: A closure that would correct its keyframes' relative pose by more than LOOP_AGREE_M plus this
+#: share of the way travelled since the last accepted closure (m per m), or by more than
+#: LOOP_AGREE_RAD, needs evidence: a consistent match (:func:`pair_consistent`) of another keyframe.
+#: Drift of the running matches stays well under 5 % of the way on the logs and worlds; an alias
+#: (the next corridor, an identical room) is a jump of metres wherever it comes.
+LOOP_EVIDENCE_DRIFT = 0.05
+#: Keyframes with consistent matches a closure needing evidence must have (its own included) ...
+LOOP_EVIDENCE_MATCHES = 2
+#: ... within this many keyframes of it: a match waiting longer is dropped.
+LOOP_EVIDENCE_KEYFRAMES = 10
+#: Two closures agree when the cycle they make through the graph (one closure, the graph from its
+#: older keyframe to the other's, the other closure back, the graph to the first's newer keyframe)
+#: closes within these (m, rad), plus LOOP_EVIDENCE_DRIFT of the graph's way between their keyframes.
+PAIR_AGREE_M = 0.3
+PAIR_AGREE_RAD = 0.1
+#: Why a loop match is rejected, as the mapper's health counts it: it disagrees with what the graph
+#: knows; its scans see through each other's walls; it disagrees with the other matches (PCM);
+#: no other keyframe's match confirmed its large correction in time; the solved graph could not
+#: meet it.
+REJECTIONS = ("disagrees", "see_through", "inconsistent", "unconfirmed", "residual")
 #: A partial-overlap match is judged on at least this many points, whatever the share.
 MIN_OVERLAP_POINTS = 20
 #: A global match whose good coarse candidates (Karto's covariance) spread further than this
@@ -190,30 +215,111 @@ class LoopSolution:
     rejected: int  # matches left out: implausible for their chain, or disagreeing with the graph
     undone: frozenset[tuple[int, int]]  # earlier closures (source, target) the graph no longer agrees with
     copied_edges: tuple[Edge, ...]  # the copy's edges before the matches (edges added to the mapper since are not)
+    held: tuple[LoopMatch, ...] = ()  # matches waiting for evidence (see needs_evidence)
+    #: why the rejected were (REJECTIONS' keys): the counts add up to ``rejected``
+    why: dict[str, int] = field(default_factory=dict)
+
+
+def correction(graph: PoseGraph, match: LoopMatch) -> np.ndarray:
+    """How far ``match`` would move its newer keyframe relative to the older one from where the
+    graph has it (x, y, yaw in the older keyframe's frame; yaw wrapped)."""
+    error = np.asarray(se2_compose(se2_inverse(match.relative), graph.relative(match.source, match.target)))
+    error[2] = float(wrap_angles(error[2]))
+    return error
+
+
+def way(graph: PoseGraph, first: int, last: int) -> float:
+    """The length (m) of the graph's path of keyframes from ``first`` to ``last`` (either order)."""
+    low, high = sorted((first, last))
+    poses = np.asarray(graph.poses[low:high + 1])
+    return float(np.hypot(*np.diff(poses[:, :2], axis=0).T).sum()) if len(poses) > 1 else 0.0
+
+
+def needs_evidence(graph: PoseGraph, match: LoopMatch, last_closed: int) -> bool:
+    """Whether ``match`` moves its keyframes more than the way since keyframe ``last_closed`` (the
+    newest closure's, or the session's first) could have drifted (:data:`LOOP_EVIDENCE_DRIFT`)."""
+    error = correction(graph, match)
+    allowed = LOOP_AGREE_M + LOOP_EVIDENCE_DRIFT * way(graph, min(last_closed, match.target), match.target)
+    return bool(math.hypot(error[0], error[1]) > allowed or abs(error[2]) > LOOP_AGREE_RAD)
+
+
+def pair_consistent(graph: PoseGraph, a: LoopMatch, b: LoopMatch) -> bool:
+    """Whether two closures agree (Mangelson et al.'s pairwise consistency, ICRA 2018): ``a``'s
+    newer keyframe reached from its older one through ``a`` equals the way round through the
+    graph to ``b``'s older keyframe, ``b``, and the graph back to ``a``'s newer one, within
+    :data:`PAIR_AGREE_M` / :data:`PAIR_AGREE_RAD` and the drift of those stretches of graph."""
+    cycle = se2_compose(se2_compose(se2_inverse(a.relative), graph.relative(a.source, b.source)),
+                        se2_compose(b.relative, graph.relative(b.target, a.target)))
+    allowed = PAIR_AGREE_M + LOOP_EVIDENCE_DRIFT * (way(graph, a.source, b.source) + way(graph, b.target, a.target))
+    return bool(math.hypot(cycle[0], cycle[1]) <= allowed and abs(float(wrap_angles(cycle[2]))) <= PAIR_AGREE_RAD)
+
+
+def consistent_set(graph: PoseGraph, matches: Sequence[LoopMatch], agrees: Sequence[bool]) -> list[int]:
+    """The indices of the largest set of ``matches`` that all agree pairwise (PCM's maximum clique,
+    networkx's branch and bound); among sets as large, the one with most matches that ``agrees``
+    says need no evidence."""
+    if len(matches) < 2:
+        return list(range(len(matches)))
+    pairs = nx.Graph()
+    for i, agree in enumerate(agrees):
+        pairs.add_node(i, weight=2 * len(matches) + int(agree))
+    for i in range(len(matches)):
+        for j in range(i + 1, len(matches)):
+            if pair_consistent(graph, matches[i], matches[j]):
+                pairs.add_edge(i, j)
+    clique, _ = nx.max_weight_clique(pairs, weight="weight")
+    return sorted(clique)
+
+
+def with_evidence(graph: PoseGraph, candidates: Sequence[LoopMatch],
+                  last_closed: int) -> tuple[list[LoopMatch], list[LoopMatch], int]:
+    """Of ``candidates`` (plausible new matches and those held), the ones to add to the graph,
+    those to hold for evidence, and how many are left out: the largest consistent set is kept
+    (:func:`consistent_set`); in it, a match that :func:`needs_evidence` is added once matches of
+    :data:`LOOP_EVIDENCE_MATCHES` keyframes are in the set, else held."""
+    needy = [needs_evidence(graph, m, last_closed) for m in candidates]
+    chosen = consistent_set(graph, candidates, [not n for n in needy])
+    evidence = len({candidates[i].target for i in chosen}) >= LOOP_EVIDENCE_MATCHES
+    add = [candidates[i] for i in chosen if evidence or not needy[i]]
+    hold = [candidates[i] for i in chosen if not evidence and needy[i]]
+    return add, hold, len(candidates) - len(chosen)
 
 
 def plausible(graph: PoseGraph, matches: list[LoopMatch]) -> list[bool]:
+    """Whether each match is plausible (:func:`implausible_why` says nothing against it)."""
+    return [why is None for why in implausible_why(graph, matches)]
+
+
+def implausible_why(graph: PoseGraph, matches: list[LoopMatch]) -> list[str | None]:
     """Whether each match agrees with what the graph already knows (:data:`LOOP_CONSISTENCY_CHI2`,
     :data:`LOOP_AGREE_M`): how far the match would move the newer keyframe relative to the
     older one, weighed by how well the running matches and earlier closures between them pin
     that (their joint marginal covariance). A place that looks the same a few metres away (an
     identical room, the next corridor of a maze) is not taken for a loop the map could not
     have got that wrong. Beyond LOOP_AGREE_M, the match's scans must also not see through
-    each other (:data:`LOOP_SEE_THROUGH_MAX`)."""
+    each other (:data:`LOOP_SEE_THROUGH_MAX`). None for a plausible match, else why not:
+    ``"disagrees"`` (with the graph) or ``"see_through"``."""
     covariances = graph.relative_covariances([(m.source, m.target) for m in matches])
-    verdicts = []
+    verdicts: list[str | None] = []
     for match, covariance in zip(matches, covariances, strict=True):
-        error = se2_compose(se2_inverse(match.relative), graph.relative(match.source, match.target))
-        error[2] = float(wrap_angles(error[2]))
+        error = correction(graph, match)
         small = math.hypot(error[0], error[1]) <= LOOP_AGREE_M and abs(error[2]) <= LOOP_AGREE_RAD
         weight = LOOP_COVARIANCE_SCALE * (covariance + match.covariance)
-        consistent = error @ np.linalg.solve(weight, error) <= LOOP_CONSISTENCY_CHI2
-        verdicts.append(bool(small or (consistent and match.see_through <= LOOP_SEE_THROUGH_MAX)))
+        if small:
+            verdicts.append(None)
+        elif error @ np.linalg.solve(weight, error) > LOOP_CONSISTENCY_CHI2:
+            verdicts.append("disagrees")
+        else:
+            verdicts.append("see_through" if match.see_through > LOOP_SEE_THROUGH_MAX else None)
     return verdicts
 
 
-def solve_loops(graph: PoseGraph, matches: list[LoopMatch]) -> LoopSolution:
+def solve_loops(graph: PoseGraph, matches: list[LoopMatch], held: Sequence[LoopMatch] = (),
+                last_closed: int = 0) -> LoopSolution:
     """Add the plausible matches to ``graph`` (a copy of the mapper's) as loop edges and optimise it.
+
+    ``held``: earlier matches waiting for evidence, judged again with the new ones
+    (:func:`with_evidence`; ``last_closed``: the newest closure's newer keyframe).
 
     A closure the rest of the graph cannot agree with is a wrong one (an alias of the place):
     after optimising, its residual is far outside its covariance (χ² beyond
@@ -224,8 +330,13 @@ def solve_loops(graph: PoseGraph, matches: list[LoopMatch]) -> LoopSolution:
     """
     copied_edges = tuple(graph.edges)
     before = [pose.copy() for pose in graph.poses]
-    kept = [m for m, ok in zip(matches, plausible(graph, matches), strict=True) if ok]
-    rejected = len(matches) - len(kept)
+    candidates = [*held, *matches]
+    verdicts = implausible_why(graph, candidates)
+    why = Counter(v for v in verdicts if v is not None)
+    plausible_ones = [m for m, v in zip(candidates, verdicts, strict=True) if v is None]
+    kept, waiting, inconsistent = with_evidence(graph, plausible_ones, last_closed)
+    why["inconsistent"] += inconsistent
+    rejected = len(candidates) - len(plausible_ones) + inconsistent
     added = [(graph.add_edge(m.source, m.target, m.relative, m.covariance, loop=True), m) for m in kept]
     undone: set[tuple[int, int]] = set()
 
@@ -235,6 +346,7 @@ def solve_loops(graph: PoseGraph, matches: list[LoopMatch]) -> LoopSolution:
         if any(edge is e for e, _ in added):
             added = [(e, m) for e, m in added if e is not edge]
             rejected += 1
+            why["residual"] += 1
         else:
             undone.add((edge.source, edge.target))
 
@@ -253,7 +365,8 @@ def solve_loops(graph: PoseGraph, matches: list[LoopMatch]) -> LoopSolution:
             drop(culprit)
         graph.poses = [pose.copy() for pose in before]
         graph.optimize()
-    return LoopSolution(graph, [m for _, m in added], rejected, frozenset(undone), copied_edges)
+    return LoopSolution(graph, [m for _, m in added], rejected, frozenset(undone), copied_edges, tuple(waiting),
+                        {k: v for k, v in why.items() if v})
 
 
 def _straining_closure(graph: PoseGraph, start: list[np.ndarray]) -> Edge | None:

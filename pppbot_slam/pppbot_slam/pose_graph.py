@@ -4,8 +4,13 @@ GTSAM (Georgia Tech Smoothing and Mapping) is a well-kept factor-graph library
 with Python wheels: each edge is a ``BetweenFactorPose2`` with the matcher's
 covariance, the first keyframe is anchored by a tight prior (the map frame is
 where mapping started), and Levenberg–Marquardt solves the graph, as
-slam_toolbox's Ceres back end does. Loop-closure edges get a Huber kernel, so a
-wrong one bends the graph much less than it would with plain least squares.
+slam_toolbox's Ceres back end does. Loop-closure edges are switchable, in two
+graduated steps: a solve with a Huber kernel on them (convex: a true loop far from
+the drifted estimate still pulls the graph all the way), then from there a solve
+with dynamic covariance scaling (Agarwal et al., ICRA 2013, the closed form of
+Sünderhauf and Protzel's switchable constraints), in which a loop the rest of the
+graph cannot meet loses its weight instead of bending the graph; odometry and
+matching edges are never switched off (docs/slam.md).
 No ROS here.
 """
 from __future__ import annotations
@@ -21,8 +26,12 @@ from pppbot_slam.errors import PoseGraphError
 
 #: Standard deviation of the anchor on the first keyframe (m, m, rad).
 ANCHOR_SIGMAS = (1e-6, 1e-6, 1e-8)
-#: Huber threshold on loop-closure edges, in standard deviations.
+#: Huber threshold on loop-closure edges in the first solve, in standard deviations.
 LOOP_HUBER_K = 1.345
+#: Dynamic covariance scaling's Φ on loop-closure edges (χ² units): a loop whose χ² at the current
+#: estimate is χ² > Φ keeps s = 2Φ / (Φ + χ²) of its standard-deviation weight (its information
+#: scaled by s²). Agarwal et al. found Φ from 1 to 10 alike on their benchmarks and recommend 1.
+LOOP_DCS_PHI = 1.0
 
 
 @dataclass(frozen=True)
@@ -98,16 +107,18 @@ class PoseGraph:
         """``target``'s current pose in ``source``'s frame."""
         return np.asarray(se2_compose(se2_inverse(self.poses[source]), self.poses[target]))
 
-    def _factors(self) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
-        """The graph as GTSAM factors (anchor, one between-factor per edge) and its current poses."""
+    def _factors(self, switchable: bool = True) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+        """The graph as GTSAM factors (anchor, one between-factor per edge) and its current poses;
+        loop edges under dynamic covariance scaling, or Huber's kernel when not ``switchable``."""
         graph = gtsam.NonlinearFactorGraph()
         anchor = gtsam.noiseModel.Diagonal.Sigmas(np.array(ANCHOR_SIGMAS))
         graph.add(gtsam.PriorFactorPose2(0, gtsam.Pose2(*self.poses[0]), anchor))
-        huber = gtsam.noiseModel.mEstimator.Huber.Create(LOOP_HUBER_K)
+        kernel = gtsam.noiseModel.mEstimator.DCS.Create(LOOP_DCS_PHI) if switchable \
+            else gtsam.noiseModel.mEstimator.Huber.Create(LOOP_HUBER_K)
         for edge in self.edges:
             noise: gtsam.noiseModel.Base = gtsam.noiseModel.Gaussian.Covariance(edge.covariance)
             if edge.loop:
-                noise = gtsam.noiseModel.Robust.Create(huber, noise)
+                noise = gtsam.noiseModel.Robust.Create(kernel, noise)
             graph.add(gtsam.BetweenFactorPose2(edge.source, edge.target, gtsam.Pose2(*edge.relative), noise))
         values = gtsam.Values()
         for i, pose in enumerate(self.poses):
@@ -134,16 +145,19 @@ class PoseGraph:
         return covariances
 
     def optimize(self, max_iterations: int = 100) -> float:
-        """Solve the graph (Levenberg–Marquardt) and update :attr:`poses`; returns the final error.
-
-        The first node stays where it is (anchored).
+        """Solve the graph (Levenberg–Marquardt, Huber's loops then switchable ones from there) and
+        update :attr:`poses`; returns the final error. The first node stays where it is (anchored).
         """
         if len(self.poses) < 2 or not self.edges:
             return 0.0
-        graph, initial = self._factors()
         params = gtsam.LevenbergMarquardtParams()
         params.setMaxIterations(max_iterations)
-        result = gtsam.LevenbergMarquardtOptimizer(graph, initial, params).optimize()
+        result = gtsam.Values()
+        for switchable in (False, True) if any(e.loop for e in self.edges) else (True,):
+            graph, initial = self._factors(switchable)
+            if not result.empty():
+                initial = result
+            result = gtsam.LevenbergMarquardtOptimizer(graph, initial, params).optimize()
         for i in range(len(self.poses)):
             solved = result.atPose2(i)
             self.poses[i] = np.array([solved.x(), solved.y(), math.remainder(solved.theta(), 2 * math.pi)])

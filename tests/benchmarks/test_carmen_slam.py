@@ -101,6 +101,21 @@ def test_overlap_pairs_are_places_seen_twice(carmen):
     assert d.max() < carmen.OVERLAP_DISTANCE_M
 
 
+def test_the_worst_seed_judges_each_log_and_a_log_without_time_is_judged_without_speed(carmen):
+    def run(log, seed, ate_max, false, factor):
+        return {"log": log, "seed": seed, "ate_rms_m": ate_max / 3, "ate_max_m": ate_max, "relation_mean_m": 0.03,
+                "false_closures": false, "real_time_factor": factor}
+    results = [run("fhw", 0, 0.3, 0, 40.0), run("fhw", 1, 0.35, 0, 18.0), run("campus", 0, 0.2, 0, None),
+               run("campus", 1, 0.3, 1, None), run("edmonton", 0, 0.6, 0, 30.0)]
+    worst = carmen.worst_per_log(results)
+    assert worst["fhw"] == {"ate_rms_m": pytest.approx(0.35 / 3), "ate_max_m": 0.35, "relation_mean_m": 0.03,
+                            "false_closures": 0, "real_time_factor": 18.0}
+    assert worst["campus"]["real_time_factor"] is None and worst["campus"]["false_closures"] == 1
+    # one false closure of any seed fails the log; so does an ATE max over 0.4 m
+    assert carmen.targets_met(results) == {"fhw": True, "campus": False, "edmonton": False}
+    assert carmen.targets_met(results[:3]) == {"fhw": True, "campus": True}
+
+
 def test_the_parameter_file_describes_the_laser_and_bad_names_are_refused(carmen, tmp_path):
     params = carmen.slam_parameters(carmen.DEFAULT_PARAMS)
     assert params.max_laser_range == 30.0 and params.minimum_travel_distance == 0.0

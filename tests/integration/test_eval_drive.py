@@ -72,7 +72,8 @@ def test_slam_scenario_maps_the_room_and_tracks_the_robot(spawn, tmp_path: Path,
     # The live view of the run, as a rerun recording beside the plots, read back by rerun's own CLI.
     assert report["view"] == "view.rrd"
     chunks = rrd_chunks(out / "view.rrd")
-    for entity in ("/map", "/scan", "/tf/base_link", "/tf/odom", "/odom/trail/0", "/robot/chassis/visual_0"):
+    for entity in ("/map", "/scan", "/tf/base_link", "/tf/odom", "/odom/trail/0", "/robot/chassis/visual_0",
+                   "/slam/health"):
         assert chunks.get(entity, 0) >= 1, (entity, sorted(chunks))
     assert any(e.startswith("/slam/graph/") for e in chunks), sorted(chunks)
     # SLAM against ground truth (issue 9's targets): the map and the trajectory.

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 import rerun as rr
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped, PoseWithCovarianceStamped, TransformStamped
 from nav2_msgs.msg import Particle, ParticleCloud
 from nav_msgs.msg import OccupancyGrid, Path
@@ -139,6 +140,24 @@ def shown(picture: rr.Image) -> np.ndarray:
     pixels = np.frombuffer(bytes(values(picture.buffer)[0]), dtype=np.uint8)
     return pixels.reshape(fmt["height"], fmt["width"], -1).squeeze(axis=2) if pixels.size == fmt["height"] * \
         fmt["width"] else pixels.reshape(fmt["height"], fmt["width"], -1)
+
+
+def test_the_slam_health_says_closures_accepted_rejected_and_why_and_the_largest_correction() -> None:
+    health = {"keyframes": "412", "loop_closures": "85", "rejected_closures": "14", "rejected_disagrees": "10",
+              "rejected_see_through": "3", "rejected_inconsistent": "1", "rejected_unconfirmed": "0",
+              "rejected_residual": "0", "held_closures": "2", "undone_closures": "1",
+              "largest_correction_m": "0.314", "largest_correction_rad": "0.0349"}
+    other = DiagnosticStatus(name="amcl: localization", message="ok")
+    status = DiagnosticStatus(name="slam_toolbox: mapping", message="1 loop closure(s) proved wrong and were undone",
+                              values=[KeyValue(key=k, value=v) for k, v in health.items()])
+    text = convert.slam_health(DiagnosticArray(status=[other, status]))
+    assert text is not None
+    assert text.splitlines() == [
+        "- **1 loop closure(s) proved wrong and were undone**: 412 keyframes, 85 loop closures, largest "
+        "correction 0.31 m, 2.0°",
+        "- rejected 14: 10 disagree with the map, 3 see through walls, 1 disagree with other matches",
+        "- held for a second match 2, undone 1"]
+    assert convert.slam_health(DiagnosticArray(status=[other])) is None
 
 
 def test_images_in_common_encodings_go_to_the_view_8_bit_and_at_most_320_px_wide() -> None:

@@ -78,16 +78,27 @@ def metres_per_pixel(page: Any, center: tuple[float, float], apart_px: float = 1
 
 
 def camera_view(page: Any) -> tuple[float, float]:
-    """Shares of the camera view (the right column's lower third, below its title) that are sky
+    """Shares of the camera view (the right column's tenths 5-7, below its title; the SLAM health under it) that are sky
     (black: nothing hit) and ground (MuJoCo's grey plane): what ppp_bot's camera sees in the cones
     world. An empty view is the page's plain background."""
-    x0, x1, y1 = int(SIZE[0] * 0.6) + 2, SIZE[0], MAP_VIEW[3]
-    y0 = MAP_VIEW[1] + (MAP_VIEW[3] - MAP_VIEW[1]) * 2 // 3 + 28
+    x0, x1, height = int(SIZE[0] * 0.6) + 2, SIZE[0], MAP_VIEW[3] - MAP_VIEW[1]
+    y0, y1 = MAP_VIEW[1] + height * 4 // 10 + 28, MAP_VIEW[1] + height * 7 // 10
     shot = Image.open(io.BytesIO(page.screenshot(clip={"x": x0, "y": y0, "width": x1 - x0, "height": y1 - y0})))
     rgb = np.asarray(shot.convert("RGB")).astype(int)
     grey = (np.ptp(rgb, axis=2) < 12) & (rgb.mean(axis=2) > 100) & (rgb.mean(axis=2) < 220)
     black = np.all(rgb < 25, axis=2)
     return float(black.mean()), float(grey.mean())
+
+
+def health_text_share(page: Any, save: Path) -> float:
+    """The share of the SLAM health panel (the right column's last three tenths, below its title) that is
+    text (light on the panel's dark background); the panel's picture is saved at ``save``."""
+    x0, height = int(SIZE[0] * 0.6) + 2, MAP_VIEW[3] - MAP_VIEW[1]
+    y0 = MAP_VIEW[1] + height * 7 // 10 + 28
+    shot = page.screenshot(clip={"x": x0, "y": y0, "width": SIZE[0] - x0, "height": MAP_VIEW[3] - y0})
+    save.write_bytes(shot)
+    rgb = np.asarray(Image.open(io.BytesIO(shot)).convert("RGB")).astype(int)
+    return float((rgb.mean(axis=2) > 120).mean())
 
 
 def view_center() -> tuple[float, float]:
@@ -135,6 +146,8 @@ def test_live_view_in_a_browser(ros_node, spawn, tmp_path):
         assert "showing camera images of /camera/image_raw" in launch.output  # once the page's viewer is here
         sky, ground = camera_view(page)
         assert sky > 0.1 and ground > 0.1, f"camera view: {sky:.0%} sky, {ground:.0%} ground"
+        # The SLAM node's health (/diagnostics) in its panel: text, not an empty panel.
+        assert health_text_share(page, tmp_path / "health.png") > 0.005
 
         # RViz's tools: a button, then the position and a point in the heading.
         assert_pose_tools(page, ros_node)

@@ -228,7 +228,8 @@ class SlamParameters:
             matcher=matcher, loop_matcher=loop, global_loop_matcher=whole_window)
 
 
-_SOLVER = "the pose graph is solved by GTSAM's Levenberg-Marquardt (Huber on loop closures), not Ceres"
+_SOLVER = ("the pose graph is solved by GTSAM's Levenberg-Marquardt (loop closures switchable by dynamic "
+           "covariance scaling), not Ceres")
 #: slam_toolbox keys that mean nothing here, with the reason (named in the start-up warning when given).
 NO_EFFECT = {
     "solver_plugin": _SOLVER, "ceres_*": _SOLVER,
@@ -359,6 +360,10 @@ class Slam(StepNode):
             why = f" ({merged.see_through} whose scans saw through each other's walls)" if merged.see_through else ""
             self.get_logger().info(f"keyframe {merged.index} (t = {merged.stamp_s:.2f} s): {merged.rejected} loop "
                                    f"match(es) the pose graph could not agree with{why}, dropped")
+        if merged.held:
+            self.get_logger().info(f"keyframe {merged.index} (t = {merged.stamp_s:.2f} s): {merged.held} loop "
+                                   "match(es) that would move the map more than it can have drifted, held until "
+                                   "another keyframe's match agrees")
         for source, target in merged.undone:
             self.get_logger().warning(f"loop closure of keyframe {target} with {source} undone: the closures since "
                                       "show it was wrong (a place that looks like another)")

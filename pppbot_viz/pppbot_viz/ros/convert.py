@@ -212,6 +212,41 @@ def markers(msg: Any) -> dict[str, list[Any] | None]:
     return out
 
 
+#: The slam node's reasons for leaving a loop match out (its ``rejected_<why>`` diagnostics), as said.
+REJECTED_WHY = {"disagrees": "disagree with the map", "see_through": "see through walls",
+                "inconsistent": "disagree with other matches", "unconfirmed": "never confirmed",
+                "residual": "the solve could not meet"}
+
+
+def slam_health(msg: Any) -> str | None:
+    """The SLAM node's health (its ``…: mapping`` status on /diagnostics, see docs/slam.md) as a
+    Markdown text: loop closures accepted, rejected and why, held, undone, the largest correction;
+    None when the message has no such status."""
+    status = next((s for s in msg.status if s.name.endswith(": mapping")), None)
+    if status is None:
+        return None
+    values = {v.key: v.value for v in status.values}
+
+    def count(key: str) -> int:
+        try:
+            return int(values.get(key, "0"))
+        except ValueError:
+            return 0
+
+    try:
+        correction_m, correction_deg = (float(values.get("largest_correction_m", "0")),
+                                        math.degrees(float(values.get("largest_correction_rad", "0"))))
+    except ValueError:
+        correction_m = correction_deg = math.nan
+    why = ", ".join(f"{count('rejected_' + key)} {said}" for key, said in REJECTED_WHY.items()
+                    if count("rejected_" + key))
+    lines = [f"- **{status.message or 'ok'}**: {count('keyframes')} keyframes, {count('loop_closures')} loop "
+             f"closures, largest correction {correction_m:.2f} m, {correction_deg:.1f}°",
+             f"- rejected {count('rejected_closures')}" + (f": {why}" if why else ""),
+             f"- held for a second match {count('held_closures')}, undone {count('undone_closures')}"]
+    return "\n".join(lines)
+
+
 _IMAGE_ENCODINGS = {"rgb8": ("RGB", np.uint8), "rgba8": ("RGBA", np.uint8), "bgr8": ("BGR", np.uint8),
                     "bgra8": ("BGRA", np.uint8), "mono8": ("L", np.uint8), "8UC1": ("L", np.uint8),
                     "mono16": ("L", np.uint16), "16UC1": ("L", np.uint16), "32FC1": ("L", np.float32)}

@@ -27,6 +27,7 @@ from typing import Any, NamedTuple
 
 import rerun as rr
 import rerun.blueprint as rrb
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PolygonStamped, PoseStamped, PoseWithCovarianceStamped
 from nav2_msgs.msg import ParticleCloud
 from nav_msgs.msg import OccupancyGrid, Odometry
@@ -125,7 +126,8 @@ def blueprint(fixed_frame: str) -> rrb.Blueprint:
         eye_controls=rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, tracking_entity="/robot"),
         background=BACKGROUND)
     cameras = rrb.Spatial2DView(origin="/camera", name="camera")
-    return rrb.Blueprint(rrb.Horizontal(top_down, rrb.Vertical(scene, cameras, row_shares=[2, 1]),
+    health = rrb.TextDocumentView(origin="/slam/health", name="SLAM")
+    return rrb.Blueprint(rrb.Horizontal(top_down, rrb.Vertical(scene, cameras, health, row_shares=[4, 3, 3]),
                                         column_shares=[3, 2]),
                          rrb.TimePanel(state="collapsed"), collapse_panels=True)
 
@@ -155,6 +157,7 @@ class Viz(StepNode):
         self.grids = ChangeFilter()
         self.trail = Trail(p.trail_spacing, p.trail_max_points)
         self.trail_frame = ""
+        self.slam_health: str | None = None  # the SLAM health text shown last
         self.particle_rate = RateLimit(p.particles_max_rate_hz)
         self.scan_rate = RateLimit(p.scan_max_rate_hz)
         self.tf_rates: dict[str, RateLimit] = {}
@@ -206,6 +209,7 @@ class Viz(StepNode):
         self._subscribe(PoseWithCovarianceStamped, "/initialpose", DEFAULT,
                         lambda m: self._log("goals/initialpose", m.header, convert.pose_with_covariance(m), keep=True))
         self._subscribe(MarkerArray, GRAPH_TOPIC, DEFAULT, self._markers)
+        self._subscribe(DiagnosticArray, "/diagnostics", DEFAULT, self._diagnostics)
         self.image_topics: set[str] = set()
         self._discover()
         self.discovery_timer = self.create_timer(p.image_discovery_period, self._discover,
@@ -297,6 +301,7 @@ class Viz(StepNode):
             for path, archetypes in self.statics.items():
                 self.rec.log(path, *archetypes, static=True)
             self.grids = ChangeFilter()
+            self.slam_health = None
             self.shown.clear()
             self.trail_frame = ""
             self.newest_s = stamp_s
@@ -441,6 +446,13 @@ class Viz(StepNode):
                 self._forget(path)
             else:
                 self._log(path, msg.markers[0].header, archetypes, keep=True)
+
+    def _diagnostics(self, msg: DiagnosticArray) -> None:
+        """The SLAM node's health beside the views (:func:`convert.slam_health`), when it changes."""
+        text = convert.slam_health(msg)
+        if text is not None and text != self.slam_health:
+            self.slam_health = text
+            self._log("slam/health", msg.header, [rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN)], keep=True)
 
     def _find_images(self) -> None:
         """Subscribe to camera topics as they appear; of an image and its image_transport
