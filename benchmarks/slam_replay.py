@@ -96,6 +96,8 @@ def replay(ds: SlamDataset, matcher: dict[str, float], mapper_fields: dict[str, 
                 mapper.close_loops(keyframe.index)
         if keyframe_scans:
             online.append(np.asarray(mapper.predict(ds.odom[i]), dtype=float))
+    wall_s = max(time.perf_counter() - started, 1e-9)
+    duration_s = float(ds.stamps[-1] - ds.stamps[0])
     first = keyframe_scans[0]
     truth = ds.truth_in_map(first)[first:]
     errors = np.linalg.norm(np.array(online)[:, :2] - truth[:, :2], axis=1)
@@ -109,9 +111,11 @@ def replay(ds: SlamDataset, matcher: dict[str, float], mapper_fields: dict[str, 
             "online_timeline_cm": [round(float(errors[k]) * 100, 1) for k in moments],
             "final_keyframes_rms_cm": round(float(np.sqrt(np.mean(final_errors ** 2))) * 100, 2),
             "keyframes": len(keyframe_scans), "loop_closures": len(mapper.loop_closures),
-            "rejected_closures": mapper.rejected_closures, "false_closures": closures["false_closures"],
+            "rejected_closures": mapper.rejected_closures, "rejected_why": mapper.rejected_why,
+            "false_closures": closures["false_closures"],
             "false_claims": closures["false_claims"], "closure_max_error_m": closures["closure_max_error_m"],
-            "wall_s": round(time.perf_counter() - started, 1)}
+            "wall_s": round(wall_s, 1), "duration_s": round(duration_s, 1), "scans": len(ds.stamps),
+            "scans_per_s": round(len(ds.stamps) / wall_s, 1), "real_time_factor": round(duration_s / wall_s, 1)}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -135,7 +139,8 @@ def main(argv: list[str] | None = None) -> int:
               **replay(ds, overrides, mapper_fields)}
     print(f"{ds.world}: SLAM pose error RMS {result['online_rms_cm']} cm, max {result['online_max_cm']} cm; "
           f"final keyframes {result['final_keyframes_rms_cm']} cm; {result['loop_closures']} loop closures "
-          f"({result['rejected_closures']} rejected, {result['false_closures']} false)")
+          f"({result['rejected_closures']} rejected, {result['false_closures']} false); {result['scans']} scans "
+          f"at {result['scans_per_s']} scans/s, {result['real_time_factor']}x real time")
     print(json.dumps(result))
     return 0
 
