@@ -103,6 +103,8 @@ class CoreKeyframe:
 class CoreResult:
     keyframes: list[CoreKeyframe] = field(default_factory=list)
     total_s: float = 0.0
+    scans: int = 0
+    stage_s: dict[str, float] = field(default_factory=lambda: {"rays": 0.0, "scan_thread": 0.0, "loop_closing": 0.0})
     map_rebuild_ms: float = 0.0
     loop_closures: int = 0
     ate_rms_m: float = math.nan
@@ -142,6 +144,9 @@ def run_core(ds: SlamDataset, sim_seconds: float = math.inf) -> CoreResult:
             searched = mapper.tried != tried
         t3 = time.perf_counter()
         result.total_s += t3 - t0
+        result.scans += 1
+        for stage, seconds in (("rays", t1 - t0), ("scan_thread", t2 - t1), ("loop_closing", t3 - t2)):
+            result.stage_s[stage] += seconds
         if keyframe is not None:
             result.keyframes.append(CoreKeyframe(i, float(stamp), (t2 - t1) * 1000.0, (t3 - t2) * 1000.0, searched,
                                                  len(mapper.loop_closures) > closures,
@@ -445,6 +450,9 @@ def main() -> None:
         "loop_closing_p95_ms": closing["p95_ms"], "loop_closing_max_ms": closing["max_ms"],
         "core_sim_seconds": round(duration_s, 1), "core_processing_s": round(core.total_s, 2),
         "core_real_time_factor": round(core_rtf, 1),
+        "core_scans_per_s": round(core.scans / core.total_s, 1),
+        **{f"core_{stage}_ms_per_scan": round(1000.0 * seconds / max(core.scans, 1), 2)
+           for stage, seconds in core.stage_s.items()},
         "map_rebuild_ms": round(core.map_rebuild_ms, 1),
         "keyframe_ate_rms_m": round(core.ate_rms_m, 3), "keyframe_ate_max_m": round(core.ate_max_m, 3),
         "meets_p95_target": bool(all_kf["p95_ms"] <= TARGET_P95_MS),
@@ -454,7 +462,9 @@ def main() -> None:
           f"max {all_kf['max_ms']} ms; loop closing (its own thread): {searches['count']} searches, median "
           f"{searches['median_ms']}, p95 {searches['p95_ms']}, max {searches['max_ms']} ms, of which "
           f"{closing['count']} closed loops (median {closing['median_ms']}, p95 {closing['p95_ms']} ms); "
-          f"offline {core_rtf:.1f}x real time; "
+          f"offline {core_rtf:.1f}x real time, {core.scans / core.total_s:.0f} scans/s (per scan: "
+          + ", ".join(f"{stage} {1000.0 * t / max(core.scans, 1):.2f} ms" for stage, t in core.stage_s.items())
+          + "); "
           f"map rebuild {core.map_rebuild_ms:.0f} ms; keyframe ATE RMS {core.ate_rms_m:.3f} m",
           file=sys.stderr)
 
