@@ -80,8 +80,7 @@ class KeyframeAdded:
 class LoopsMerged:
     """Keyframe ``index``'s loop search, solved and merged: the closures accepted, how far the
     newest keyframe moved (dx, dy, dyaw), the matches rejected (``see_through`` of them because
-    their scans saw through each other's walls), the earlier closures undone and the matches
-    held for evidence (a large correction that no other keyframe's match confirms yet)."""
+    their scans saw through each other's walls) and the earlier closures undone."""
 
     index: int
     stamp_s: float
@@ -90,7 +89,6 @@ class LoopsMerged:
     rejected: int
     see_through: int
     undone: list[tuple[int, int]]
-    held: int = 0
 
 
 def _ignore(*_args: Any) -> None:
@@ -230,8 +228,8 @@ class AsyncMapper:
         with self.lock:
             if mapper is not self._mapper:
                 return None
-            graph, held, last_closed = mapper.graph.copy(), mapper.held_matches, mapper.last_closed
-        solution = solve_loops(graph, matches, held, last_closed)
+            graph = mapper.graph.copy()
+        solution = solve_loops(graph, matches)
         with self.lock:
             if mapper is not self._mapper:
                 return None
@@ -240,7 +238,7 @@ class AsyncMapper:
         merged = LoopsMerged(
             index=index, stamp_s=stamp, accepted=list(solution.accepted), moved=moved, rejected=solution.rejected,
             see_through=solution.why.get("see_through", 0),
-            undone=sorted(solution.undone), held=len(solution.held))
+            undone=sorted(solution.undone))
         self.events.loops(merged)
         return merged
 

@@ -5,10 +5,8 @@ closures the pose graph can agree with.
 loop-closing thread); :func:`solve_loops` adds its matches to a copy of the pose graph: those
 implausible for what the graph already knows, or whose scans see through each other's walls,
 are left out (:func:`plausible`); the rest must agree with each other (pairwise consistency,
-:func:`consistent_set`), and one that would move the map a lot for the way travelled since the
-last closure waits for a second match that agrees with it (:func:`needs_evidence`); after the
-solve every loop edge, old or new, is checked again — a closure the rest cannot agree with
-goes, and one accepted earlier is undone (:class:`LoopSolution`). No ROS here.
+:func:`consistent_set`); after the solve every loop edge, old or new, is checked again — a
+closure the rest cannot agree with goes, and one accepted earlier is undone (:class:`LoopSolution`). No ROS here.
 """
 from __future__ import annotations
 
@@ -55,26 +53,18 @@ LOOP_AGREE_RAD = 0.15
 #: see through people and glass (true closures of the CARMEN logs reach several %), which is
 #: why corrections within LOOP_AGREE_M are taken without it.
 LOOP_SEE_THROUGH_MAX = 0.01
-#: A closure that would correct its keyframes' relative pose by more than LOOP_AGREE_M plus this
-#: share of the way travelled since the last accepted closure (m per m), or by more than
-#: LOOP_AGREE_RAD, needs evidence: a consistent match (:func:`pair_consistent`) of another keyframe.
-#: Drift of the running matches stays well under 5 % of the way on the logs and worlds; an alias
-#: (the next corridor, an identical room) is a jump of metres wherever it comes.
-LOOP_EVIDENCE_DRIFT = 0.05
-#: Keyframes with consistent matches a closure needing evidence must have (its own included) ...
-LOOP_EVIDENCE_MATCHES = 2
-#: ... within this many keyframes of it: a match waiting longer is dropped.
-LOOP_EVIDENCE_KEYFRAMES = 10
+#: Two closures' allowance grows by this share of the graph's way between their keyframes (m per m):
+#: drift of the running matches stays well under 5 % of the way on the logs and worlds.
+PAIR_DRIFT = 0.05
 #: Two closures agree when the cycle they make through the graph (one closure, the graph from its
 #: older keyframe to the other's, the other closure back, the graph to the first's newer keyframe)
-#: closes within these (m, rad), plus LOOP_EVIDENCE_DRIFT of the graph's way between their keyframes.
+#: closes within these (m, rad), plus PAIR_DRIFT of the graph's way between their keyframes.
 PAIR_AGREE_M = 0.3
 PAIR_AGREE_RAD = 0.1
 #: Why a loop match is rejected, as the mapper's health counts it: it disagrees with what the graph
-#: knows; its scans see through each other's walls; it disagrees with the other matches (PCM);
-#: no other keyframe's match confirmed its large correction in time; the solved graph could not
-#: meet it.
-REJECTIONS = ("disagrees", "see_through", "inconsistent", "unconfirmed", "residual")
+#: knows; its scans see through each other's walls; it disagrees with the other matches (PCM); the
+#: solved graph could not meet it.
+REJECTIONS = ("disagrees", "see_through", "inconsistent", "residual")
 #: A partial-overlap match is judged on at least this many points, whatever the share.
 MIN_OVERLAP_POINTS = 20
 #: A global match whose good coarse candidates (Karto's covariance) spread further than this
@@ -215,7 +205,6 @@ class LoopSolution:
     rejected: int  # matches left out: implausible for their chain, or disagreeing with the graph
     undone: frozenset[tuple[int, int]]  # earlier closures (source, target) the graph no longer agrees with
     copied_edges: tuple[Edge, ...]  # the copy's edges before the matches (edges added to the mapper since are not)
-    held: tuple[LoopMatch, ...] = ()  # matches waiting for evidence (see needs_evidence)
     #: why the rejected were (REJECTIONS' keys): the counts add up to ``rejected``
     why: dict[str, int] = field(default_factory=dict)
 
@@ -235,14 +224,6 @@ def way(graph: PoseGraph, first: int, last: int) -> float:
     return float(np.hypot(*np.diff(poses[:, :2], axis=0).T).sum()) if len(poses) > 1 else 0.0
 
 
-def needs_evidence(graph: PoseGraph, match: LoopMatch, last_closed: int) -> bool:
-    """Whether ``match`` moves its keyframes more than the way since keyframe ``last_closed`` (the
-    newest closure's, or the session's first) could have drifted (:data:`LOOP_EVIDENCE_DRIFT`)."""
-    error = correction(graph, match)
-    allowed = LOOP_AGREE_M + LOOP_EVIDENCE_DRIFT * way(graph, min(last_closed, match.target), match.target)
-    return bool(math.hypot(error[0], error[1]) > allowed or abs(error[2]) > LOOP_AGREE_RAD)
-
-
 def pair_consistent(graph: PoseGraph, a: LoopMatch, b: LoopMatch) -> bool:
     """Whether two closures agree (Mangelson et al.'s pairwise consistency, ICRA 2018): ``a``'s
     newer keyframe reached from its older one through ``a`` equals the way round through the
@@ -250,39 +231,23 @@ def pair_consistent(graph: PoseGraph, a: LoopMatch, b: LoopMatch) -> bool:
     :data:`PAIR_AGREE_M` / :data:`PAIR_AGREE_RAD` and the drift of those stretches of graph."""
     cycle = se2_compose(se2_compose(se2_inverse(a.relative), graph.relative(a.source, b.source)),
                         se2_compose(b.relative, graph.relative(b.target, a.target)))
-    allowed = PAIR_AGREE_M + LOOP_EVIDENCE_DRIFT * (way(graph, a.source, b.source) + way(graph, b.target, a.target))
+    allowed = PAIR_AGREE_M + PAIR_DRIFT * (way(graph, a.source, b.source) + way(graph, b.target, a.target))
     return bool(math.hypot(cycle[0], cycle[1]) <= allowed and abs(float(wrap_angles(cycle[2]))) <= PAIR_AGREE_RAD)
 
 
-def consistent_set(graph: PoseGraph, matches: Sequence[LoopMatch], agrees: Sequence[bool]) -> list[int]:
+def consistent_set(graph: PoseGraph, matches: Sequence[LoopMatch]) -> list[int]:
     """The indices of the largest set of ``matches`` that all agree pairwise (PCM's maximum clique,
-    networkx's branch and bound); among sets as large, the one with most matches that ``agrees``
-    says need no evidence."""
+    networkx's branch and bound)."""
     if len(matches) < 2:
         return list(range(len(matches)))
     pairs = nx.Graph()
-    for i, agree in enumerate(agrees):
-        pairs.add_node(i, weight=2 * len(matches) + int(agree))
+    pairs.add_nodes_from(range(len(matches)))
     for i in range(len(matches)):
         for j in range(i + 1, len(matches)):
             if pair_consistent(graph, matches[i], matches[j]):
                 pairs.add_edge(i, j)
-    clique, _ = nx.max_weight_clique(pairs, weight="weight")
+    clique, _ = nx.max_weight_clique(pairs, weight=None)
     return sorted(clique)
-
-
-def with_evidence(graph: PoseGraph, candidates: Sequence[LoopMatch],
-                  last_closed: int) -> tuple[list[LoopMatch], list[LoopMatch], int]:
-    """Of ``candidates`` (plausible new matches and those held), the ones to add to the graph,
-    those to hold for evidence, and how many are left out: the largest consistent set is kept
-    (:func:`consistent_set`); in it, a match that :func:`needs_evidence` is added once matches of
-    :data:`LOOP_EVIDENCE_MATCHES` keyframes are in the set, else held."""
-    needy = [needs_evidence(graph, m, last_closed) for m in candidates]
-    chosen = consistent_set(graph, candidates, [not n for n in needy])
-    evidence = len({candidates[i].target for i in chosen}) >= LOOP_EVIDENCE_MATCHES
-    add = [candidates[i] for i in chosen if evidence or not needy[i]]
-    hold = [candidates[i] for i in chosen if not evidence and needy[i]]
-    return add, hold, len(candidates) - len(chosen)
 
 
 def plausible(graph: PoseGraph, matches: list[LoopMatch]) -> list[bool]:
@@ -314,12 +279,9 @@ def implausible_why(graph: PoseGraph, matches: list[LoopMatch]) -> list[str | No
     return verdicts
 
 
-def solve_loops(graph: PoseGraph, matches: list[LoopMatch], held: Sequence[LoopMatch] = (),
-                last_closed: int = 0) -> LoopSolution:
-    """Add the plausible matches to ``graph`` (a copy of the mapper's) as loop edges and optimise it.
-
-    ``held``: earlier matches waiting for evidence, judged again with the new ones
-    (:func:`with_evidence`; ``last_closed``: the newest closure's newer keyframe).
+def solve_loops(graph: PoseGraph, matches: list[LoopMatch]) -> LoopSolution:
+    """Add the plausible matches that agree with each other (:func:`consistent_set`) to ``graph``
+    (a copy of the mapper's) as loop edges and optimise it.
 
     A closure the rest of the graph cannot agree with is a wrong one (an alias of the place):
     after optimising, its residual is far outside its covariance (χ² beyond
@@ -330,13 +292,12 @@ def solve_loops(graph: PoseGraph, matches: list[LoopMatch], held: Sequence[LoopM
     """
     copied_edges = tuple(graph.edges)
     before = [pose.copy() for pose in graph.poses]
-    candidates = [*held, *matches]
-    verdicts = implausible_why(graph, candidates)
+    verdicts = implausible_why(graph, matches)
     why = Counter(v for v in verdicts if v is not None)
-    plausible_ones = [m for m, v in zip(candidates, verdicts, strict=True) if v is None]
-    kept, waiting, inconsistent = with_evidence(graph, plausible_ones, last_closed)
-    why["inconsistent"] += inconsistent
-    rejected = len(candidates) - len(plausible_ones) + inconsistent
+    plausible_ones = [m for m, v in zip(matches, verdicts, strict=True) if v is None]
+    kept = [plausible_ones[i] for i in consistent_set(graph, plausible_ones)]
+    why["inconsistent"] += len(plausible_ones) - len(kept)
+    rejected = len(matches) - len(kept)
     added = [(graph.add_edge(m.source, m.target, m.relative, m.covariance, loop=True), m) for m in kept]
     undone: set[tuple[int, int]] = set()
 
@@ -365,7 +326,7 @@ def solve_loops(graph: PoseGraph, matches: list[LoopMatch], held: Sequence[LoopM
             drop(culprit)
         graph.poses = [pose.copy() for pose in before]
         graph.optimize()
-    return LoopSolution(graph, [m for _, m in added], rejected, frozenset(undone), copied_edges, tuple(waiting),
+    return LoopSolution(graph, [m for _, m in added], rejected, frozenset(undone), copied_edges,
                         {k: v for k, v in why.items() if v})
 
 

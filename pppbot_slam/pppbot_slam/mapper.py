@@ -41,10 +41,8 @@ from pppbot_common.se2 import PoseLike, finite_pose, se2_apply, se2_compose, se2
 from pppbot_slam.errors import MapperError
 from pppbot_slam.likelihood_field import rotate, scan_normals
 from pppbot_slam.loops import (
-    LOOP_EVIDENCE_KEYFRAMES,
     REJECTIONS,
     LoopChain,
-    LoopMatch,
     LoopSearch,
     LoopSolution,
     in_frame_of,
@@ -197,7 +195,6 @@ class Mapper:
     global_tried: int = -LOOP_RETRY_KEYFRAMES  # the keyframe that last searched globally
     rejected_closures: int = 0  # loop matches the graph could not agree with
     undone_closures: int = 0  # accepted loop closures that later closures showed to be wrong
-    held_matches: tuple[LoopMatch, ...] = ()  # loop matches waiting for evidence (see pppbot_slam.loops.with_evidence)
     rejected_why: dict[str, int] = field(default_factory=dict)  # rejected_closures by reason (loops.REJECTIONS)
     largest_correction: np.ndarray = field(default_factory=lambda: np.zeros(2))  # m, rad: the most a solve moved
     unmatched: int = 0  # keyframes in a row with something to match that did not match (see LOST_KEYFRAMES)
@@ -217,7 +214,7 @@ class Mapper:
                       global_tried=self.global_tried,
                       rejected_closures=self.rejected_closures, recoveries=self.recoveries,
                       degenerate_matches=self.degenerate_matches, undone_closures=self.undone_closures,
-                      held_matches=self.held_matches, rejected_why=dict(self.rejected_why),
+                      rejected_why=dict(self.rejected_why),
                       largest_correction=self.largest_correction.copy(), unmatched=self.unmatched,
                       responses=list(self.responses),
                       start_pose=None if self.start_pose is None else self.start_pose.copy(),
@@ -242,7 +239,7 @@ class Mapper:
                 "recoveries": self.recoveries, "degenerate_matches": self.degenerate_matches,
                 "loop_closures": len(self.loop_closures), "rejected_closures": self.rejected_closures,
                 **{f"rejected_{why}": self.rejected_why.get(why, 0) for why in REJECTIONS},
-                "undone_closures": self.undone_closures, "held_closures": len(self.held_matches),
+                "undone_closures": self.undone_closures,
                 "largest_correction_m": round(float(self.largest_correction[0]), 3),
                 "largest_correction_rad": round(float(self.largest_correction[1]), 4)}
 
@@ -505,14 +502,7 @@ class Mapper:
         search = self.loop_search(index)
         matches = search.run(self.settings) if search is not None else []
         if matches:
-            self.merge_loops(solve_loops(self.graph.copy(), matches, self.held_matches, self.last_closed))
-
-    @property
-    def last_closed(self) -> int:
-        """The newest accepted closure's newer keyframe, or the current session's first keyframe
-        (the way since it is what a new closure's correction is weighed against)."""
-        first = next((k.index for k in self.keyframes if k.session == self.session), 0)
-        return max([first, *(c.target for c in self.loop_closures)])
+            self.merge_loops(solve_loops(self.graph.copy(), matches))
 
     def merge_loops(self, solution: LoopSolution) -> np.ndarray:
         """Take a graph that :func:`solve_loops` solved from a copy of this one. Keyframes
@@ -520,12 +510,8 @@ class Mapper:
         moves as the solution moved it (and their edges are kept). Returns how the newest
         keyframe moved (x, y, yaw in the map; zeros when the graph did not change)."""
         solved = solution.graph
-        newest = len(self.keyframes) - 1
-        waiting = tuple(m for m in solution.held if m.target >= newest - LOOP_EVIDENCE_KEYFRAMES)
-        why = {**solution.why, "unconfirmed": solution.why.get("unconfirmed", 0) + len(solution.held) - len(waiting)}
-        self.rejected_closures += solution.rejected + len(solution.held) - len(waiting)
-        self.rejected_why = {k: self.rejected_why.get(k, 0) + why.get(k, 0) for k in REJECTIONS}
-        self.held_matches = waiting
+        self.rejected_closures += solution.rejected
+        self.rejected_why = {k: self.rejected_why.get(k, 0) + solution.why.get(k, 0) for k in REJECTIONS}
         if not solution.accepted and not solution.undone:
             return np.zeros(3)
         known = len(solved.poses)

@@ -6,8 +6,9 @@ covariance, the first keyframe is anchored by a tight prior (the map frame is
 where mapping started), and Levenberg–Marquardt solves the graph, as
 slam_toolbox's Ceres back end does. Loop-closure edges are switchable, in two
 graduated steps: a solve with a Huber kernel on them (convex: a true loop far from
-the drifted estimate still pulls the graph all the way), then from there a solve
-with dynamic covariance scaling (Agarwal et al., ICRA 2013, the closed form of
+the drifted estimate still pulls the graph all the way), then, when a loop edge is
+an outlier in that solution, from there a solve with dynamic covariance scaling
+(Agarwal et al., ICRA 2013, the closed form of
 Sünderhauf and Protzel's switchable constraints), in which a loop the rest of the
 graph cannot meet loses its weight instead of bending the graph; odometry and
 matching edges are never switched off (docs/slam.md).
@@ -32,6 +33,10 @@ LOOP_HUBER_K = 1.345
 #: estimate is χ² > Φ keeps s = 2Φ / (Φ + χ²) of its standard-deviation weight (its information
 #: scaled by s²). Agarwal et al. found Φ from 1 to 10 alike on their benchmarks and recommend 1.
 LOOP_DCS_PHI = 1.0
+#: The switchable solve runs when, after the Huber solve, a loop edge's χ² (3 degrees of freedom)
+#: is beyond this (the 99.9 % quantile, as :data:`pppbot_slam.loops.LOOP_CHI2_MAX`): a graph whose
+#: loops all agree is solved as before, one with an outlier has it switched off.
+LOOP_OUTLIER_CHI2 = 16.3
 
 
 @dataclass(frozen=True)
@@ -144,20 +149,31 @@ class PoseGraph:
             covariances.append(jacobian @ full @ jacobian.T)
         return covariances
 
+    def _outlier_loop(self, values: gtsam.Values) -> bool:
+        """Whether a loop edge is beyond χ² :data:`LOOP_OUTLIER_CHI2` at ``values``."""
+        for edge in self.edges:
+            if edge.loop:
+                solved = values.atPose2(edge.source).between(values.atPose2(edge.target))
+                error = gtsam.Pose2(*edge.relative).between(solved)
+                residual = np.array([error.x(), error.y(), math.remainder(error.theta(), 2 * math.pi)])
+                if residual @ np.linalg.solve(edge.covariance, residual) > LOOP_OUTLIER_CHI2:
+                    return True
+        return False
+
     def optimize(self, max_iterations: int = 100) -> float:
-        """Solve the graph (Levenberg–Marquardt, Huber's loops then switchable ones from there) and
-        update :attr:`poses`; returns the final error. The first node stays where it is (anchored).
+        """Solve the graph (Levenberg–Marquardt with Huber's loops, then, when a loop edge is an
+        outlier there, with switchable ones from that solution) and update :attr:`poses`; returns
+        the final error. The first node stays where it is (anchored).
         """
         if len(self.poses) < 2 or not self.edges:
             return 0.0
         params = gtsam.LevenbergMarquardtParams()
         params.setMaxIterations(max_iterations)
-        result = gtsam.Values()
-        for switchable in (False, True) if any(e.loop for e in self.edges) else (True,):
-            graph, initial = self._factors(switchable)
-            if not result.empty():
-                initial = result
-            result = gtsam.LevenbergMarquardtOptimizer(graph, initial, params).optimize()
+        graph, initial = self._factors(switchable=False)
+        result = gtsam.LevenbergMarquardtOptimizer(graph, initial, params).optimize()
+        if self._outlier_loop(result):
+            graph, _ = self._factors(switchable=True)
+            result = gtsam.LevenbergMarquardtOptimizer(graph, result, params).optimize()
         for i in range(len(self.poses)):
             solved = result.atPose2(i)
             self.poses[i] = np.array([solved.x(), solved.y(), math.remainder(solved.theta(), 2 * math.pi)])

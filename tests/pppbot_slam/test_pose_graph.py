@@ -101,6 +101,26 @@ def test_a_wrong_loop_beside_true_ones_is_switched_off_and_the_true_ones_still_c
     assert [graph.residual_chi2(e) > 16.3 for e in loops] == [False, False, True]
 
 
+def test_loops_that_all_agree_are_solved_by_the_huber_step_alone(monkeypatch):
+    truth = square_truth()
+    graph = drifting_graph(truth, yaw_drift_rad=0.01)
+    graph.add_edge(0, len(truth) - 1, se2_compose(se2_inverse(truth[0]), truth[-1]), LOOP_COV, loop=True)
+    kernels = []
+    original = PoseGraph._factors
+
+    def spy(self, switchable=True):
+        kernels.append(switchable)
+        return original(self, switchable)
+    monkeypatch.setattr(PoseGraph, "_factors", spy)
+    graph.optimize()
+    assert kernels == [False]  # no outlier: no switchable step
+    graph.add_edge(8, 24, se2_compose(se2_compose(se2_inverse(truth[8]), truth[24]), (1.5, 0.0, 0.2)), LOOP_COV,
+                   loop=True)
+    kernels.clear()
+    graph.optimize()
+    assert kernels == [False, True]
+
+
 def test_relative_is_the_current_estimate():
     graph = PoseGraph()
     graph.add_node((1.0, 0.0, math.pi / 2))

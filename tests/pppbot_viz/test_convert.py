@@ -144,8 +144,8 @@ def shown(picture: rr.Image) -> np.ndarray:
 
 def test_the_slam_health_says_closures_accepted_rejected_and_why_and_the_largest_correction() -> None:
     health = {"keyframes": "412", "loop_closures": "85", "rejected_closures": "14", "rejected_disagrees": "10",
-              "rejected_see_through": "3", "rejected_inconsistent": "1", "rejected_unconfirmed": "0",
-              "rejected_residual": "0", "held_closures": "2", "undone_closures": "1",
+              "rejected_see_through": "3", "rejected_inconsistent": "1", "rejected_residual": "0",
+              "undone_closures": "1",
               "largest_correction_m": "0.314", "largest_correction_rad": "0.0349"}
     other = DiagnosticStatus(name="amcl: localization", message="ok")
     status = DiagnosticStatus(name="slam_toolbox: mapping", message="1 loop closure(s) proved wrong and were undone",
@@ -156,7 +156,7 @@ def test_the_slam_health_says_closures_accepted_rejected_and_why_and_the_largest
         "- **1 loop closure(s) proved wrong and were undone**: 412 keyframes, 85 loop closures, largest "
         "correction 0.31 m, 2.0°",
         "- rejected 14: 10 disagree with the map, 3 see through walls, 1 disagree with other matches",
-        "- held for a second match 2, undone 1"]
+        "- undone 1"]
     assert convert.slam_health(DiagnosticArray(status=[other])) is None
 
 

@@ -360,10 +360,6 @@ class Slam(StepNode):
             why = f" ({merged.see_through} whose scans saw through each other's walls)" if merged.see_through else ""
             self.get_logger().info(f"keyframe {merged.index} (t = {merged.stamp_s:.2f} s): {merged.rejected} loop "
                                    f"match(es) the pose graph could not agree with{why}, dropped")
-        if merged.held:
-            self.get_logger().info(f"keyframe {merged.index} (t = {merged.stamp_s:.2f} s): {merged.held} loop "
-                                   "match(es) that would move the map more than it can have drifted, held until "
-                                   "another keyframe's match agrees")
         for source, target in merged.undone:
             self.get_logger().warning(f"loop closure of keyframe {target} with {source} undone: the closures since "
                                       "show it was wrong (a place that looks like another)")

@@ -214,13 +214,12 @@ def markers(msg: Any) -> dict[str, list[Any] | None]:
 
 #: The slam node's reasons for leaving a loop match out (its ``rejected_<why>`` diagnostics), as said.
 REJECTED_WHY = {"disagrees": "disagree with the map", "see_through": "see through walls",
-                "inconsistent": "disagree with other matches", "unconfirmed": "never confirmed",
-                "residual": "the solve could not meet"}
+                "inconsistent": "disagree with other matches", "residual": "the solve could not meet"}
 
 
 def slam_health(msg: Any) -> str | None:
     """The SLAM node's health (its ``…: mapping`` status on /diagnostics, see docs/slam.md) as a
-    Markdown text: loop closures accepted, rejected and why, held, undone, the largest correction;
+    Markdown text: loop closures accepted, rejected and why, undone, the largest correction;
     None when the message has no such status."""
     status = next((s for s in msg.status if s.name.endswith(": mapping")), None)
     if status is None:
@@ -243,7 +242,7 @@ def slam_health(msg: Any) -> str | None:
     lines = [f"- **{status.message or 'ok'}**: {count('keyframes')} keyframes, {count('loop_closures')} loop "
              f"closures, largest correction {correction_m:.2f} m, {correction_deg:.1f}°",
              f"- rejected {count('rejected_closures')}" + (f": {why}" if why else ""),
-             f"- held for a second match {count('held_closures')}, undone {count('undone_closures')}"]
+             f"- undone {count('undone_closures')}"]
     return "\n".join(lines)
 
 
