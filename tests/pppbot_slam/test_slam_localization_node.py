@@ -115,9 +115,17 @@ class Robot:
         msg.ranges = [float(r) for r in cast_ranges(ROOM, se2_compose(self.truth(), LIDAR)).astype(np.float32)]
         self.scans.publish(msg)
 
+        tries = 0
+
         def localized() -> PoseWithCovarianceStamped | None:
             # The node holds the scan until odometry reaches its stamp, checking on each /tf: odometry
             # is sent again while waiting (the static transforms may reach the node after the first).
+            # The scan is sent again every 20 tries unanswered: scans are best effort, and the node's
+            # reader may not know this writer yet when the first one goes out (on a loaded machine).
+            nonlocal tries
+            tries += 1
+            if tries % 20 == 0:
+                self.scans.publish(msg)
             self.tf.publish(odom)
             return next((p for p in self.poses if p.header.stamp == stamp(t)), None)
 
