@@ -22,15 +22,16 @@ import numpy as np
 from pppbot_common.se2 import se2_apply, se2_compose, se2_inverse, wrap_angles
 from pppbot_slam.matcher import ScanMatcher
 from pppbot_slam.occupancy import ScanRays
-from pppbot_slam.pose_graph import Edge, PoseGraph
+from pppbot_slam.pose_graph import LOOP_OUTLIER_CHI2, Edge, PoseGraph
 from pppbot_slam.visibility import View, see_through_fraction, view_of
 
 if TYPE_CHECKING:
     from pppbot_slam.mapper import MapperSettings
 
-#: A loop edge whose residual after optimisation exceeds this (χ² with 3 degrees of freedom;
-#: 16.3 is the 99.9 % quantile) disagrees with the rest of the graph and is dropped.
-LOOP_CHI2_MAX = 16.3
+#: A loop edge whose residual after optimisation exceeds this (χ² with 3 degrees of freedom,
+#: the 99.9 % quantile) disagrees with the rest of the graph and is dropped: the χ² beyond which
+#: the back end's switchable solve runs, too.
+LOOP_CHI2_MAX = LOOP_OUTLIER_CHI2
 #: A loop match must agree with what the graph knows of its two keyframes' relative pose: the
 #: difference, in their relative covariance (through the chain and earlier closures) plus the
 #: match's, within this χ² (3 degrees of freedom) ...

@@ -34,7 +34,7 @@ LOOP_HUBER_K = 1.345
 #: scaled by s²). Agarwal et al. found Φ from 1 to 10 alike on their benchmarks and recommend 1.
 LOOP_DCS_PHI = 1.0
 #: The switchable solve runs when, after the Huber solve, a loop edge's χ² (3 degrees of freedom)
-#: is beyond this (the 99.9 % quantile, as :data:`pppbot_slam.loops.LOOP_CHI2_MAX`): a graph whose
+#: is beyond this (the 99.9 % quantile; :mod:`pppbot_slam.loops` drops such an edge after the solve): a graph whose
 #: loops all agree is solved as before, one with an outlier has it switched off.
 LOOP_OUTLIER_CHI2 = 16.3
 
@@ -46,6 +46,14 @@ class Edge:
     relative: np.ndarray  # target's pose in the source's frame (x, y, yaw)
     covariance: np.ndarray  # (3, 3) in x, y, yaw
     loop: bool = False
+
+
+def edge_chi2(edge: Edge, source: np.ndarray, target: np.ndarray) -> float:
+    """How far ``target``'s pose relative to ``source``'s is from ``edge``'s measurement, in its
+    covariance (χ², 3 degrees of freedom)."""
+    error = se2_compose(se2_inverse(edge.relative), se2_compose(se2_inverse(source), target))
+    error = np.array([error[0], error[1], math.remainder(float(error[2]), 2 * math.pi)])
+    return float(error @ np.linalg.solve(edge.covariance, error))
 
 
 def _pose(value: PoseLike, what: str) -> np.ndarray:
@@ -104,15 +112,13 @@ class PoseGraph:
 
     def residual_chi2(self, edge: Edge) -> float:
         """How far the current poses are from ``edge``'s measurement, in its covariance (χ²)."""
-        error = se2_compose(se2_inverse(edge.relative), self.relative(edge.source, edge.target))
-        error = np.array([error[0], error[1], math.remainder(float(error[2]), 2 * math.pi)])
-        return float(error @ np.linalg.solve(edge.covariance, error))
+        return edge_chi2(edge, self.poses[edge.source], self.poses[edge.target])
 
     def relative(self, source: int, target: int) -> np.ndarray:
         """``target``'s current pose in ``source``'s frame."""
         return np.asarray(se2_compose(se2_inverse(self.poses[source]), self.poses[target]))
 
-    def _factors(self, switchable: bool = True) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+    def _factors(self, switchable: bool = False) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
         """The graph as GTSAM factors (anchor, one between-factor per edge) and its current poses;
         loop edges under dynamic covariance scaling, or Huber's kernel when not ``switchable``."""
         graph = gtsam.NonlinearFactorGraph()
@@ -151,14 +157,12 @@ class PoseGraph:
 
     def _outlier_loop(self, values: gtsam.Values) -> bool:
         """Whether a loop edge is beyond χ² :data:`LOOP_OUTLIER_CHI2` at ``values``."""
-        for edge in self.edges:
-            if edge.loop:
-                solved = values.atPose2(edge.source).between(values.atPose2(edge.target))
-                error = gtsam.Pose2(*edge.relative).between(solved)
-                residual = np.array([error.x(), error.y(), math.remainder(error.theta(), 2 * math.pi)])
-                if residual @ np.linalg.solve(edge.covariance, residual) > LOOP_OUTLIER_CHI2:
-                    return True
-        return False
+        def pose(key: int) -> np.ndarray:
+            solved = values.atPose2(key)
+            return np.array([solved.x(), solved.y(), solved.theta()])
+
+        return any(edge_chi2(edge, pose(edge.source), pose(edge.target)) > LOOP_OUTLIER_CHI2
+                   for edge in self.edges if edge.loop)
 
     def optimize(self, max_iterations: int = 100) -> float:
         """Solve the graph (Levenberg–Marquardt with Huber's loops, then, when a loop edge is an
@@ -169,7 +173,7 @@ class PoseGraph:
             return 0.0
         params = gtsam.LevenbergMarquardtParams()
         params.setMaxIterations(max_iterations)
-        graph, initial = self._factors(switchable=False)
+        graph, initial = self._factors()
         result = gtsam.LevenbergMarquardtOptimizer(graph, initial, params).optimize()
         if self._outlier_loop(result):
             graph, _ = self._factors(switchable=True)

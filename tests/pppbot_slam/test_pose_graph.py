@@ -108,7 +108,7 @@ def test_loops_that_all_agree_are_solved_by_the_huber_step_alone(monkeypatch):
     kernels = []
     original = PoseGraph._factors
 
-    def spy(self, switchable=True):
+    def spy(self, switchable=False):
         kernels.append(switchable)
         return original(self, switchable)
     monkeypatch.setattr(PoseGraph, "_factors", spy)
@@ -119,6 +119,9 @@ def test_loops_that_all_agree_are_solved_by_the_huber_step_alone(monkeypatch):
     kernels.clear()
     graph.optimize()
     assert kernels == [False, True]
+    kernels.clear()
+    graph.relative_covariances([(8, 24)])
+    assert kernels == [False]  # how well poses are known: linearised with Huber's loops, none switched off
 
 
 def test_relative_is_the_current_estimate():
