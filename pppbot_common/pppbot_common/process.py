@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import faulthandler
+import ipaddress
 import os
 import re
 import shutil
@@ -16,7 +17,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
 from pppbot_common.errors import TimeoutExpired
@@ -110,7 +111,7 @@ def group_stacks(pgid: int, timeout_s: float = 15.0, max_processes: int = 4, max
         return ""
     deadline = time.monotonic() + timeout_s
     parts: list[str] = []
-    for pid in _group_members(pgid):
+    for pid in group_members(pgid):
         try:
             with open(f"/proc/{pid}/cmdline", "rb") as f:
                 cmdline = f.read().replace(b"\0", b" ").decode(errors="replace").strip()
@@ -136,7 +137,49 @@ def group_stacks(pgid: int, timeout_s: float = 15.0, max_processes: int = 4, max
     return "".join(parts)
 
 
-def _group_members(pgid: int) -> list[int]:
+def listening_addresses(pids: Iterable[int]) -> list[tuple[str, int]]:
+    """The TCP addresses (ip, port) the processes ``pids`` listen on, from ``/proc``; an IPv4
+    address mapped into IPv6 is given as IPv4."""
+    inodes = set()
+    for pid in pids:
+        with contextlib.suppress(OSError):
+            for fd in os.listdir(f"/proc/{pid}/fd"):
+                with contextlib.suppress(OSError):
+                    target = os.readlink(f"/proc/{pid}/fd/{fd}")
+                    if target.startswith("socket:["):
+                        inodes.add(target[8:-1])
+    found = []
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        with contextlib.suppress(OSError), open(table) as f:
+            for line in f.read().splitlines()[1:]:
+                fields = line.split()
+                if fields[3] == "0A" and fields[9] in inodes:  # LISTEN
+                    address, port = fields[1].split(":")
+                    # /proc writes the address as 32-bit words in the machine's (little-endian) order
+                    raw = b"".join(bytes.fromhex(address[i:i + 8])[::-1] for i in range(0, len(address), 8))
+                    ip = ipaddress.ip_address(raw)
+                    if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped is not None:
+                        ip = ip.ipv4_mapped
+                    found.append((str(ip), int(port, 16)))
+    return found
+
+
+def process_tree(pid: int) -> list[int]:
+    """``pid`` and every process it started, and they started (in their own sessions too)."""
+    parents: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc") if os.path.isdir("/proc") else ():
+        if entry.isdigit():
+            with contextlib.suppress(OSError, IndexError, ValueError), open(f"/proc/{entry}/stat") as f:
+                parents.setdefault(int(f.read().rsplit(")", 1)[1].split()[1]), []).append(int(entry))
+    tree, todo = [], [pid]
+    while todo:
+        tree.append(todo.pop())
+        todo += parents.get(tree[-1], [])
+    return tree
+
+
+def group_members(pgid: int) -> list[int]:
+    """The processes in process group ``pgid`` (a child's session: the node and what it started)."""
     members = []
     for entry in os.listdir("/proc") if os.path.isdir("/proc") else ():
         if not entry.isdigit():

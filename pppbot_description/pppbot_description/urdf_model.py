@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 from lxml import etree
 
+from pppbot_common.xml_files import XmlFileError, parse_xml
 from pppbot_description.errors import DescriptionError
 
 Vector3 = tuple[float, float, float]
@@ -362,10 +363,9 @@ def parse_urdf(text: str, source: str = "<robot_description>") -> RobotModel:  #
             and element.
     """
     try:
-        root = etree.fromstring(text.encode() if isinstance(text, str) else text,
-                                parser=etree.XMLParser(remove_comments=True))
-    except etree.XMLSyntaxError as exc:
-        raise DescriptionError(f"{source}:{exc.lineno}: malformed XML: {exc.msg}") from exc
+        root = parse_xml(text, source)
+    except XmlFileError as exc:
+        raise DescriptionError(str(exc)) from exc
     if root.tag != "robot":
         raise _fail(root, f"the root element is <{root.tag}>, not <robot>", source)
     colours = {}

@@ -14,6 +14,7 @@ from pathlib import Path
 import xacro
 
 from pppbot_common.resources import share_directory
+from pppbot_common.xml_files import XmlFileError, refuse_entities
 from pppbot_description.errors import DescriptionError
 
 PACKAGE = "pppbot_description"
@@ -84,10 +85,15 @@ def process_xacro(path: str | Path | None = None, mappings: Mapping[str, str] | 
     top = Path(path) if path is not None else default_xacro_path()
     args = {str(k): str(v) for k, v in (mappings or {}).items()}
     try:
+        earlier = len(xacro.all_includes)  # xacro appends every include it reads, and never forgets
         document = xacro.process_file(str(top), mappings=args)
+        included = [top, *dict.fromkeys(Path(p) for p in xacro.all_includes[earlier:])]
+        for file in included:  # expat fetched nothing and expanded nothing beyond its limits; still refused
+            refuse_entities(file.read_bytes(), str(file))
+    except XmlFileError as exc:
+        raise DescriptionError(str(exc)) from exc
     except (xacro.XacroException, xml.parsers.expat.ExpatError, OSError) as exc:
         raise DescriptionError(_locate_error(exc, top)) from exc
-    included = [top, *(Path(p) for p in getattr(xacro, "all_includes", []))]
     unknown = sorted(set(args) - declared_arguments(included))
     if unknown:
         known = ", ".join(sorted(declared_arguments(included))) or "none"

@@ -16,11 +16,11 @@ from __future__ import annotations
 import functools
 import logging
 import math
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
+from pppbot_common.xml_files import XmlFileError, parse_xml
 from pppbot_sim.errors import WorldError
 
 
@@ -31,22 +31,26 @@ def collada_meter(path: Path) -> float:
         WorldError: the file is not XML, or ``meter`` is not a positive finite number.
     """
     try:
-        for _, element in ET.iterparse(path, events=("end",)):
-            tag = element.tag.rsplit("}", 1)[-1]
-            if tag == "unit" and element.get("meter") is not None:
-                text = element.get("meter", "")
-                try:
-                    meter = float(text)
-                except ValueError:
-                    meter = math.nan
-                if not (math.isfinite(meter) and meter > 0.0):
-                    raise WorldError(f"{path}: <unit meter=\"{text}\"> must be a positive number of metres per unit")
-                return meter
-            if tag == "asset":  # the unit is in the first <asset>, the document's
-                return 1.0
-    except ET.ParseError as exc:
+        root = parse_xml(path)
+    except XmlFileError as exc:
         raise WorldError(f"{path}: not a COLLADA file ({exc})") from exc
-    return 1.0
+    asset = next((child for child in root if isinstance(child.tag, str) and _local(child.tag) == "asset"), None)
+    unit = next((child for child in asset if isinstance(child.tag, str) and _local(child.tag) == "unit"), None) \
+        if asset is not None else None
+    if unit is None or unit.get("meter") is None:
+        return 1.0
+    text = unit.get("meter", "")
+    try:
+        meter = float(text)
+    except ValueError:
+        meter = math.nan
+    if not (math.isfinite(meter) and meter > 0.0):
+        raise WorldError(f"{path}: <unit meter=\"{text}\"> must be a positive number of metres per unit")
+    return meter
+
+
+def _local(tag: str) -> str:
+    return tag.rsplit("}", 1)[-1]
 
 
 @functools.lru_cache(maxsize=64)

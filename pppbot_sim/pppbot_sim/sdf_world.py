@@ -40,6 +40,7 @@ from lxml import etree
 from transforms3d.axangles import axangle2mat
 from transforms3d.quaternions import quat2mat
 
+from pppbot_common.xml_files import XmlFileError, parse_xml
 from pppbot_description.kinematics import rpy_matrix
 from pppbot_sim.contacts import DEFAULT_MU, UNSIMULATED_DEFAULTS, Surface
 from pppbot_sim.errors import WorldError
@@ -176,7 +177,7 @@ class _Reader:
     def resolve(self, uri: str, element: etree._Element, file: Path) -> Path:
         """The path a ``<uri>`` names (:mod:`pppbot_sim.uris`); a warning when it had to be guessed."""
         try:
-            path, warning = resolve_uri(uri, file.parent, self.search, fuel_caches())
+            path, warning = resolve_uri(uri, file.parent, self.search, fuel_caches(), within=[self.source.parent])
         except UriError as exc:
             raise self.fail(element, str(exc), file) from exc
         if warning is not None:
@@ -272,9 +273,9 @@ class _Reader:
         if str(model_file) in self.including:
             raise self.fail(element, f"{model_file} includes itself", file)
         try:
-            root = etree.parse(str(model_file), etree.XMLParser(remove_comments=True)).getroot()
-        except etree.XMLSyntaxError as exc:
-            raise WorldError(f"{model_file}:{exc.lineno}: malformed XML: {exc.msg}") from exc
+            root = parse_xml(model_file)
+        except XmlFileError as exc:
+            raise WorldError(str(exc)) from exc
         model = root.find("model") if root.tag == "sdf" else (root if root.tag == "model" else None)
         if model is None:
             raise self.fail(root, "expected <sdf><model>", model_file)
@@ -287,9 +288,9 @@ class _Reader:
         config = directory / "model.config"
         if config.is_file():
             try:
-                sdf = etree.parse(str(config)).getroot().find("sdf")
-            except etree.XMLSyntaxError as exc:
-                raise WorldError(f"{config}:{exc.lineno}: malformed XML: {exc.msg}") from exc
+                sdf = parse_xml(config).find("sdf")
+            except XmlFileError as exc:
+                raise WorldError(str(exc)) from exc
             if sdf is not None and (sdf.text or "").strip():
                 return directory / sdf.text.strip()
         if (directory / "model.sdf").is_file():
@@ -536,8 +537,8 @@ def read_sdf_world(path: str | Path, model_paths: Iterable[Path] = ()) -> World:
     if not source.is_file():
         raise WorldError(f"{source}: world file not found")
     try:
-        root = etree.parse(str(source), etree.XMLParser(remove_comments=True)).getroot()
-    except etree.XMLSyntaxError as exc:
-        raise WorldError(f"{source}:{exc.lineno}: malformed XML: {exc.msg}") from exc
+        root = parse_xml(source)
+    except XmlFileError as exc:
+        raise WorldError(str(exc)) from exc
     search = resource_paths([*model_paths, source.parent / "models"])
     return _Reader(source, search).read_world(root)

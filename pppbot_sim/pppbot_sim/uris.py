@@ -7,6 +7,10 @@ plain paths and Fuel's ``https://`` model URLs.
 - ``file:///abs/path``, ``/abs/path``, ``relative/path`` (to the file that names it). An absolute
   path that does not exist on this machine (a world copied from someone else's) whose folders
   name a model on the resource path resolves to that model, with a warning naming both.
+- A world's URIs stay in the world's folder, the resource path, the Fuel cache and, for
+  ``package://``, the package's share (symlinks followed), or in an installed package's share
+  (``AMENT_PREFIX_PATH``, as written): a ``model://m/../../x``, an absolute path or a symlink
+  elsewhere is refused, naming where it leads (:func:`resolve_uri`'s ``within``).
 - ``https://fuel.gazebosim.org/1.0/<owner>/models/<name>[/<version>][/rest]``: the local Fuel
   cache (``GZ_FUEL_CACHE_PATH``, ``~/.gz/fuel``, ``~/.ignition/fuel``), newest version unless one
   is named. pppbot downloads nothing; a model missing from the cache is an error saying how to
@@ -34,29 +38,64 @@ def fuel_caches(environ: Mapping[str, str] | None = None) -> list[Path]:
     return [*caches, home / ".gz" / "fuel", home / ".ignition" / "fuel"]
 
 
-def resolve_uri(uri: str, relative_to: Path, search: Sequence[Path],
-                caches: Sequence[Path] = ()) -> tuple[Path, str | None]:
+def resolve_uri(uri: str, relative_to: Path, search: Sequence[Path], caches: Sequence[Path] = (),
+                within: Sequence[Path] | None = None) -> tuple[Path, str | None]:
     """The path ``uri`` names (it may not exist: the caller checks what it needs) and a warning,
     or None. ``relative_to``: the directory of the file that holds the URI.
 
+    ``within``: the folders a stranger's file (a world and the models it includes) may read
+    from besides ``search``, ``caches`` and, for ``package://``, the package's share; the path,
+    with its symlinks followed, must lie in one of them (None: anywhere, for a file the user
+    names on the command line).
+
     Raises:
-        UriError: a ``model://``, ``package://`` or Fuel URI that names nothing here.
+        UriError: a ``model://``, ``package://`` or Fuel URI that names nothing here, or a path
+            outside what ``within`` allows.
     """
     uri = uri.strip()
     scheme, _, rest = uri.partition("://")
     if not _:
         scheme, rest = "", uri
+    warning, share = None, None
     if scheme == "model":
         name, _, inner = rest.strip("/").partition("/")
-        return _model(name, search, uri) / inner, None
-    if scheme == "package":
-        return _package(rest, uri), None
-    if scheme in ("http", "https"):
-        return _fuel(uri, caches), None
-    if scheme not in ("", "file"):
+        path = _model(name, search, uri) / inner
+    elif scheme == "package":
+        path, share = _package(rest, uri)
+    elif scheme in ("http", "https"):
+        path = _fuel(uri, caches)
+    elif scheme in ("", "file"):
+        path, warning = _path(Path(urllib.parse.unquote(rest)) if scheme == "file" else Path(rest), uri,
+                              relative_to, search)
+    else:
         raise UriError(f"{uri}: the scheme '{scheme}://' is not supported (model://, package://, file://, a path, "
                        "or a Fuel model URL)")
-    return _path(Path(urllib.parse.unquote(rest)) if scheme == "file" else Path(rest), uri, relative_to, search)
+    if within is not None:
+        _check_inside(path, uri, [*within, *search, *caches, *([share] if share else [])])
+    return path, warning
+
+
+def _check_inside(path: Path, uri: str, roots: Sequence[Path]) -> None:
+    """Refuse ``path`` unless it is in an installed package's share (as written: a colcon
+    ``--symlink-install`` links every file there to the sources) or, its symlinks followed, in
+    one of ``roots``."""
+    written = Path(os.path.normpath(path.absolute()))
+    if any(written.is_relative_to(share) for share in installed_shares()):
+        return
+    real = path.resolve()
+    if any(real.is_relative_to(root.resolve()) for root in roots):
+        return
+    looked = ", ".join(str(root) for root in roots)
+    raise UriError(f"{uri}: {real} is outside the folders this world may read from ({looked}); copy it into the "
+                   "world's folder or a model's, or add its folder to GZ_SIM_RESOURCE_PATH")
+
+
+def installed_shares(environ: Mapping[str, str] | None = None) -> list[Path]:
+    """The ``share`` folders of the ament prefixes (``AMENT_PREFIX_PATH``): what the user built
+    and installed."""
+    environ = os.environ if environ is None else environ
+    prefixes = [Path(p) for p in environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    return [Path(os.path.normpath(prefix.absolute() / "share")) for prefix in prefixes]
 
 
 def _path(path: Path, uri: str, relative_to: Path, search: Sequence[Path]) -> tuple[Path, str | None]:
@@ -77,17 +116,18 @@ def _model(name: str, search: Sequence[Path], uri: str) -> Path:
                    "GZ_SIM_RESOURCE_PATH)")
 
 
-def _package(rest: str, uri: str) -> Path:
+def _package(rest: str, uri: str) -> tuple[Path, Path]:
     package, _, inner = rest.partition("/")
     try:
         from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
     except ImportError as exc:  # pragma: no cover - ament_index_python comes with rclpy
         raise UriError(f"{uri}: package:// needs ament_index_python") from exc
     try:
-        return Path(get_package_share_directory(package)) / inner
+        share = Path(get_package_share_directory(package))
     except (PackageNotFoundError, ValueError) as exc:
         raise UriError(f"{uri}: package '{package}' is not in the ament index (AMENT_PREFIX_PATH); source its "
                        "workspace's setup.bash, or use model:// with GZ_SIM_RESOURCE_PATH") from exc
+    return share / inner, share
 
 
 def _model_on_resource_path(path: Path, search: Sequence[Path]) -> Path | None:

@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 
+from pppbot_common.process import listening_addresses
 from pppbot_common.ros.wait import wait_until
 from pppbot_eval.batch_summary import comparable_reports as reports
 
@@ -135,31 +136,6 @@ def test_ctrl_c_stops_every_stack_and_resume_runs_what_did_not_finish(spawn, tmp
         shutil.rmtree(ray_files, ignore_errors=True)
 
 
-def _listening_sockets(pids: set[int]) -> list[str]:
-    """The addresses ``pids`` listen on (TCP, from /proc/net): ``ip:port``, IPv6 as written there."""
-    inodes = set()
-    for pid in pids:
-        try:
-            for fd in Path(f"/proc/{pid}/fd").iterdir():
-                target = os.readlink(fd)
-                if target.startswith("socket:["):
-                    inodes.add(target[8:-1])
-        except OSError:
-            continue
-    found = []
-    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
-        for line in Path(table).read_text().splitlines()[1:]:
-            fields = line.split()
-            if fields[3] == "0A" and fields[9] in inodes:  # LISTEN
-                found.append(fields[1])
-    return found
-
-
-def _loopback(address: str) -> bool:
-    host = address.split(":", maxsplit=1)[0]
-    return host in ("0100007F", "0000000000000000FFFF00000100007F")  # 127.0.0.1, as IPv4 and IPv6-mapped
-
-
 def test_a_local_ray_instance_listens_on_127_0_0_1_only(spawn, tmp_path):
     ray_files = tempfile.mkdtemp(prefix="ray-")
     try:
@@ -169,9 +145,9 @@ def test_a_local_ray_instance_listens_on_127_0_0_1_only(spawn, tmp_path):
                       name="ray_local", env={**os.environ, "RAY_TMPDIR": ray_files})
         child.wait_for_output(r"^up$", 120)
         ray_processes = {int(p.split(":")[0]) for p in _processes_naming(ray_files)} | {child.pid}
-        listening = _listening_sockets(ray_processes)
+        listening = listening_addresses(ray_processes)
         assert len(listening) >= 3  # the GCS, the raylet, workers: something was looked at
-        assert [a for a in listening if not _loopback(a)] == []
+        assert [a for a in listening if a[0] != "127.0.0.1"] == []
         child.stop()
     finally:
         shutil.rmtree(ray_files, ignore_errors=True)

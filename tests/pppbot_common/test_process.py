@@ -4,6 +4,7 @@ from __future__ import annotations
 import os
 import shlex
 import signal
+import socket
 import subprocess
 import sys
 import textwrap
@@ -11,7 +12,7 @@ import textwrap
 import pytest
 
 from pppbot_common.errors import TimeoutExpired
-from pppbot_common.process import KILL_WAIT_S, ChildProcess, StopTimeouts
+from pppbot_common.process import KILL_WAIT_S, ChildProcess, StopTimeouts, listening_addresses
 
 
 def python(code: str) -> list[str]:
@@ -136,3 +137,15 @@ def test_a_process_stuck_in_its_end_prints_its_stack_and_exits():
     assert proc.returncode == 1
     assert "Timeout (0:00:00.500000)!" in proc.stderr
     assert 'File "<string>", line 8' in proc.stderr  # the sleep in the second block
+
+
+def test_listening_addresses_are_read_from_proc_as_bound() -> None:
+    with socket.socket() as local, socket.socket(socket.AF_INET6) as everywhere, socket.socket() as unlistened:
+        local.bind(("127.0.0.1", 0))
+        local.listen()
+        everywhere.bind(("::", 0))
+        everywhere.listen()
+        unlistened.bind(("127.0.0.1", 0))
+        found = listening_addresses([os.getpid()])
+        assert ("127.0.0.1", local.getsockname()[1]) in found and ("::", everywhere.getsockname()[1]) in found
+        assert ("127.0.0.1", unlistened.getsockname()[1]) not in found

@@ -17,6 +17,7 @@ from sensor_msgs.msg import LaserScan
 from websockets.sync.client import connect
 from websockets.typing import Subprotocol
 
+from pppbot_common.process import listening_addresses, process_tree
 from pppbot_common.ros.wait import wait_until
 
 PPPBOT = str(Path(__file__).resolve().parents[2] / "pppbot")
@@ -64,6 +65,7 @@ def first_message(ws: Any, channel_id: int, publish: Any, has_scan: Any, timeout
 def test_bridge_forwards_scans_and_takes_goals(ros_node, spawn):
     bridge = spawn([PPPBOT, "foxglove", "--port", "0"], name="foxglove")
     url = bridge.wait_for_output(r"Foxglove bridge: (ws://127\.0\.0\.1:\d+)", 60).group(1)
+    assert listening_addresses(process_tree(bridge.pid)) == [("127.0.0.1", int(url.rsplit(":", 1)[1]))]
 
     scan_pub = ros_node.create_publisher(LaserScan, "/scan", 10)
     scan = LaserScan(angle_min=-1.0, angle_increment=0.5, range_min=0.1, range_max=12.0,

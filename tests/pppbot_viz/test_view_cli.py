@@ -20,7 +20,7 @@ from pppbot_viz.errors import VizError
 from pppbot_viz.ros.view_cli import check_recording
 from pppbot_viz.viewer import available_port, free_port, listening, rerun_binary, viewer_environment
 
-from pppbot_common.process import StopTimeouts, stop_process_group
+from pppbot_common.process import StopTimeouts, listening_addresses, process_tree, stop_process_group
 from pppbot_viz import viewer
 
 PPPBOT = str(Path(__file__).resolve().parents[2] / "pppbot")
@@ -148,8 +148,12 @@ def test_a_saved_recording_is_served_as_it_was(spawn, tmp_path: Path, rerun_cli,
     except urllib.error.HTTPError as refused:
         answer = refused.read().decode()
     assert '"ok": false' in answer and "a recording has no robot behind it" in answer
+    # The page and rerun's server listen on 127.0.0.1 only.
+    grpc_port = int(grpc_of(page_url).rsplit(":", 1)[1].removesuffix("/proxy"))
+    bound = listening_addresses(process_tree(view.pid))
+    assert {("127.0.0.1", int(page_url.rsplit(":", 1)[1].strip("/"))), ("127.0.0.1", grpc_port)} <= set(bound)
+    assert [address for address in bound if address[0] != "127.0.0.1"] == []
     # Stopped as a launch or a test stops it (SIGINT, then SIGTERM and SIGKILL 5 s apart), the view
     # takes rerun's server with it: no server is left listening.
-    grpc_port = int(grpc_of(page_url).rsplit(":", 1)[1].removesuffix("/proxy"))
     assert view.stop() == 0
     assert not listening(grpc_port)
