@@ -3,7 +3,7 @@ file- and message-compressed) and ``ros2 bag info``'s summary."""
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,6 +14,12 @@ from rosbags.rosbag2.errors import ReaderError
 
 from pppbot_bag.errors import BagError
 from pppbot_bag.metadata import check_metadata_file
+
+#: What rosbags raises for a damaged container is whatever its decoders raise: ReaderError for
+#: checksums and records, ZstdError or lz4's RuntimeError for a chunk, struct.error, EOFError,
+#: OverflowError or MemoryError for a record length beyond any file. Inside rosbags' calls
+#: (nothing of pppbot runs there) every one of them means a damaged file.
+_DAMAGED = Exception
 
 
 @contextmanager
@@ -36,14 +42,40 @@ def open_bag(path: Path | str) -> Iterator[Reader]:
     try:
         reader = Reader(path)
         reader.open()
-    except (ReaderError, KeyError, ValueError, OSError, EOFError) as exc:
+    except _DAMAGED as exc:
         hint = (f" (if its recorder was killed, `pppbot bag reindex {path}` recovers it)"
                 if path.is_dir() else "")
-        raise BagError(f"cannot read bag '{path}': {exc}{hint}") from exc
+        raise BagError(f"cannot read bag '{path}': {_what(exc)}{hint}") from exc
     try:
         yield reader
     finally:
         reader.close()
+
+
+
+
+def _what(exc: Exception) -> str:
+    return str(exc) if isinstance(exc, (ReaderError, OSError, BagError)) else f"{type(exc).__name__}: {exc}"
+
+
+def bag_messages(reader: Reader, connections: Sequence[Connection] = (),
+                 start: int | None = None) -> Iterator[tuple[Connection, int, bytes]]:
+    """``reader.messages(...)``, in log time order; a file damaged past its index ends the
+    iteration with a :class:`BagError` naming the bag and the last good time (what came before
+    was read).
+
+    Raises:
+        BagError: a damaged chunk or record.
+    """
+    last = None
+    try:
+        for connection, stamp, data in reader.messages(connections, start=start):
+            last = stamp
+            yield connection, stamp, data
+    except _DAMAGED as exc:
+        after = f" after t = {_stamp(last)}" if last is not None else ""
+        raise BagError(f"bag '{reader.path}' is damaged{after}: {_what(exc)} (if its recorder was killed, "
+                       f"`pppbot bag reindex {reader.path}` recovers what it can)") from exc
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,7 @@ from PIL import Image
 
 from pppbot_common.errors import MapFileError
 from pppbot_common.map_images import open_map_image
+from pppbot_common.param_files import load_yaml_file
 
 FREE, OCCUPIED, UNKNOWN = 0, 100, -1
 #: What a trinary map file records: 0 → p 1.0 occupied, 254 → p 0.004 free, 205 → p 0.196 unknown.
@@ -125,12 +126,7 @@ def read_map_metadata(path: str | Path) -> MapMetadata:
         MapFileError: missing file, bad YAML, a missing or invalid key.
     """
     path = Path(path)
-    try:
-        meta = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise MapFileError(f"{path}: cannot read the map file ({exc.strerror})") from exc
-    except yaml.YAMLError as exc:
-        raise MapFileError(f"{path}: not valid YAML: {exc}") from exc
+    meta = load_yaml_file(path, MapFileError)
     if not isinstance(meta, dict):
         raise MapFileError(f"{path}: a map file is a YAML mapping with keys {', '.join(_REQUIRED)}")
     missing = [k for k in _REQUIRED if k not in meta]

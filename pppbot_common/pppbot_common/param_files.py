@@ -119,7 +119,11 @@ def check_parameter_file(path: str | Path) -> dict[str, dict[str, Any]]:
     text, problem, line, column = read_yaml_text(path)
     if problem is not None:
         raise ParameterFileError(path, problem, line, column)
-    loader = yaml.SafeLoader(text)
+    try:
+        loader = yaml.SafeLoader(text)  # refuses unprintable characters at once
+    except yaml.YAMLError as exc:
+        what, line, column = describe_yaml_error(exc, text)
+        raise ParameterFileError(path, what, line, column) from None
     try:
         nodes: dict[str, dict[str, Any]] = {}
         while loader.check_node():

@@ -57,6 +57,8 @@ def _locate_error(exc: BaseException, top: Path) -> str:
     current = stack[-1] if stack else top
     if isinstance(exc, xml.parsers.expat.ExpatError):
         return f"{current}:{exc.lineno}: malformed XML: {xml.parsers.expat.ErrorString(exc.code)}"
+    if isinstance(exc, UnicodeDecodeError):
+        return f"{current}: not a text file: byte {exc.start} is not {exc.encoding} ({exc.reason})"
     message = str(exc).strip().replace("\n", " ")
     missing = re.search(r"No such file or directory: (\S+)", message)
     if missing:
@@ -92,7 +94,8 @@ def process_xacro(path: str | Path | None = None, mappings: Mapping[str, str] | 
             refuse_entities(file.read_bytes(), str(file))
     except XmlFileError as exc:
         raise DescriptionError(str(exc)) from exc
-    except (xacro.XacroException, xml.parsers.expat.ExpatError, OSError) as exc:
+    except (xacro.XacroException, xml.parsers.expat.ExpatError, OSError, UnicodeDecodeError,
+            RuntimeError) as exc:  # xacro's checks of attributes raise RuntimeError
         raise DescriptionError(_locate_error(exc, top)) from exc
     unknown = sorted(set(args) - declared_arguments(included))
     if unknown:

@@ -67,7 +67,12 @@ def _load(path: str) -> tuple[np.ndarray, np.ndarray]:
         raise WorldError(f"{path}: cannot read the mesh ({exc})") from exc
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise WorldError(f"{path}: the mesh has no triangles")
-    return np.asarray(loaded.vertices, dtype=float) * meter, np.asarray(loaded.faces, dtype=np.int32)
+    if np.shape(loaded.vertices)[1:] != (3,) or not np.isfinite(loaded.vertices).all():
+        raise WorldError(f"{path}: the mesh's vertices are not finite 3D points (x y z)")
+    faces = np.asarray(loaded.faces)
+    if faces.shape[1:] != (3,) or faces.min() < 0 or faces.max() >= len(loaded.vertices):
+        raise WorldError(f"{path}: the mesh's faces name vertices it does not have ({len(loaded.vertices)} vertices)")
+    return np.asarray(loaded.vertices, dtype=float) * meter, faces.astype(np.int32)
 
 
 def load_mesh(path: Path, scale: tuple[float, float, float] = (1.0, 1.0, 1.0)) -> tuple[np.ndarray, np.ndarray]:

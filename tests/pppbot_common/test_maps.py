@@ -129,7 +129,7 @@ def test_missing_and_unreadable_images(tmp_path):
     (tmp_path / "gone.pgm").write_text("not an image")
     with pytest.raises(MapFileError, match="not a readable image"):
         load_map(tmp_path / "m.yaml")
-    with pytest.raises(MapFileError, match="cannot read the map file"):
+    with pytest.raises(MapFileError, match="cannot read the file"):
         load_map(tmp_path / "nothing.yaml")
 
 

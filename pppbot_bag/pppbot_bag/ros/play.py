@@ -27,7 +27,7 @@ from rosgraph_msgs.msg import Clock
 
 from pppbot_bag.cli import PlayOptions
 from pppbot_bag.errors import BagError
-from pppbot_bag.reader import open_bag
+from pppbot_bag.reader import bag_messages, open_bag
 from pppbot_bag.ros.qos import playback_qos
 from pppbot_common.errors import MessageTypeError
 from pppbot_common.ros.messages import get_interface
@@ -120,7 +120,7 @@ class Player:
             while not self.stop.is_set():
                 self.clock.jump(first)
                 before = self.published
-                for conn, stamp, data in reader.messages(connections, start=first):
+                for conn, stamp, data in bag_messages(reader, connections, start=first):
                     if not self._wait_until(stamp):
                         break
                     self.publishers[conn.topic].publish(data)
