@@ -77,6 +77,45 @@ def _rewrite(path: Path, scan: _FileScan) -> None:
     tmp.rename(path)
 
 
+#: What ends an MCAP file with no summary section: a DataEnd record (data section CRC 0: not
+#: computed), a Footer pointing at no summary, and the closing magic (MCAP's specification).
+_SUMMARYLESS_END = (bytes([0x0F]) + struct.pack("<QI", 4, 0) + bytes([0x02]) + struct.pack("<QQQI", 20, 0, 0, 0)
+                    + b"\x89MCAP0\r\n")
+
+
+def seal(path: Path) -> None:
+    """End an unfinished MCAP file where its last complete record ends, in place: for a file
+    whose writing failed (a full disk), when there is no room for :func:`reindex`'s copy. The
+    incomplete tail (at most the chunk being written) goes; the file needs only a few bytes
+    more than it already has beyond that, which cutting the tail freed."""
+    good = 0
+    with path.open("rb") as stream:
+        try:
+            for _ in StreamReader(stream).records:
+                good = stream.tell()
+        except (McapError, EOFError, ValueError, zstandard.ZstdError, struct.error):
+            pass
+    with path.open("r+b") as out:
+        out.truncate(good)
+        out.seek(good)
+        out.write(_SUMMARYLESS_END)
+
+
+def salvage(bag: Path) -> str:
+    """After writing ``bag`` failed: :func:`seal` its unfinished MCAP files in place, then
+    :func:`reindex` it (which then copies nothing); returns reindex's report.
+
+    Raises:
+        BagError: not a bag directory, or no MCAP file in it.
+        OSError: not even the few bytes that end a file could be written.
+    """
+    for path in sorted(bag.glob("*.mcap")):
+        with path.open("rb") as stream:
+            if not _scan(stream, keep_messages=False).complete:
+                seal(path)
+    return reindex(bag)
+
+
 def _index(name: str) -> tuple[int, str]:
     match = re.search(r"_(\d+)\.mcap(\.zstd)?$", name)
     return (int(match[1]) if match else 1 << 30, name)

@@ -7,6 +7,7 @@ SIGKILL.
 """
 from __future__ import annotations
 
+import re
 import signal
 import statistics
 import subprocess
@@ -31,6 +32,7 @@ from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
+from tf2_msgs.msg import TFMessage
 
 from pppbot_common.errors import TimeoutExpired
 from pppbot_common.process import ChildProcess, StopTimeouts
@@ -200,14 +202,25 @@ def test_play_publishes_the_recorded_bytes_into_a_subscriber(recording):
     assert clock and min(clock) >= first_scan - 0.5 and statistics.median(clock) > first_scan
 
 
-def record_talker(tmp_path: Path) -> tuple[ChildProcess, ChildProcess, Path]:
+def record_talker(tmp_path: Path, limit_kib: int | None = None) -> tuple[ChildProcess, ChildProcess, Path]:
+    """The talker at 50 Hz and a recorder of its topics; with ``limit_kib``, files the recorder
+    writes cannot grow beyond that (``ulimit -f``, as a full disk stops them)."""
     talker = ChildProcess([sys.executable, str(SCRIPTS / "publish_tf_and_particles.py"), "50"], name="talker")
     talker.wait_for_output(r"^ready$", 30)
     bag = tmp_path / "talk"
-    recorder = ChildProcess([PPPBOT, "bag", "record", "/tf", "/particle_cloud", "-o", str(bag)], name="recorder",
-                            timeouts=StopTimeouts(20.0, 5.0))
+    record = [PPPBOT, "bag", "record", "/tf", "/particle_cloud", "-o", str(bag)]
+    if limit_kib is not None:
+        record = ["bash", "-c", f'ulimit -f {limit_kib} && exec "$@"', "record", *record]
+    recorder = ChildProcess(record, name="recorder", timeouts=StopTimeouts(20.0, 5.0))
     recorder.wait_for_lines(r"subscribed to '/(tf|particle_cloud)'", 2, 60)
     return talker, recorder, bag
+
+
+def recorded_tf_numbers(bag: Path) -> list[int]:
+    """The talker's numbers of the /tf messages in ``bag``, read by rosbags."""
+    with Reader(bag) as reader:
+        return [decode(raw, c.msgtype).transforms[0].header.stamp.nanosec
+                for c, _, raw in reader.messages() if c.topic == "/tf"]
 
 
 def test_sigterm_finishes_the_bag(tmp_path):
@@ -227,16 +240,44 @@ def test_sigterm_finishes_the_bag(tmp_path):
     assert summary_count(recorder.output, "/tf") == counts["/tf"]
 
 
-def test_a_killed_recorder_leaves_a_bag_that_reindex_recovers(tmp_path):
-    talker, recorder, bag = record_talker(tmp_path)
-    with talker, recorder:
-        time.sleep(3.5)  # three chunk flushes
-        recorder.proc.send_signal(signal.SIGKILL)
-        recorder.wait(10)
+def test_a_killed_recorder_leaves_a_bag_that_reindex_recovers_to_the_last_second(tmp_path):
+    listener = IsolatedNode("bag_test_kill")
+    heard: list[int] = []
+    def on_tf(msg: Any) -> None:
+        heard.append(msg.transforms[0].header.stamp.nanosec)
+
+    listener.node.create_subscription(TFMessage, "/tf", on_tf, 50)
+    try:
+        talker, recorder, bag = record_talker(tmp_path)
+        with talker, recorder:
+            listener.spin_until(lambda: heard, 30, "the talker")
+            first = heard[-1]
+            listener.spin_until(lambda: heard[-1] >= first + 150, 60, "3 s of /tf (three chunk flushes)")
+            recorder.proc.send_signal(signal.SIGKILL)
+            last_heard = heard[-1]
+            recorder.wait(10)
+    finally:
+        listener.close()
     fixed = subprocess.run([PPPBOT, "bag", "reindex", str(bag)], capture_output=True, text=True, timeout=60)
     assert fixed.returncode == 0, fixed.stderr
-    with Reader(bag) as reader:
-        tf_nanosec = [decode(raw, c.msgtype).transforms[0].header.stamp.nanosec
-                      for c, _, raw in reader.messages() if c.topic == "/tf"]
-    assert len(tf_nanosec) >= 50  # at 50 Hz, at least the first flushed second
-    assert tf_nanosec == list(range(tf_nanosec[0], tf_nanosec[0] + len(tf_nanosec)))
+    numbers = recorded_tf_numbers(bag)
+    assert numbers == list(range(numbers[0], numbers[0] + len(numbers)))  # in order, without gaps
+    # What was lost is what came in the last second before the kill (the recorder flushes every second), and
+    # what DDS had not handed over yet (a few messages): 50 Hz, so at most 50 + 10 of what the test heard.
+    assert numbers[-1] >= last_heard - 60, (numbers[-1], last_heard)
+
+
+def test_a_full_disk_ends_the_recording_with_one_message_and_a_readable_bag(tmp_path):
+    talker, recorder, bag = record_talker(tmp_path, limit_kib=60)
+    with talker, recorder:
+        assert recorder.wait(120) == 1  # it stops by itself when the file can grow no more
+    failed = [line for line in recorder.output.splitlines() if "pppbot bag record:" in line]
+    assert len(failed) == 1 and f"writing '{bag}' failed, recording stopped: File too large" in failed[0], failed
+    assert "the bag is readable" in failed[0]
+    kept = re.search(r"(\d+) messages", failed[0])
+    assert kept is not None
+    numbers = recorded_tf_numbers(bag)  # read as it was left, by an independent reader
+    assert numbers == list(range(numbers[0], numbers[0] + len(numbers))) and len(numbers) >= 250  # 5 s and more
+    with (bag / "talk_0.mcap").open("rb") as f:  # the file on its own, by the MCAP project's reader
+        assert sum(1 for _ in make_reader(f).iter_messages()) == int(kept.group(1))
+    assert sum(f.stat().st_size for f in bag.glob("*.mcap")) <= 60 * 1024

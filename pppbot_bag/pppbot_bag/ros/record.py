@@ -13,6 +13,7 @@ files and ``metadata.yaml``, and print the count of each topic.
 """
 from __future__ import annotations
 
+import errno
 import functools
 import os
 import queue
@@ -21,6 +22,7 @@ import signal
 import sys
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
 import rclpy
@@ -34,6 +36,7 @@ from pppbot_bag.cli import RecordOptions
 from pppbot_bag.definitions import type_definition
 from pppbot_bag.errors import BagError
 from pppbot_bag.metadata import BagMetadata
+from pppbot_bag.recover import salvage
 from pppbot_bag.ros.qos import qos_to_bag, type_hash_string
 from pppbot_bag.writer import BagWriter
 from pppbot_common.errors import MessageTypeError
@@ -204,8 +207,24 @@ def main(options: RecordOptions) -> int:
             metadata = writer.metadata
         recorder.destroy_node()
         rclpy.try_shutdown()
-    print(_summary(metadata, str(options.output)), flush=True)
     if recorder.error is not None:
-        print(f"pppbot bag record: writing failed, recording stopped: {recorder.error}", file=sys.stderr)
-        return 1
+        return _salvage(options.output, recorder.error)
+    print(_summary(metadata, str(options.output)), flush=True)
     return 0
+
+
+def _salvage(bag: Path, error: BaseException) -> int:
+    """Say once why recording stopped, and leave the bag readable with what reached the disk."""
+    why = str(error)
+    if isinstance(error, OSError):
+        full = error.errno in (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
+        why = f"{error.strerror}" + (": the disk is full, or a file-size limit (ulimit -f) was reached" if full else "")
+    try:
+        kept = salvage(bag)
+    except (OSError, BagError) as exc:
+        print(f"pppbot bag record: writing '{bag}' failed, recording stopped: {why}; the bag could not be finished "
+              f"either ({exc}): run `pppbot bag reindex {bag}` once there is room", file=sys.stderr, flush=True)
+        return 1
+    print(f"pppbot bag record: writing '{bag}' failed, recording stopped: {why}; the bag is readable, with what "
+          f"reached the disk ({kept.splitlines()[0].split(': ', 1)[1]})", file=sys.stderr, flush=True)
+    return 1
