@@ -79,6 +79,15 @@ def check_metadata_file(path: Path) -> dict[str, Any]:
             raise BagError(f"{path}: rosbag2_bagfile_information.topics_with_message_count[{i}] must be "
                            f"{{topic_metadata: {{name, type, serialization_format, ...}}, message_count}}, "
                            f"not {topic!r:.80}")
+    if not all(isinstance(name, str) for name in info["relative_file_paths"]):
+        raise BagError(f"{path}: rosbag2_bagfile_information.relative_file_paths must be a list of file names, "
+                       f"not {info['relative_file_paths']!r:.80}")
+    files = info.get("files") or []  # optional (version 5 and later)
+    for i, file in enumerate(files if isinstance(files, list) else [files]):
+        if not isinstance(file, dict) or not isinstance(file.get("path"), str):
+            where = f"[{i}]" if isinstance(files, list) else ""
+            raise BagError(f"{path}: rosbag2_bagfile_information.files{where} must be {{path, starting_time, "
+                           f"duration, message_count}}, not {file!r:.80}")
     return info
 
 
