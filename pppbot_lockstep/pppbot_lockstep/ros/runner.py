@@ -28,7 +28,9 @@ import signal
 import sys
 import threading
 import time
+import traceback
 from collections.abc import Callable, Collection, Sequence
+from pathlib import Path
 from types import FrameType
 from typing import Any, TypeVar
 
@@ -53,23 +55,40 @@ N = TypeVar("N", bound=Node)
 
 #: Longest wait of the spin loop (wall s): how soon a signal is acted on.
 SPIN_TIMEOUT_S = 0.2
+#: A kind of callback failure is named at most once per this (wall s).
+DROPPED_PERIOD_S = 5.0
 
 
 class Process:
     """The running process as a custom loop sees it: its executor, its participant, its stop request."""
 
     def __init__(self, executor: Any, participant: Participant | None,
-                 stop_requested: threading.Event | None = None) -> None:
+                 stop_requested: threading.Event | None = None, name: str = "pppbot") -> None:
         self.executor = executor
         self.participant = participant
         self.stop_requested = stop_requested or threading.Event()
+        self.logger = rclpy.logging.get_logger(name)
+        self._dropped = Throttle(DROPPED_PERIOD_S)
 
     def running(self) -> bool:
         return not self.stop_requested.is_set() and rclpy.ok()
 
     def spin_once(self, timeout_s: float = SPIN_TIMEOUT_S) -> None:
-        """Run one ready callback, waiting at most ``timeout_s`` for one."""
-        self.executor.spin_once(timeout_sec=timeout_s)
+        """Run one ready callback, waiting at most ``timeout_s`` for one. A callback that raises on
+        what it was given (one of rclpy's own: its /clock subscription takes no negative time) is
+        named, at most once per :data:`DROPPED_PERIOD_S` for each kind, and the process goes on;
+        pppbot's own errors (a :class:`PppbotError`) still end it."""
+        try:
+            self.executor.spin_once(timeout_sec=timeout_s)
+        except (PppbotError, ExternalShutdownException):
+            raise
+        except Exception as exc:
+            if not self.running():
+                raise
+            where = traceback.extract_tb(exc.__traceback__)[-1]
+            if self._dropped.allow(f"{type(exc).__name__}@{where.name}", time.monotonic()):
+                self.logger.warning(f"dropping what a callback could not take ({where.name} in "
+                                    f"{Path(where.filename).name}): {type(exc).__name__}: {exc}")
         if self.participant is not None:
             self.participant.maintain()
 
@@ -140,7 +159,7 @@ def run_nodes(factories: Sequence[NodeFactory], name: str, args: list[str] | Non
         executor.add_node(node)
     if participant is not None:
         executor.add_node(participant.node)
-    process = Process(executor, participant, stop_requested)
+    process = Process(executor, participant, stop_requested, name)
     process.install_signal_handlers()  # after the executor: it installs handlers of its own
     if participant is not None:
         participant.start(executor, _with_composed(nodes))
