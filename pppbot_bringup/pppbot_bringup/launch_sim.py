@@ -17,7 +17,7 @@ import enum
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -140,6 +140,9 @@ class LaunchArgs:
     sigterm_timeout: float = _arg(5.0, "on shutdown, seconds from SIGINT to SIGTERM for a node still running "
                                        "(ros2 launch's sigterm_timeout)")
     sigkill_timeout: float = _arg(5.0, "seconds from SIGTERM to SIGKILL (ros2 launch's sigkill_timeout)")
+    respawn: bool = _arg(False, "start a node process that dies again, after respawn_delay (ros2 launch's "
+                                "respawn); the simulator's death still ends the launch; needs lockstep:=false")
+    respawn_delay: float = _arg(1.0, "seconds before a dead node is started again (respawn:=true)")
 
     @classmethod
     def parse(cls, argv: Sequence[str]) -> LaunchArgs:
@@ -186,6 +189,11 @@ class LaunchArgs:
             if wants and not has_display(environ):
                 raise ArgumentError(f"{name} opens a window, and there is no display here (DISPLAY and WAYLAND_DISPLAY "
                                     "are not set): leave it out, or run where a desktop is")
+        if self.respawn and self.lockstep:
+            raise ArgumentError("respawn:=true needs lockstep:=false: a node started again cannot rejoin the "
+                                "lockstep it left (time would wait for it forever)")
+        if not 0.0 <= self.respawn_delay <= 3600.0:
+            raise ArgumentError(f"respawn_delay:={self.respawn_delay:g}: must be a number of seconds from 0 to 3600")
         if self.record and self.bag_path and Path(self.bag_path).exists():
             raise ArgumentError(f"bag_path:={self.bag_path}: exists already; a bag is never overwritten")
         for name in PARAMETER_FILES:  # every file given, whether this launch reads it or not
@@ -491,4 +499,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                                   after=tuple(n.name for n in nodes if n.required), terminal=True))
         else:
             start_info.append("no terminal here for the keyboard teleop: run ./pppbot teleop in another terminal")
+    if args.respawn:  # every node but the simulator (the world: its death ends the stack) and the terminal's
+        nodes = [replace(n, respawn=True, respawn_delay_s=args.respawn_delay, max_respawns=-1)
+                 if n.name != "simulator" and not n.terminal else n for n in nodes]
     return Plan(nodes, notes, info, files, start_info, once)

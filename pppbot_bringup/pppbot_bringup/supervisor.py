@@ -36,6 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Protocol
 
+from pppbot_common.dds_shm import clean_stale
 from pppbot_common.process import STACK_DUMP_SIGNAL, StopTimeouts, block_stop_signals, die_with_parent
 
 POLL_S = 0.05
@@ -360,6 +361,8 @@ class Supervisor:
                 if reader is not None:
                     reader.join(timeout=2.0)
             self._report_exit(running, code)
+            if code < 0:
+                self._clean_shared_memory(running.label)
             spec = running.spec
             if spec.respawn and not self._shutdown.is_set():
                 done = self._respawns.get(name, 0)
@@ -379,6 +382,14 @@ class Supervisor:
                 self.output.event("ERROR", running.label,
                                   f"exited before it was ready; {', '.join(waiting)} cannot start")
                 self.request_shutdown(f"'{name}' exited before it was ready", 1)
+
+    def _clean_shared_memory(self, label: str) -> None:
+        """Remove the DDS shared memory a process killed by a signal could not (as ``fastdds shm
+        clean`` would): files of segments no living process holds."""
+        removed = clean_stale()
+        if removed:
+            self.output.event("INFO", label, f"removed {len(removed)} shared-memory file(s) of DDS segments no "
+                                             "process uses any more (/dev/shm/fastrtps_*)")
 
     def _report_exit(self, running: _Running, code: int) -> None:
         # A program other than pppbot's nodes that keeps SIGINT's default action (rerun) ends
@@ -448,5 +459,7 @@ class Supervisor:
                 if reader is not None:
                     reader.join(timeout=2.0)
             self._report_exit(running, running.proc.returncode)
+        if any(r.proc.returncode < 0 for r in self._running.values()):
+            self._clean_shared_memory("launch")
         self._running.clear()
         self._report_repeats()

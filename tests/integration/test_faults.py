@@ -1,0 +1,113 @@
+"""A process of a running stack killed with SIGKILL at a moment drawn from a seed (as a segfault
+or the OOM killer would end it): the launch names the dead process at once; without
+``respawn:=true`` it stops everything else, leaving no process and no shared memory behind;
+with it the node is started again and the stack carries on (a goal is reached), while the
+simulator's death still ends the stack."""
+from __future__ import annotations
+
+import math
+import os
+import random
+import re
+import signal
+from pathlib import Path
+from typing import Any
+
+import pytest
+from action_msgs.msg import GoalStatus
+from nav2_msgs.action import NavigateToPose
+from nav_msgs.msg import Odometry
+from rclpy.action import ActionClient
+from rosgraph_msgs.msg import Clock
+
+from pppbot_common.dds_shm import segments_of
+from pppbot_common.ros.wait import send_goal, wait_until
+
+from .test_navigation import PPPBOT, goal_pose, truth_pose
+
+pytestmark = [pytest.mark.ros, pytest.mark.heavy]
+SEED = 55
+#: Seconds the launch may take from the death to its own end (its shutdown escalates 5 s apart).
+STOPPED_WITHIN_S = 30.0
+
+
+def pids(output: str) -> dict[str, int]:
+    """Each process the launch started (``name-N``) and its pid."""
+    return {m[1]: int(m[2]) for m in re.finditer(r"\[INFO\] \[([\w-]+)\]: process started with pid \[(\d+)\]", output)}
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def kill_after_a_drawn_moment(ros_node: Any, launch: Any, name: str, rng: random.Random) -> tuple[int, set[str]]:
+    """SIGKILL ``name``'s process once the simulation has run a drawn 1 to 6 s longer; its pid and
+    the DDS shared-memory segments it alone had (not the ports every participant shares)."""
+    clock: list[float] = []
+    subscription = ros_node.create_subscription(Clock, "/clock", lambda m: clock.append(
+        m.clock.sec + m.clock.nanosec * 1e-9), 10)
+    wait_until(lambda: clock, 20, "/clock", node=ros_node)
+    until = clock[-1] + rng.uniform(1.0, 6.0)
+    wait_until(lambda: clock[-1] >= until, 30, "the drawn moment", node=ros_node)
+    ros_node.destroy_subscription(subscription)
+    pid = max(p for label, p in pids(launch.output).items() if label.rsplit("-", 1)[0] == name)
+    own = {s for s in segments_of(pid) if not s.startswith("fastrtps_port")}
+    os.kill(pid, signal.SIGKILL)
+    return pid, own
+
+
+@pytest.mark.parametrize("bringup, victim", [("localization:=true", "navigation"),
+                                             ("localization:=false", "slam_toolbox")])
+def test_a_killed_node_ends_the_launch_naming_it_and_leaves_nothing_behind(ros_node: Any, spawn: Any, bringup: str,
+                                                                           victim: str) -> None:
+    launch = spawn([PPPBOT, "launch_sim", "world:=room", bringup, "use_teleop:=false", "use_rviz:=false",
+                    "use_viz:=false"], name="launch_sim")
+    launch.wait_for_output(r"ppp_bot is up in 'room'", 120)
+    pid, segments = kill_after_a_drawn_moment(ros_node, launch, victim, random.Random(f"{SEED}{victim}"))
+    launch.wait_for_output(rf"\[ERROR\] \[{victim}-1\]: process has died \[pid {pid}, exit code -9", 10)
+    launch.wait_for_output(rf"shutting down \(required node '{victim}' exited\)", 10)
+    assert launch.wait(STOPPED_WITHIN_S) == 1
+    started = pids(launch.output)
+    assert [label for label, p in started.items() if alive(p)] == [], started  # no orphan
+    assert segments and not [s for s in segments if (Path("/dev/shm") / s).exists()]  # the launch removed them
+    # Each of the others ended on the launch's SIGINT, cleanly.
+    clean = re.findall(r"\[INFO\] \[([\w-]+)\]: process has finished cleanly", launch.output)
+    assert sorted(clean) == sorted(label for label in started if label != f"{victim}-1"), launch.output[-2000:]
+
+
+def test_respawn_starts_a_killed_node_again_and_the_stack_carries_on(ros_node: Any, spawn: Any) -> None:
+    launch = spawn([PPPBOT, "launch_sim", "world:=room", "localization:=true", "respawn:=true", "respawn_delay:=0.5",
+                    "use_teleop:=false", "use_rviz:=false", "use_viz:=false"], name="launch_sim")
+    launch.wait_for_output(r"ppp_bot is up in 'room'", 120)
+    rng = random.Random(SEED)
+    for victim in ("navigation", "localization"):
+        kill_after_a_drawn_moment(ros_node, launch, victim, rng)
+        launch.wait_for_output(rf"\[INFO\] \[{victim}-1\]: respawning in 0.5 s \(no limit\)", 10)
+        launch.wait_for_output(rf"\[INFO\] \[{victim}-2\]: process started with pid", 20)
+    truths: list[Odometry] = []
+    ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
+    client = ActionClient(ros_node, NavigateToPose, "navigate_to_pose")
+    assert client.wait_for_server(timeout_sec=60)
+    wait_until(lambda: truths, 20, "ground truth", node=ros_node)
+    x0, y0, _ = truth_pose(truths[-1])
+
+    def reached() -> bool:  # the navigator may still be activating: a refused goal is sent again
+        handle = send_goal(client, NavigateToPose.Goal(pose=goal_pose(x0 + 0.6, y0, 0.0)), ros_node, 20)
+        if not handle.accepted:
+            return False
+        done = handle.get_result_async()
+        wait_until(done.done, 120, "the goal's result", node=ros_node)
+        return done.result().status == GoalStatus.STATUS_SUCCEEDED
+
+    wait_until(reached, 300, "a goal reached after the restarts", node=ros_node)
+    x, y, _ = truth_pose(truths[-1])
+    assert math.hypot(x - x0 - 0.6, y - y0) < 0.35
+    # The simulator is the world: its death ends the stack, respawn or not.
+    kill_after_a_drawn_moment(ros_node, launch, "simulator", rng)
+    launch.wait_for_output(r"shutting down \(required node 'simulator' exited\)", 10)
+    assert launch.wait(STOPPED_WITHIN_S) == 1
+    assert [label for label, p in pids(launch.output).items() if alive(p)] == []
