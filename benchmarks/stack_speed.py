@@ -41,8 +41,10 @@ from pppbot_common.dds_isolation import isolate_dds
 from pppbot_nav.lifecycle import NAVIGATION_NODES
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from proc_stats import TICKS, children, cpu_ticks, process_name, pss_mb, rss_mb  # noqa: E402 (beside this script)
+
 PPPBOT = str(ROOT / "pppbot")
-TICKS = os.sysconf("SC_CLK_TCK")
 #: The navigation nodes' processes: composed (launch_sim's default) or each its own.
 NAV_NODES = ("navigation", *NAVIGATION_NODES, "lifecycle_manager_navigation")
 #: Issue 52's targets (the driving share is issue 20's).
@@ -50,68 +52,6 @@ TARGETS = {"mapping_rtf": 10.0, "navigation_rtf": 7.0, "nav_nodes_driving_1x_pct
            "nav_nodes_idle_1x_pct": 5.0, "bringup_idle_1x_pct": 15.0, "navigation_rss_mb": 550.0,
            "navigation_pss_mb": 550.0, "nav_nodes_idle_lockstep_1x_pct": 5.0, "bringup_idle_lockstep_1x_pct": 15.0,
            "navigation_lockstep_rss_mb": 550.0, "navigation_lockstep_pss_mb": 550.0}
-
-
-def _children(root: int) -> list[int]:
-    """``root``'s descendants (pids), from /proc."""
-    parents: dict[int, int] = {}
-    for entry in os.listdir("/proc"):
-        if entry.isdigit():
-            try:
-                stat = Path(f"/proc/{entry}/stat").read_text()
-            except OSError:
-                continue
-            parents[int(entry)] = int(stat.rsplit(")", 1)[1].split()[1])
-    found, frontier = [], [root]
-    while frontier:
-        pid = frontier.pop()
-        kids = [p for p, pp in parents.items() if pp == pid]
-        found += kids
-        frontier += kids
-    return found
-
-
-def _name(pid: int) -> str:
-    try:
-        argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
-    except OSError:
-        return "?"
-    words = [a.decode(errors="replace") for a in argv if a]
-    for word in words:
-        if word.startswith("/") and "/lib/pppbot_" in word:
-            return Path(word).name
-    if any("pppbot_bringup.cli" in w for w in words):
-        return "eval" if "eval" in words else "launch_sim"
-    return Path(words[0]).name if words else "?"
-
-
-def _cpu_ticks(pid: int) -> int:
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return 0
-    return int(fields[11]) + int(fields[12])
-
-
-def _memory_mb(pid: int, file: str, key: str) -> float:
-    try:
-        for line in Path(f"/proc/{pid}/{file}").read_text().splitlines():
-            if line.startswith(key):
-                return int(line.split()[1]) / 1024
-    except OSError:
-        pass
-    return 0.0
-
-
-def _rss_mb(pid: int) -> float:
-    return _memory_mb(pid, "status", "VmRSS:")
-
-
-def _pss_mb(pid: int) -> float:
-    """Proportional set size: the process's own pages plus its share of those it shares (Python,
-    rclpy, Fast DDS, numpy are mapped once for all processes). Summed over processes, the
-    memory they take together; a sum of RSS counts every shared page once per process."""
-    return _memory_mb(pid, "smaps_rollup", "Pss:")
 
 
 class Sampler:
@@ -129,13 +69,13 @@ class Sampler:
 
     def _watch_memory(self) -> None:
         while not self._stop.wait(0.5):
-            pids = [self.root, *_children(self.root)]
-            self.peak_rss_mb = max(self.peak_rss_mb, sum(_rss_mb(p) for p in pids))
+            pids = [self.root, *children(self.root)]
+            self.peak_rss_mb = max(self.peak_rss_mb, sum(rss_mb(p) for p in pids))
             for pid in pids:  # the last CPU seen: a process may be gone when the window ends
-                self._last[pid] = max(self._last.get(pid, 0), _cpu_ticks(pid))
+                self._last[pid] = max(self._last.get(pid, 0), cpu_ticks(pid))
 
     def begin(self) -> None:
-        self._start = {p: (_name(p), _cpu_ticks(p)) for p in [self.root, *_children(self.root)]}
+        self._start = {p: (process_name(p), cpu_ticks(p)) for p in [self.root, *children(self.root)]}
         self._t0 = time.monotonic()
 
     def end(self) -> dict[str, float]:
@@ -143,7 +83,7 @@ class Sampler:
         wall = time.monotonic() - self._t0
         shares: dict[str, float] = {}
         for pid, (name, ticks) in self._start.items():
-            used = max(_cpu_ticks(pid), self._last.get(pid, 0)) - ticks
+            used = max(cpu_ticks(pid), self._last.get(pid, 0)) - ticks
             if used >= 0:
                 shares[name] = shares.get(name, 0.0) + round(100.0 * used / TICKS / wall, 1)
         return dict(sorted(shares.items(), key=lambda kv: -kv[1]))
@@ -213,8 +153,8 @@ def run_idle(world: str, seconds: float, domain: int, lockstep: bool = False) ->
     sampler.begin()
     time.sleep(seconds)
     shares = sampler.end()
-    pids = [proc.pid, *_children(proc.pid)]
-    rss, pss = sum(_rss_mb(p) for p in pids), sum(_pss_mb(p) for p in pids)
+    pids = [proc.pid, *children(proc.pid)]
+    rss, pss = sum(rss_mb(p) for p in pids), sum(pss_mb(p) for p in pids)
     sampler.close()
     proc.send_signal(signal.SIGINT)
     proc.wait(60)
