@@ -1,5 +1,6 @@
-"""A process of a running stack killed with SIGKILL at a moment drawn from a seed (as a segfault
-or the OOM killer would end it): the launch names the dead process at once; without
+"""A process of a running stack (free running, or in lockstep, where the others wait for it)
+killed with SIGKILL at a moment drawn from a seed (as a segfault or the OOM killer would end
+it): the launch names the dead process at once; without
 ``respawn:=true`` it stops everything else, leaving no process and no shared memory behind;
 with it the node is started again and the stack carries on (a goal is reached), while the
 simulator's death still ends the stack."""
@@ -61,10 +62,11 @@ def kill_after_a_drawn_moment(ros_node: Any, launch: Any, name: str, rng: random
 
 
 @pytest.mark.parametrize("bringup, victim", [("localization:=true", "navigation"),
-                                             ("localization:=false", "slam_toolbox")])
+                                             ("localization:=false", "slam_toolbox"),
+                                             ("localization:=true lockstep:=true", "localization")])
 def test_a_killed_node_ends_the_launch_naming_it_and_leaves_nothing_behind(ros_node: Any, spawn: Any, bringup: str,
                                                                            victim: str) -> None:
-    launch = spawn([PPPBOT, "launch_sim", "world:=room", bringup, "use_teleop:=false", "use_rviz:=false",
+    launch = spawn([PPPBOT, "launch_sim", "world:=room", *bringup.split(), "use_teleop:=false", "use_rviz:=false",
                     "use_viz:=false"], name="launch_sim")
     launch.wait_for_output(r"ppp_bot is up in 'room'", 120)
     pid, segments = kill_after_a_drawn_moment(ros_node, launch, victim, random.Random(f"{SEED}{victim}"))
