@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import enum
 import math
+import os
+import tempfile
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
@@ -58,6 +60,8 @@ LOG_LEVELS = ("debug", "info", "warn", "error", "fatal")
 MAX_WHEEL_SLIP = 0.2
 #: ``pppbot bag record``'s node name (rosbag2's).
 RECORDER_NODE = "rosbag2_recorder"
+#: With ``respawn:=true``, sim seconds between the slam node's autosaves of its pose graph.
+AUTOSAVE_PERIOD_S = 5.0
 
 
 class NavigationMode(enum.Enum):
@@ -409,6 +413,12 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
         slam_params_lockstep, slam_ready = participant(
             "slam_toolbox", "a first /map",
             ReadyCheck("a first /map", probes.first_message("/map", "nav_msgs/msg/OccupancyGrid", True)))
+        if args.respawn:  # a restarted slam maps on from its last autosave
+            autosave = Path(tempfile.gettempdir()) / f"pppbot-{os.getpid()}-{time.time_ns()}" / "slam_autosave"
+            slam_params_lockstep = {**slam_params_lockstep, "autosave_name": str(autosave),
+                                    "autosave_period": AUTOSAVE_PERIOD_S}
+            start_info.append(f"respawn: slam saves its pose graph every {AUTOSAVE_PERIOD_S:g} s to "
+                              f"{autosave}.posegraph and maps on from it when it is started again")
         nodes.append(NodeSpec("slam_toolbox", [resolve("pppbot_slam", "slam"), *ros_args(
             level, slam_params_lockstep, params_file=slam_params)],
             after=(base,), required=True, pppbot_node=True, ready=slam_ready))

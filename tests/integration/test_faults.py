@@ -14,15 +14,25 @@ import signal
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from action_msgs.msg import GoalStatus
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import TransformStamped, Twist, Vector3
 from nav2_msgs.action import NavigateToPose
+from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry
 from rclpy.action import ActionClient
 from rosgraph_msgs.msg import Clock
+from tf2_msgs.msg import TFMessage
 
 from pppbot_common.dds_shm import segments_of
+from pppbot_common.maps import OCCUPIED
+from pppbot_common.ros.maps import grid_from_message
+from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.wait import send_goal, wait_until
+from pppbot_common.se2 import yaw_from_quaternion
+from pppbot_slam.serialization import load_posegraph
 
 from .test_navigation import PPPBOT, goal_pose, truth_pose
 
@@ -113,3 +123,66 @@ def test_respawn_starts_a_killed_node_again_and_the_stack_carries_on(ros_node: A
     launch.wait_for_output(r"shutting down \(required node 'simulator' exited\)", 10)
     assert launch.wait(STOPPED_WITHIN_S) == 1
     assert [label for label, p in pids(launch.output).items() if alive(p)] == []
+
+
+def test_a_restarted_slam_maps_on_from_its_autosave(ros_node: Any, spawn: Any) -> None:
+    launch = spawn([PPPBOT, "launch_sim", "world:=room", "localization:=false", "respawn:=true",
+                    "respawn_delay:=0.5", "use_teleop:=false", "use_rviz:=false", "use_viz:=false"], name="launch_sim")
+    launch.wait_for_output(r"ppp_bot is up in 'room'", 120)
+    said = re.search(r"slam saves its pose graph every [\d.]+ s to (\S+\.posegraph)", launch.output)
+    assert said is not None
+    autosave = Path(said[1])
+    transforms: list[TransformStamped] = []
+    maps: list[OccupancyGridMsg] = []
+    ros_node.create_subscription(TFMessage, "/tf", lambda m: transforms.extend(
+        t for t in m.transforms if (t.header.frame_id, t.child_frame_id) == ("map", "odom")), 100)
+    ros_node.create_subscription(OccupancyGridMsg, "/map", maps.append, LATCHED)
+    keyframes: list[int] = []  # the slam node's keyframes, from its /diagnostics
+    ros_node.create_subscription(DiagnosticArray, "/diagnostics", lambda m: keyframes.extend(
+        int(v.value) for s in m.status if s.name.endswith(": mapping") for v in s.values if v.key == "keyframes"), 10)
+    odometry: list[Odometry] = []
+    ros_node.create_subscription(Odometry, "/ground_truth/odom", odometry.append, 10)
+    turn = ros_node.create_publisher(Twist, "/cmd_vel_teleop", 10)
+    ros_node.create_timer(0.05, lambda: turn.publish(Twist(angular=Vector3(z=0.6))))  # turning on the spot
+    # Turned far enough for keyframes (one each 0.5 rad) and an autosave of them.
+    wait_until(lambda: autosave.is_file() and len(load_posegraph(autosave).keyframes) >= 6, 120,
+               "an autosave of six keyframes", node=ros_node)
+    before_kill = len(transforms)
+    wait_until(lambda: len(transforms) > before_kill + 20, 20, "map → odom after the autosave", node=ros_node)
+    map_before = grid_from_message(maps[-1])
+    last = transforms[-1]
+    assert abs(truth_pose(odometry[-1])[2]) > 0.5  # turned: a map started afresh now would be another
+    saved = load_posegraph(autosave).keyframes
+    reported = len(keyframes)
+    os.kill(max(p for label, p in pids(launch.output).items() if label.startswith("slam_toolbox")), signal.SIGKILL)
+    launch.wait_for_output(r"\[slam_toolbox-2\]: process started with pid", 20)
+    launch.wait_for_output(r"mapping on from the autosave .*this node was restarted", 30)
+    stamp = (last.header.stamp.sec, last.header.stamp.nanosec)
+    fresh = wait_until(lambda: [t for t in transforms if (t.header.stamp.sec, t.header.stamp.nanosec) > stamp
+                                and t is not last][-20:], 30, "map → odom from the restarted node", node=ros_node)
+    # The map frame stayed where it was: map → odom goes on from where the killed node left it
+    # (a node starting afresh would put the map where the robot is now, turned by then).
+    for t in (last, fresh[-1]):
+        assert abs(t.transform.translation.x) < 0.1 and abs(t.transform.translation.y) < 0.1
+    assert abs(yaw_from_quaternion(*_xyzw(fresh[-1])) - yaw_from_quaternion(*_xyzw(last))) < 0.1
+    wait_until(lambda: len(maps) >= 2 and maps[-1].header.stamp.sec > last.header.stamp.sec, 30,
+               "a map from the restarted node", node=ros_node)
+    # It holds every keyframe the autosave had from its first report on, and maps on.
+    wait_until(lambda: len(keyframes) > reported + 1, 30, "the restarted node's /diagnostics", node=ros_node)
+    after = keyframes[reported:]
+    assert min(after) >= len(saved) >= 6, (after, len(saved))
+    # Its map holds the walls the killed node had mapped.
+    map_after = grid_from_message(maps[-1])
+    rows, cols = np.nonzero(map_before.data == OCCUPIED)
+    xs, ys = map_before.origin[0] + (cols + 0.5) * map_before.resolution, \
+        map_before.origin[1] + (rows + 0.5) * map_before.resolution
+    r, c = map_after.cell_of(xs, ys)
+    inside = (r >= 0) & (r < map_after.height) & (c >= 0) & (c < map_after.width)
+    kept = np.mean([(map_after.data[max(0, i - 1):i + 2, max(0, j - 1):j + 2] == OCCUPIED).any()
+                    for i, j in zip(r[inside], c[inside], strict=True)])
+    assert inside.mean() > 0.95 and kept > 0.95, (inside.mean(), kept)
+
+
+def _xyzw(t: TransformStamped) -> tuple[float, float, float, float]:
+    q = t.transform.rotation
+    return q.x, q.y, q.z, q.w

@@ -103,6 +103,10 @@ class SlamParameters:
     yaw_covariance_scale: float = param(1.0, "scales the yaw covariance of localization's pose")
     map_save_name: str = param("", "where ~/save_map and ~/serialize_map write when the request names no file "
                                    "(no extension); default maps/map")
+    autosave_name: str = param("", "pppbot's: mapping saves its pose graph here (no extension) every "
+                                   "autosave_period, and a node that starts and finds it maps on from it, where "
+                                   "it was (a restarted node: launch_sim respawn:=true); empty: no autosave")
+    autosave_period: float = param(10.0, "pppbot's: sim seconds between autosaves (with autosave_name)")
     resolution: float = param(0.05, "map cell size (m)")
     max_laser_range: float = param(20.0, "beams are used up to this range (m)")
     minimum_travel_distance: float = param(0.5, "travel between keyframes (m)")
@@ -158,6 +162,7 @@ class SlamParameters:
         for name in ("map_update_interval", "transform_publish_period", "tf_buffer_duration"):
             check_finite_range(name, getattr(self, name), 0.0, 3600.0, low_open=True)
         check_finite_range("transform_timeout", self.transform_timeout, 0.0, 60.0)
+        check_finite_range("autosave_period", self.autosave_period, 0.0, 86400.0, low_open=True)
         for name in ("odom_frame", "map_frame", "base_frame", "scan_topic"):
             if not getattr(self, name):
                 raise ParameterError(name, getattr(self, name), "must not be empty")
@@ -286,7 +291,13 @@ class Slam(StepNode):
         p = self.params
         events = AsyncMapperEvents(keyframe=self._on_keyframe, loops=self._on_loops, map_built=self._on_map,
                                    warn=self._warn)
-        first = self._load(p.map_file_name, p.start_pose()) if p.map_file_name else Mapper(p.mapper_settings())
+        autosaved = posegraph_path(p.autosave_name) if p.autosave_name else None
+        if autosaved is not None and autosaved.is_file():
+            first = self._resume(autosaved)
+        elif p.map_file_name:
+            first = self._load(p.map_file_name, p.start_pose())
+        else:
+            first = Mapper(p.mapper_settings())
         self.mapping = AsyncMapper(first, events, hold=self.port.hold, map_frame=p.map_frame)
         self.scans = ScanOdometry(self, p.odom_frame, p.base_frame, self._queue, self._warn, p.tf_buffer_duration)
         self.create_subscription(LaserScan, p.scan_topic, guarded(self, self.on_scan, "LaserScan"), SENSOR,
@@ -300,6 +311,8 @@ class Slam(StepNode):
         # map → odom is stamped ahead (transform_timeout): nobody waits for each one.
         self.step_timer(p.transform_publish_period, self._publish_transform, wakes=False)
         self.step_timer(p.map_update_interval, self.mapping.request_map)
+        if autosaved is not None:
+            self.step_timer(p.autosave_period, self._autosave, wakes=False)
         self.mapping.start()
         self.get_logger().info(f"mapping: {p.scan_topic} with {p.odom_frame} → {p.base_frame}; map every "
                                f"{p.map_update_interval:g} s at {p.resolution} m")
@@ -322,6 +335,32 @@ class Slam(StepNode):
         self.get_logger().info(f"mapping on from {posegraph_path(name)}: {len(mapper.keyframes)} keyframes, "
                                f"starting at ({start[0]:.2f}, {start[1]:.2f}, {start[2]:.3f})")
         return mapper
+
+    def _resume(self, autosaved: Path) -> Mapper:
+        """Map on from the last autosave, in the same session: the odometry frame is the one the
+        saved keyframes were in (the node restarted, the robot did not), so map → odom is where
+        it was and the next keyframe links to the last one saved.
+
+        Raises:
+            PoseGraphFileError: the autosave is bad (the message names it).
+        """
+        mapper = load_posegraph(autosaved, self.params.mapper_settings())
+        at = mapper.map_to_odom()
+        self.get_logger().warning(f"mapping on from the autosave {autosaved} ({len(mapper.keyframes)} keyframes, "
+                                  f"map → odom ({at[0]:.2f}, {at[1]:.2f}, {at[2]:.3f})): this node was restarted")
+        return mapper
+
+    def _autosave(self) -> None:
+        snapshot = self.mapping.read(Mapper.snapshot)
+        if not snapshot.keyframes:
+            return
+        try:
+            Path(self.params.autosave_name).expanduser().parent.mkdir(parents=True, exist_ok=True)
+            save_posegraph(snapshot, self.params.autosave_name)
+        except (PoseGraphFileError, OSError) as exc:
+            self._warn("autosave", f"autosave: {exc}")
+            return
+        self._warn.settled("autosave")
 
     # ----------------------------------------------------------------- scans
     def on_scan(self, msg: LaserScan) -> None:
