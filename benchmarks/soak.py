@@ -124,7 +124,8 @@ def main(argv: list[str] | None = None) -> int:
         if sim_s >= args.sim_minutes * 60:
             proc.send_signal(signal.SIGINT)  # the eval stops its stack cleanly
             break
-    proc.stderr.close()
+    for line in proc.stderr:  # read on while it stops: a closed pipe would fail its last writes
+        tail = (tail + [line])[-40:]
     code = proc.wait()
     if sim_s < args.sim_minutes * 60:
         raise SystemExit(f"soak: the run ended at sim {sim_s:.0f} s (exit {code}):\n{''.join(tail)}")

@@ -172,3 +172,37 @@ def test_a_folder_the_user_puts_on_the_resource_path_is_read(world_folder: Path,
     local.write_text((secret.parent / "mesh.stl").read_text())
     monkeypatch.delenv("GZ_SIM_RESOURCE_PATH")
     assert read_sdf_world(world_with_mesh(world_folder, "meshes/own.stl")).name == "w"  # its own files: always
+
+
+def test_dot_dots_after_a_symlink_cannot_pass_for_an_installed_share(world_folder: Path, secret: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    # As text, s/../../(...)/opt/fake/share/p/mesh.stl is the installed share /opt/fake/share; the kernel
+    # follows s into the world's own d1/.../dN first, climbs back to the world folder, and takes its
+    # opt/fake/share/p/mesh.stl: a symlink out.
+    monkeypatch.setenv("AMENT_PREFIX_PATH", "/opt/fake")
+    model = world_folder / "models" / "thing"
+    depth = len(model.parts)
+    deep = model.joinpath(*[f"d{i}" for i in range(depth)])
+    deep.mkdir(parents=True)
+    (model / "s").symlink_to(deep)
+    bait = model / "opt" / "fake" / "share" / "p" / "mesh.stl"
+    bait.parent.mkdir(parents=True)
+    bait.symlink_to(secret.parent / "mesh.stl")
+    world = world_with_mesh(world_folder, "s/" + "../" * depth + "opt/fake/share/p/mesh.stl")
+    with pytest.raises(WorldError, match=rf"{secret.parent / 'mesh.stl'} is outside the folders this world may read"):
+        read_sdf_world(world)
+
+
+@pytest.mark.parametrize("named", ["../../../outside/model.sdf", "{outside}/model.sdf"])
+def test_a_model_config_cannot_name_a_model_file_outside(named: str, world_folder: Path, secret: Path) -> None:
+    (secret.parent / "model.sdf").write_text(f"<sdf version='1.8'><model name='stolen'>{BOX}</model></sdf>")
+    model = world_folder / "models" / "thing"
+    named = named.format(outside=secret.parent)
+    (model / "model.config").write_text(f"<model><sdf version='1.8'>{named}</sdf></model>")
+    world = world_with_mesh(world_folder, "meshes/none.stl")
+    with pytest.raises(WorldError, match=rf"{secret.parent / 'model.sdf'} is outside the folders this world may read"):
+        read_sdf_world(world)
+    (model / "model.config").unlink()
+    (model / "model.config").symlink_to(secret.parent / "model.sdf")  # the config itself a symlink out
+    with pytest.raises(WorldError, match=r"model\.sdf is outside the folders this world may read"):
+        read_sdf_world(world)

@@ -196,6 +196,10 @@ class LaunchArgs:
         if self.respawn and self.lockstep:
             raise ArgumentError("respawn:=true needs lockstep:=false: a node started again cannot rejoin the "
                                 "lockstep it left (time would wait for it forever)")
+        if self.respawn and not self.use_composition:
+            raise ArgumentError("respawn:=true needs use_composition:=true: a lifecycle node started again on its "
+                                "own would wait for its manager to configure it (the composed processes bring "
+                                "their manager with them)")
         if not 0.0 <= self.respawn_delay <= 3600.0:
             raise ArgumentError(f"respawn_delay:={self.respawn_delay:g}: must be a number of seconds from 0 to 3600")
         if self.record and self.bag_path and Path(self.bag_path).exists():
@@ -509,7 +513,8 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                                   after=tuple(n.name for n in nodes if n.required), terminal=True))
         else:
             start_info.append("no terminal here for the keyboard teleop: run ./pppbot teleop in another terminal")
-    if args.respawn:  # every node but the simulator (the world: its death ends the stack) and the terminal's
+    if args.respawn:  # every node but the simulator (the world: its death ends the stack), the terminal's and
+        # the recorder (started again it would find its own bag and refuse to overwrite it)
         nodes = [replace(n, respawn=True, respawn_delay_s=args.respawn_delay, max_respawns=-1)
-                 if n.name != "simulator" and not n.terminal else n for n in nodes]
+                 if n.name not in ("simulator", "bag_record") and not n.terminal else n for n in nodes]
     return Plan(nodes, notes, info, files, start_info, once)

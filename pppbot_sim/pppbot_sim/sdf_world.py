@@ -49,7 +49,7 @@ from pppbot_sim.sdf_joints import JointKind, ModelJoint, joint_kind, read_axis
 from pppbot_sim.sdf_lights import read_lighting
 from pppbot_sim.sdf_model import DEFAULT_MASS_KG, Body, ModelPlugin, Shape, World
 from pppbot_sim.sdf_state import WorldState, move_free_links, named, read_state
-from pppbot_sim.uris import UriError, fuel_caches, resolve_uri
+from pppbot_sim.uris import UriError, check_inside, fuel_caches, resolve_uri
 
 SKIPPED = {"gui", "plugin", "light"}
 # Elements that carry nothing a collision world needs; ignored without a word.
@@ -287,15 +287,27 @@ class _Reader:
     def model_file(self, directory: Path, element: etree._Element, file: Path) -> Path:
         config = directory / "model.config"
         if config.is_file():
+            self.inside(config, element, file)
             try:
                 sdf = parse_xml(config).find("sdf")
             except XmlFileError as exc:
                 raise WorldError(str(exc)) from exc
             if sdf is not None and (sdf.text or "").strip():
-                return directory / sdf.text.strip()
+                named = directory / sdf.text.strip()
+                if not named.is_file():
+                    raise self.fail(sdf, f"<sdf>{sdf.text.strip()}</sdf>: no such file in {directory}", config)
+                return self.inside(named, element, file)
         if (directory / "model.sdf").is_file():
-            return directory / "model.sdf"
+            return self.inside(directory / "model.sdf", element, file)
         raise self.fail(element, f"model directory {directory} has no model.config or model.sdf", file)
+
+    def inside(self, path: Path, element: etree._Element, file: Path) -> Path:
+        """``path``, when it lies where this world may read (:func:`pppbot_sim.uris.check_inside`)."""
+        try:
+            check_inside(path, str(path), [self.source.parent, *self.search, *fuel_caches()])
+        except UriError as exc:
+            raise self.fail(element, str(exc), file) from exc
+        return path
 
     def read_model(self, scoped: ScopedModel, pose: np.ndarray, prefix: str, parent_static: bool = False) -> None:
         """A model whose frame is at ``pose`` in the world: its frames, links, nested models, joints

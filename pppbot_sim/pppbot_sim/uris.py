@@ -71,16 +71,21 @@ def resolve_uri(uri: str, relative_to: Path, search: Sequence[Path], caches: Seq
         raise UriError(f"{uri}: the scheme '{scheme}://' is not supported (model://, package://, file://, a path, "
                        "or a Fuel model URL)")
     if within is not None:
-        _check_inside(path, uri, [*within, *search, *caches, *([share] if share else [])])
+        check_inside(path, uri, [*within, *search, *caches, *([share] if share else [])])
     return path, warning
 
 
-def _check_inside(path: Path, uri: str, roots: Sequence[Path]) -> None:
-    """Refuse ``path`` unless it is in an installed package's share (as written: a colcon
-    ``--symlink-install`` links every file there to the sources) or, its symlinks followed, in
-    one of ``roots``."""
+def check_inside(path: Path, uri: str, roots: Sequence[Path]) -> None:
+    """Refuse ``path`` unless it is in an installed package's share (as written, without ``..``:
+    a colcon ``--symlink-install`` links every file there to the sources) or, its symlinks
+    followed, in one of ``roots``.
+
+    Raises:
+        UriError: neither.
+    """
     written = Path(os.path.normpath(path.absolute()))
-    if any(written.is_relative_to(share) for share in installed_shares()):
+    # ".." after a symlink is the kernel's to resolve, not the text's: no share exception then.
+    if ".." not in path.parts and any(written.is_relative_to(share) for share in installed_shares()):
         return
     real = path.resolve()
     if any(real.is_relative_to(root.resolve()) for root in roots):

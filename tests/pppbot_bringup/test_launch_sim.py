@@ -575,15 +575,16 @@ def test_a_note_said_once_is_said_the_first_time_only(tmp_path):
 
 
 def test_respawn_restarts_every_node_but_the_simulator_and_the_terminals_and_not_in_lockstep():
-    p, _ = fake_plan("respawn:=true", "respawn_delay:=0.5", "localization:=true", "use_composition:=false",
-                     terminal=True)
+    p, _ = fake_plan("respawn:=true", "respawn_delay:=0.5", "localization:=true", "record:=true", terminal=True)
     by_name = {n.name: n for n in p.nodes}
-    assert not by_name["simulator"].respawn and not by_name["teleop_keyboard"].respawn
-    others = [n for n in p.nodes if n.name not in ("simulator", "teleop_keyboard")]
-    assert {"twist_mux", "amcl", "bt_navigator", "robot_state_publisher"} <= {n.name for n in others}
+    assert not any(by_name[n].respawn for n in ("simulator", "teleop_keyboard", "bag_record"))
+    others = [n for n in p.nodes if n.name not in ("simulator", "teleop_keyboard", "bag_record")]
+    assert {"localization", "navigation"} <= {n.name for n in others}
     assert all(n.respawn and n.respawn_delay_s == 0.5 and n.max_respawns == -1 for n in others)
     assert not any(n.respawn for n in fake_plan("localization:=true")[0].nodes)
     with pytest.raises(ArgumentError, match="respawn:=true needs lockstep:=false"):
         values("respawn:=true", "lockstep:=true").validate({})
+    with pytest.raises(ArgumentError, match="respawn:=true needs use_composition:=true"):
+        values("respawn:=true", "use_composition:=false").validate({})
     with pytest.raises(ArgumentError, match="respawn_delay:=-1: must be a number of seconds from 0 to 3600"):
         values("respawn_delay:=-1").validate({})
