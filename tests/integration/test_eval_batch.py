@@ -27,14 +27,15 @@ SEEDS = (1, 2)
 def spec(tmp_path: Path, seeds: tuple[int, ...] = SEEDS, mapping: bool = False, slow: bool = False) -> Path:
     """Short drives in the box room (a 1.2 m route), one per seed; with ``mapping``, also a chain:
     a short SLAM run, then its saved map scored (the map scenario takes the slam run's map and start);
-    ``slow``: instead, 6 sim seconds of the room's loop at 1x, without lockstep (to be interrupted)."""
+    ``slow``: instead, 20 sim seconds of the room's loop at 1x, without lockstep (to be interrupted;
+    long enough that no run ends before the Ctrl-C reaches it through Ray on a busy machine)."""
     route = tmp_path / "short.routes.yaml"
     route.write_text("world: box_room\nroutes:\n  short:\n    start: {x: -0.8, y: -0.8, yaw: 0.0}\n"
                      "    waypoints:\n      - [0.4, -0.8]\n")
     path = tmp_path / "drives.yaml"
     chain = (f"  - world: {BOX_ROOM}\n    steps:\n      - {{scenario: slam, timeout: 8}}\n"
              "      - {scenario: map, map: '${slam.map}', map_pose: '${slam.start}'}\n") if mapping else ""
-    defaults = ("{lockstep: false, real_time_factor: 1, timeout: 6}" if slow
+    defaults = ("{lockstep: false, real_time_factor: 1, timeout: 20}" if slow
                 else f"{{route_file: {route}, wheel_slip: 0.03}}")
     path.write_text(f"defaults: {defaults}\n"
                     f"runs:\n  - scenario: drive\n    world: {BOX_ROOM}\n    seed: {list(seeds)}\n{chain}")
