@@ -5,26 +5,14 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from pppbot_common.process import process_tree
+
 TICKS = os.sysconf("SC_CLK_TCK")
 
 
 def children(root: int) -> list[int]:
     """``root``'s descendants (pids), from /proc."""
-    parents: dict[int, int] = {}
-    for entry in os.listdir("/proc"):
-        if entry.isdigit():
-            try:
-                stat = Path(f"/proc/{entry}/stat").read_text()
-            except OSError:
-                continue
-            parents[int(entry)] = int(stat.rsplit(")", 1)[1].split()[1])
-    found, frontier = [], [root]
-    while frontier:
-        pid = frontier.pop()
-        kids = [p for p, pp in parents.items() if pp == pid]
-        found += kids
-        frontier += kids
-    return found
+    return process_tree(root)[1:]
 
 
 def process_name(pid: int) -> str:

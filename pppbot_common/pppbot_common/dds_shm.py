@@ -16,6 +16,8 @@ import os
 import time
 from pathlib import Path
 
+from pppbot_common.process import open_file_targets
+
 SHM = Path("/dev/shm")
 #: A lock file younger than this (s) may belong to a participant still setting up its segment.
 SETTLING_S = 2.0
@@ -62,11 +64,5 @@ def clean_stale(root: Path = SHM) -> list[str]:
 
 def segments_of(pid: int) -> set[str]:
     """The Fast DDS segments process ``pid`` holds the lock of (its own, and the ports it uses)."""
-    held = set()
-    with contextlib.suppress(OSError):
-        for fd in os.listdir(f"/proc/{pid}/fd"):
-            with contextlib.suppress(OSError):
-                target = os.readlink(f"/proc/{pid}/fd/{fd}")
-                if target.startswith(f"{SHM}/fastrtps_") and target.endswith("_el"):
-                    held.add(Path(target).name.removesuffix("_el"))
-    return held
+    return {Path(target).name.removesuffix("_el") for target in open_file_targets(pid)
+            if target.startswith(f"{SHM}/fastrtps_") and target.endswith("_el")}

@@ -140,14 +140,7 @@ def group_stacks(pgid: int, timeout_s: float = 15.0, max_processes: int = 4, max
 def listening_addresses(pids: Iterable[int]) -> list[tuple[str, int]]:
     """The TCP addresses (ip, port) the processes ``pids`` listen on, from ``/proc``; an IPv4
     address mapped into IPv6 is given as IPv4."""
-    inodes = set()
-    for pid in pids:
-        with contextlib.suppress(OSError):
-            for fd in os.listdir(f"/proc/{pid}/fd"):
-                with contextlib.suppress(OSError):
-                    target = os.readlink(f"/proc/{pid}/fd/{fd}")
-                    if target.startswith("socket:["):
-                        inodes.add(target[8:-1])
+    inodes = {target[8:-1] for pid in pids for target in open_file_targets(pid) if target.startswith("socket:[")}
     found = []
     for table in ("/proc/net/tcp", "/proc/net/tcp6"):
         with contextlib.suppress(OSError), open(table) as f:
@@ -162,6 +155,17 @@ def listening_addresses(pids: Iterable[int]) -> list[tuple[str, int]]:
                         ip = ip.ipv4_mapped
                     found.append((str(ip), int(port, 16)))
     return found
+
+
+def open_file_targets(pid: int) -> list[str]:
+    """What process ``pid``'s file descriptors point at (paths, ``socket:[inode]``, ...), from /proc;
+    empty once it is gone."""
+    targets = []
+    with contextlib.suppress(OSError):
+        for fd in os.listdir(f"/proc/{pid}/fd"):
+            with contextlib.suppress(OSError):
+                targets.append(os.readlink(f"/proc/{pid}/fd/{fd}"))
+    return targets
 
 
 def process_tree(pid: int) -> list[int]:
