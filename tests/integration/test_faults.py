@@ -3,7 +3,8 @@ killed with SIGKILL at a moment drawn from a seed (as a segfault or the OOM kill
 it): the launch names the dead process at once; without
 ``respawn:=true`` it stops everything else, leaving no process and no shared memory behind;
 with it the node is started again and the stack carries on (a goal is reached), while the
-simulator's death still ends the stack."""
+simulator's death still ends the stack; a SLAM node killed mid-run maps on from its autosave, and
+its final map scores F1 ≥ 0.95 against the world's ground truth."""
 from __future__ import annotations
 
 import math
@@ -32,12 +33,16 @@ from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.wait import send_goal, wait_until
 from pppbot_common.se2 import yaw_from_quaternion
+from pppbot_eval.map_quality import compare_maps
+from pppbot_eval.scenarios import world_truth
 from pppbot_slam.serialization import load_posegraph
 
 from .test_navigation import PPPBOT, goal_pose, truth_pose
 
 pytestmark = [pytest.mark.ros, pytest.mark.heavy]
 SEED = 55
+#: A box with nothing inside: a robot turning on the spot at its centre sees every wall.
+BOX_ROOM = Path(__file__).resolve().parents[1] / "pppbot_sim" / "data" / "box_room.sdf"
 #: Seconds the launch may take from the death to its own end (its shutdown escalates 5 s apart).
 STOPPED_WITHIN_S = 30.0
 
@@ -126,9 +131,9 @@ def test_respawn_starts_a_killed_node_again_and_the_stack_carries_on(ros_node: A
 
 
 def test_a_restarted_slam_maps_on_from_its_autosave(ros_node: Any, spawn: Any) -> None:
-    launch = spawn([PPPBOT, "launch_sim", "world:=room", "localization:=false", "respawn:=true",
+    launch = spawn([PPPBOT, "launch_sim", f"world:={BOX_ROOM}", "localization:=false", "respawn:=true",
                     "respawn_delay:=0.5", "use_teleop:=false", "use_rviz:=false", "use_viz:=false"], name="launch_sim")
-    launch.wait_for_output(r"ppp_bot is up in 'room'", 120)
+    launch.wait_for_output(r"ppp_bot is up in 'box_room'", 120)
     said = re.search(r"slam saves its pose graph every [\d.]+ s to (\S+\.posegraph)", launch.output)
     assert said is not None
     autosave = Path(said[1])
@@ -181,6 +186,18 @@ def test_a_restarted_slam_maps_on_from_its_autosave(ros_node: Any, spawn: Any) -
     kept = np.mean([(map_after.data[max(0, i - 1):i + 2, max(0, j - 1):j + 2] == OCCUPIED).any()
                     for i, j in zip(r[inside], c[inside], strict=True)])
     assert inside.mean() > 0.95 and kept > 0.95, (inside.mean(), kept)
+    # Once the robot has turned a whole round more, the final map scores against the world's ground
+    # truth as an uninterrupted run's would (the map frame is the spawn pose, the box's centre).
+    wait_until(lambda: len(keyframes) > reported and keyframes[-1] >= len(saved) + 13, 60,
+               "a whole turn more of keyframes (one each 0.5 rad)", node=ros_node)
+    wait_until(lambda: maps[-1].header.stamp.sec > fresh[-1].header.stamp.sec + 5, 30, "the final map",
+               node=ros_node)
+    quality = compare_maps(grid_from_message(maps[-1]), world_truth(BOX_ROOM), (0.0, 0.0, 0.0),
+                           reachable_from=(0.0, 0.0))
+    print(f"the map after the restart: F1 {quality.f1:.3f} (precision {quality.precision:.3f}, "
+          f"recall {quality.recall:.3f})")
+    assert quality.f1 >= 0.95, quality
+    assert launch.stop() == 0
 
 
 def _xyzw(t: TransformStamped) -> tuple[float, float, float, float]:
