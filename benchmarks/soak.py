@@ -12,6 +12,12 @@ its CPU share over the whole run after the warm-up (% of one core against the wa
 
     ./pppbot env python benchmarks/soak.py --sim-minutes 120       # the record (about 25 min here)
     ./pppbot env python benchmarks/soak.py --sim-minutes 15 --warmup-minutes 3
+    ./pppbot env python benchmarks/soak.py --sim-minutes 40 --trace-memory /tmp/soak_trace
+
+``--trace-memory FOLDER`` finds what grows: every process of the stack traces its Python
+allocations (:func:`pppbot_common.process.trace_memory_if_asked`; much slower), writes a snapshot
+at the end of the warm-up and at the end of the run into FOLDER, and the growth between them is
+printed per process, the biggest sources first (memory allocated by C libraries is not traced).
 
 Prints a line per sim minute and, last, one JSON object with every figure and whether each
 target is met.
@@ -27,15 +33,17 @@ import subprocess
 import sys
 import tempfile
 import time
+import tracemalloc
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from proc_stats import TICKS, children, cpu_ticks, open_files, process_name, rss_mb  # noqa: E402 (beside this script)
+from proc_stats import TICKS, catches, children, cpu_ticks, open_files, process_name, rss_mb  # noqa: E402 (beside this script)
 
 from pppbot_common.dds_isolation import isolate_dds  # noqa: E402
+from pppbot_common.process import MEMORY_SNAPSHOT_SIGNAL, TRACE_MEMORY_ENV  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 PPPBOT = str(ROOT / "pppbot")
@@ -51,6 +59,8 @@ def parse_arguments(argv: list[str] | None = None) -> argparse.Namespace:
                         help="sim time left out of the growth fits (default 10)")
     parser.add_argument("--sample-s", type=float, default=30.0, help="sim seconds between samples (default 30)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--trace-memory", type=Path, metavar="FOLDER",
+                        help="trace Python allocations; print what grew after the warm-up, per process")
     args = parser.parse_args(argv)
     if not 0 < args.warmup_minutes < args.sim_minutes:
         parser.error("--warmup-minutes must be above 0 and below --sim-minutes")
@@ -95,6 +105,34 @@ def growth(samples: list[tuple[float, float, dict[str, dict[str, float]]]], warm
     return results
 
 
+def snapshot_memory(root: int, folder: Path, timeout_s: float = 120.0) -> None:
+    """Ask every traced process of the stack for a snapshot of its allocations, and wait until each
+    has begun writing it (a process finishes writing before it acts on a later stop signal)."""
+    before = len(list(folder.glob("*.tracemalloc")))
+    traced = [pid for pid in children(root) if catches(pid, MEMORY_SNAPSHOT_SIGNAL)]
+    for pid in traced:
+        os.kill(pid, MEMORY_SNAPSHOT_SIGNAL)
+    deadline = time.monotonic() + timeout_s
+    while len(list(folder.glob("*.tracemalloc"))) < before + len(traced) and time.monotonic() < deadline:
+        time.sleep(0.5)
+
+
+def memory_growth(folder: Path, top: int = 12) -> dict[str, list[str]]:
+    """Per traced process: the source lines whose allocations grew most from its first snapshot
+    to its last (KB, count)."""
+    grown: dict[str, list[str]] = {}
+    for first in sorted(folder.glob("*-000.tracemalloc")):
+        name_pid = first.name.rsplit("-", 1)[0]
+        last = sorted(folder.glob(f"{name_pid}-*.tracemalloc"))[-1]
+        if last == first:
+            continue
+        stats = tracemalloc.Snapshot.load(str(last)).compare_to(tracemalloc.Snapshot.load(str(first)), "traceback")
+        grown[name_pid] = [f"{s.size_diff / 1024:+.0f} KB in {s.count_diff:+d} blocks: "
+                           + " < ".join(f"{Path(f.filename).name}:{f.lineno}" for f in s.traceback)
+                           for s in stats[:top]]
+    return grown
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_arguments(argv)
     isolate_dds()
@@ -102,10 +140,15 @@ def main(argv: list[str] | None = None) -> int:
     goals = int(args.sim_minutes * 6) + 10  # more than the time allows: the run is stopped by sim time
     cmd = [PPPBOT, "eval", "navigation", "--world", args.world, "--goals", str(goals), "--seed", str(args.seed),
            "--timeout", str(args.sim_minutes * 60 * 2), "--min-success-rate", "0", "--no-view", "--out", str(out)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=os.environ)
+    env = dict(os.environ)
+    if args.trace_memory:
+        args.trace_memory.mkdir(parents=True, exist_ok=True)
+        env[TRACE_MEMORY_ENV] = str(args.trace_memory.resolve())
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
     assert proc.stderr is not None
     samples: list[tuple[float, float, dict[str, dict[str, float]]]] = []
     next_sample, next_line, sim_s, started = 0.0, 60.0, 0.0, time.monotonic()
+    snapshot_at = [args.warmup_minutes * 60] if args.trace_memory else []
     tail: list[str] = []
     for line in proc.stderr:
         tail = (tail + [line])[-40:]
@@ -121,7 +164,12 @@ def main(argv: list[str] | None = None) -> int:
             print(f"sim {sim_s / 60:5.1f} min, {sim_s / (time.monotonic() - started):4.1f}x, RSS {total:6.0f} MB",
                   flush=True)
             next_line += 60.0
+        if snapshot_at and sim_s >= snapshot_at[0]:
+            snapshot_memory(proc.pid, args.trace_memory)
+            snapshot_at.pop(0)
         if sim_s >= args.sim_minutes * 60:
+            if args.trace_memory:
+                snapshot_memory(proc.pid, args.trace_memory)
             proc.send_signal(signal.SIGINT)  # the eval stops its stack cleanly
             break
     for line in proc.stderr:  # read on while it stops: a closed pipe would fail its last writes
@@ -133,6 +181,9 @@ def main(argv: list[str] | None = None) -> int:
     stack = {n: r for n, r in processes.items() if n != "eval"}
     worst_rss = max(r["rss_growth_pct_per_sim_hour"] for r in stack.values())
     worst_fd = max(r["fd_growth"] for r in stack.values())
+    if args.trace_memory:
+        for name_pid, lines in memory_growth(args.trace_memory).items():
+            print(f"{name_pid}: Python allocations grown after the warm-up", *lines, sep="\n  ")
     print(json.dumps({
         "world": args.world, "sim_minutes": args.sim_minutes, "warmup_minutes": args.warmup_minutes,
         "wall_minutes": round((time.monotonic() - started) / 60, 1), "samples": len(samples),

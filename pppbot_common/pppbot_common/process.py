@@ -17,8 +17,10 @@ import subprocess
 import sys
 import threading
 import time
+import tracemalloc
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 from pppbot_common.errors import TimeoutExpired
 
@@ -73,6 +75,31 @@ def dump_stacks_on_signal() -> None:
             return
         except (AttributeError, ValueError, OSError):  # no file descriptor (captured, closed)
             continue
+
+
+#: With a folder in this variable, a process of pppbot's traces Python's allocations (for soaks).
+TRACE_MEMORY_ENV = "PPPBOT_TRACE_MEMORY"
+#: Makes a process that traces its allocations write a snapshot of them.
+MEMORY_SNAPSHOT_SIGNAL = signal.SIGUSR2
+#: Frames kept per traced allocation.
+TRACE_MEMORY_FRAMES = 8
+
+
+def trace_memory_if_asked(name: str) -> None:
+    """With ``PPPBOT_TRACE_MEMORY=FOLDER`` in the environment: trace Python's allocations
+    (:mod:`tracemalloc`) and, on each :data:`MEMORY_SNAPSHOT_SIGNAL`, write a snapshot of them to
+    ``FOLDER/NAME-PID-N.tracemalloc`` (``benchmarks/soak.py --trace-memory`` compares the first
+    and the last). Without the variable it does nothing. Call it from the main thread."""
+    folder = os.environ.get(TRACE_MEMORY_ENV)
+    if not folder:
+        return
+    tracemalloc.start(TRACE_MEMORY_FRAMES)
+    taken = iter(range(1 << 30))
+
+    def snapshot(signum: int, frame: object) -> None:
+        tracemalloc.take_snapshot().dump(str(Path(folder) / f"{name}-{os.getpid()}-{next(taken):03d}.tracemalloc"))
+
+    signal.signal(MEMORY_SNAPSHOT_SIGNAL, snapshot)
 
 
 @contextlib.contextmanager

@@ -2,6 +2,11 @@
 MB and in % of the RSS the warm-up ended with), descriptor growth and CPU share."""
 from __future__ import annotations
 
+import re
+import subprocess
+import sys
+import time
+
 import pytest
 
 
@@ -22,3 +27,45 @@ def test_growth_fits_the_samples_after_the_warm_up(load_benchmark) -> None:
     assert figures["fd_growth"] == 3 - 0 and figures["cpu_pct"] == pytest.approx(50.0)
     with pytest.raises(SystemExit, match="only 2 samples after the warm-up"):
         soak.growth(samples[:3], warmup_s=300.0)
+
+
+GROWING = """
+import sys, time
+from pppbot_common.process import trace_memory_if_asked
+trace_memory_if_asked("grower")
+kept = []
+print("ready", flush=True)
+for line in sys.stdin:  # each line: keep 1000 more lists, then say so
+    kept.extend([[n] for n in range(1000)])
+    print("grown", flush=True)
+"""
+
+
+def test_traced_processes_write_snapshots_on_a_signal_and_the_growth_names_its_line(load_benchmark, tmp_path,
+                                                                                       monkeypatch) -> None:
+    soak = load_benchmark("soak")
+    proc_stats = load_benchmark("proc_stats")
+    monkeypatch.setenv("PPPBOT_TRACE_MEMORY", str(tmp_path))
+    child = subprocess.Popen([sys.executable, "-c", GROWING], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout is not None and child.stdin is not None
+        assert child.stdout.readline() == "ready\n"
+        assert proc_stats.catches(child.pid, soak.MEMORY_SNAPSHOT_SIGNAL)
+        for _ in range(2):  # a snapshot, 1000 lists more, another snapshot
+            child.send_signal(soak.MEMORY_SNAPSHOT_SIGNAL)
+            child.stdin.write("grow\n")
+            child.stdin.flush()
+            assert child.stdout.readline() == "grown\n"  # the handler ran before the line was read
+    finally:
+        child.kill()
+        child.wait()
+    deadline = time.monotonic() + 30
+    while len(list(tmp_path.glob("*.tracemalloc"))) < 2 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert sorted(p.name for p in tmp_path.glob("*.tracemalloc")) == [f"grower-{child.pid}-000.tracemalloc",
+                                                                      f"grower-{child.pid}-001.tracemalloc"]
+    (name, lines), = soak.memory_growth(tmp_path).items()
+    assert name == f"grower-{child.pid}"
+    # First, the line that keeps the lists: 1000 of them and their numbers.
+    grown = re.match(r"\+(\d+) KB in \+(\d+) blocks: <string>:8\b", lines[0])
+    assert grown is not None and int(grown[1]) >= 50 and int(grown[2]) >= 1000, lines

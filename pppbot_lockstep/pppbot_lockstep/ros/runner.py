@@ -44,7 +44,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from pppbot_common.errors import ParameterFileError, PppbotError
 from pppbot_common.param_files import check_parameter_file, parameter_file_arguments
-from pppbot_common.process import STOP_SIGNALS, dump_stacks_on_signal, exit_if_stuck
+from pppbot_common.process import STOP_SIGNALS, dump_stacks_on_signal, exit_if_stuck, trace_memory_if_asked
 from pppbot_common.ros.unread_parameters import declared_names, warn_unread_parameters
 from pppbot_common.throttle import Throttle
 from pppbot_lockstep.ros.node import StepExecutor
@@ -134,6 +134,7 @@ def run_nodes(factories: Sequence[NodeFactory], name: str, args: list[str] | Non
     the free-running port), and run ``loop`` until stopped; the exit code (the loop's, or 0).
     ``lockstep=False``: the process never takes part in lockstep (the simulator, which runs it)."""
     stop_requested = take_stop_signals()
+    trace_memory_if_asked(name)
     if not _init(name, args, SignalHandlerOptions.NO):
         return 1
     nodes: list[Node] = []
