@@ -16,7 +16,7 @@ from rosidl_parser.definition import (
     NamespacedType,
 )
 
-from pppbot_common.ros.messages import get_interface
+from pppbot_common.ros.messages import get_interface, type_name_of
 
 #: Floats a subscriber must survive, beside Hypothesis' own.
 NASTY_FLOATS = [math.nan, math.inf, -math.inf, 0.0, -0.0, 1e300, -1e300, 5e-324, 1.0, -1.0]
@@ -27,6 +27,10 @@ _INTEGERS = {"int8": (-2**7, 2**7 - 1), "uint8": (0, 2**8 - 1), "byte": (0, 255)
              "char": (0, 255), "int16": (-2**15, 2**15 - 1), "uint16": (0, 2**16 - 1),
              "int32": (-2**31, 2**31 - 1), "uint32": (0, 2**32 - 1), "int64": (-2**63, 2**63 - 1),
              "uint64": (0, 2**64 - 1)}
+#: Fields drawn from a narrower range than their type allows, per message type: rclpy's own
+#: parameter services (not pppbot's code) leave a request with a parameter type rclpy does not know
+#: unanswered (they log the ValueError and go on); a wrong known type, NaN or huge values are drawn.
+NARROWED = {"rcl_interfaces/msg/ParameterValue": {"type": st.integers(0, 9)}}
 #: Longest sequence drawn (a scan of 6 beams beside a header saying 360 is "mismatched").
 MAX_SEQUENCE = 6
 
@@ -64,6 +68,7 @@ def messages(cls: Any) -> st.SearchStrategy[Any]:
     """Any message of ``cls``, every field drawn (a sequence of bytes as a list of ints)."""
     fields = list(cls.get_fields_and_field_types())
     slots = {name: _slot(slot, name) for name, slot in zip(fields, cls.SLOT_TYPES, strict=True)}
+    slots.update(NARROWED.get(type_name_of(cls), {}))
 
     def build(values: dict[str, Any]) -> Any:
         msg = cls()
@@ -72,3 +77,21 @@ def messages(cls: Any) -> st.SearchStrategy[Any]:
         return msg
 
     return st.fixed_dictionaries(slots).map(build)
+
+
+def servers(node: Any, own: str) -> tuple[dict[str, str], dict[str, str]]:
+    """Every action server and every service the other nodes in the graph offer, each with its type
+    (an action's own services are the action's, not counted as services)."""
+    from rclpy.action.graph import get_action_server_names_and_types_by_node
+
+    actions: dict[str, str] = {}
+    services: dict[str, str] = {}
+    for name, namespace in node.get_node_names_and_namespaces():
+        if name == own or name.startswith("_"):
+            continue
+        for action, types in get_action_server_names_and_types_by_node(node, name, namespace):
+            actions.setdefault(action, types[0])
+        for service, types in node.get_service_names_and_types_by_node(name, namespace):
+            if "/_action/" not in service and not service.startswith("/_"):
+                services.setdefault(service, types[0])
+    return actions, services

@@ -58,6 +58,13 @@ def test_names_resolve_in_the_working_directory_then_maps(tmp_path: Path, monkey
     assert missing.value.result == LoadMap.Response.RESULT_MAP_DOES_NOT_EXIST
 
 
+@pytest.mark.parametrize("name", ["x" * 300, "a\0b", "~no_such_user_here/map", f"{'d/' * 3000}map"])
+def test_names_no_file_can_have_are_not_found(name: str):
+    with pytest.raises(MapLoadError, match="not found") as missing:
+        resolve_map_path(name)
+    assert missing.value.result == LoadMap.Response.RESULT_MAP_DOES_NOT_EXIST
+
+
 def test_bad_files_get_nav2s_result_codes(tmp_path: Path):
     (tmp_path / "bad_yaml.yaml").write_text(NAV2_YAML.replace("resolution: 0.050", "resolution: -1"))
     with pytest.raises(MapLoadError, match="'resolution' must be positive") as metadata:

@@ -24,6 +24,7 @@ from rosgraph_msgs.msg import Clock
 
 from pppbot_common.dds_participants import discovery_stays_on_this_machine, others_on_this_machine
 from pppbot_common.ros.messages import get_interface
+from pppbot_common.ros.nodes import unspun_node
 from pppbot_common.ros.qos import DEFAULT, LATCHED
 from pppbot_common.ros.retry import Request, Retry, Unanswered
 from pppbot_interfaces.msg import LockstepStatus
@@ -61,8 +62,7 @@ def free_domain(candidates: Sequence[int], wait_s: float = DOMAIN_CHECK_S) -> in
         context = rclpy.Context()
         rclpy.init(args=[], context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
         try:
-            node = rclpy.create_node("_pppbot_domain_probe", context=context, start_parameter_services=False,
-                                     enable_rosout=False)
+            node = unspun_node("_pppbot_domain_probe", context=context, enable_rosout=False)
             deadline = time.monotonic() + wait_s
             others: list[str] = []
             while not others and time.monotonic() < deadline:
@@ -81,8 +81,7 @@ class GraphProbe:
         # The supervisor owns Ctrl-C; rclpy must not install its own handler.
         self.context = rclpy.Context()
         rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node("_launch_sim_probe", context=self.context,
-                                      start_parameter_services=False, enable_rosout=False)
+        self.node = unspun_node("_launch_sim_probe", context=self.context, enable_rosout=False)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._closed = False

@@ -22,6 +22,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from pppbot_common.errors import PppbotError, TimeoutExpired
 from pppbot_common.ros.messages import get_field, get_interface, message_to_yaml
+from pppbot_common.ros.nodes import unspun_node
 from pppbot_common.ros.qos import qos_matching_publishers
 from pppbot_common.ros.wait import wait_for_topic
 
@@ -243,8 +244,7 @@ COMMANDS: dict[str, Callable[[Node, argparse.Namespace], int]] = {
 
 def main(args: argparse.Namespace) -> int:
     rclpy.init(args=[])
-    node = rclpy.create_node(f"_pppbot_topic_{args.topic_verb}", start_parameter_services=False,
-                             enable_rosout=False)
+    node = unspun_node(f"_pppbot_topic_{args.topic_verb}", enable_rosout=False)
     try:
         return COMMANDS[args.topic_verb](node, args)
     except PppbotError as exc:

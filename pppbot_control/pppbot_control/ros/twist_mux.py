@@ -38,8 +38,9 @@ def grouped(node: Node, prefix: str) -> dict[str, dict[str, Any]]:
 
 class TwistMuxNode(StepNode):
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__("twist_mux", allow_undeclared_parameters=True,
-                         automatically_declare_parameters_from_overrides=True, **kwargs)
+        # Its inputs are whatever ``topics.*`` the file names, so every override is declared; undeclared
+        # names stay refused (rclpy's get_parameter_types fails unanswered on them when they are allowed).
+        super().__init__("twist_mux", automatically_declare_parameters_from_overrides=True, **kwargs)
         refuse_sets(self, "twist_mux reads its inputs and locks once, at start-up (as twist_mux's); restart it")
         use_stamped = self.get_parameter("use_stamped").value if self.has_parameter("use_stamped") else False
         if not isinstance(use_stamped, bool):

@@ -24,6 +24,7 @@ answers a step only once the work it set off has run.
 from __future__ import annotations
 
 import functools
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -35,6 +36,7 @@ from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.service import Service
 
+from pppbot_common.throttle import Throttle
 from pppbot_lockstep.ros.port import FREE_RUNNING, StepPort, Timer
 from pppbot_lockstep.ros.requests import KeptRequest, action_key, counted_service, request_key
 
@@ -185,6 +187,8 @@ class StepNode(Node):
 
     def create_service(self, srv_type: Any, srv_name: str, callback: Callable[[Any, Any], Any],
                        **kwargs: Any) -> Service:
+        """rclpy's, with a callback that always answers (:func:`answering`)."""
+        callback = answering(self, srv_name, callback)
         service = super().create_service(srv_type, srv_name, callback, **kwargs)
         port = self._port()
         key = request_key(service.service_name)
@@ -209,6 +213,29 @@ class StepNode(Node):
         # rclpy's Node.__init__ makes its own endpoints (parameter services, /parameter_events)
         # before this node has a port: those stay rclpy's.
         return getattr(self, "port", FREE_RUNNING)
+
+
+#: A kind of failure of a service's callback is logged at most once per this (wall s).
+FAILED_REQUEST_PERIOD_S = 5.0
+
+
+def answering(node: Node, name: str, callback: Callable[[Any, Any], Any]) -> Callable[[Any, Any], Any]:
+    """A service ``callback`` that answers every request: one it fails on (an exception) is answered
+    with the response as it stands (a service's own failure fields, such as ``success``, are false
+    until set), and the failure is logged, at most once per :data:`FAILED_REQUEST_PERIOD_S` for each
+    kind. An unanswered request would leave its caller waiting forever."""
+    throttle = Throttle(FAILED_REQUEST_PERIOD_S)
+
+    def call(request: Any, response: Any) -> Any:
+        try:
+            return callback(request, response)
+        except Exception as exc:  # one bad request must neither end the node nor go unanswered
+            if throttle.allow(type(exc).__name__, time.monotonic()):
+                node.get_logger().error(f"{name}: could not handle a request ({type(exc).__name__}: {exc}); "
+                                        "answered with an empty response")
+            return response
+
+    return call
 
 
 def subscribe(node: Node, msg_type: Any, topic: str, callback: Callable[[Any], None], qos_profile: QoSProfile | int,

@@ -27,7 +27,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-import rclpy
 from nav2_msgs.srv import ManageLifecycleNodes
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -36,8 +35,10 @@ from std_srvs.srv import Trigger
 
 from pppbot_common.errors import TimeoutExpired
 from pppbot_common.params import ParameterError, param
+from pppbot_common.ros.nodes import unspun_node
 from pppbot_common.ros.params import declare_parameters
 from pppbot_common.ros.retry import LifecycleCalls, Retry, executor_wait
+from pppbot_lockstep.ros.node import answering
 from pppbot_nav.errors import LifecycleError
 from pppbot_nav.lifecycle import (
     ABORTED,
@@ -107,15 +108,14 @@ class LifecycleManager(Node):
         self.state = "unconfigured"
         #: the last command's failure, as logged (empty after a success)
         self.last_error = ""
-        self._calls = rclpy.create_node(f"{name}_service_client", context=self.context,
-                                        start_parameter_services=False, enable_rosout=False)
+        self._calls = unspun_node(f"{name}_service_client", context=self.context, enable_rosout=False)
         self._calls_executor = SingleThreadedExecutor(context=self.context)
         self._calls_executor.add_node(self._calls)
         wait = executor_wait(self._calls_executor)
         self._lifecycle = {n: LifecycleCalls(self._calls, n, retry, wait) for n in self.node_names}
         self._lock = threading.Lock()  # one command at a time
-        self.create_service(ManageLifecycleNodes, "~/manage_nodes", self._on_manage)
-        self.create_service(Trigger, "~/is_active", self._on_is_active)
+        self.create_service(ManageLifecycleNodes, "~/manage_nodes", answering(self, "~/manage_nodes", self._on_manage))
+        self.create_service(Trigger, "~/is_active", answering(self, "~/is_active", self._on_is_active))
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self)
         self._stop = threading.Event()

@@ -35,6 +35,7 @@ from pppbot_common.resources import maps_directory
 from pppbot_common.ros.maps import grid_from_message
 from pppbot_common.ros.params import declare_parameters, on_valid_update
 from pppbot_common.ros.qos import DEFAULT, LATCHED
+from pppbot_lockstep.ros.node import answering
 from pppbot_lockstep.ros.runner import run_node
 from pppbot_nav.errors import MapSaverError
 from pppbot_nav.map_saving import (
@@ -100,7 +101,7 @@ class MapSaver(Node):
         # Requests run one at a time; the maps they wait for arrive in a group of their own,
         # so a multi-threaded executor delivers them while a request waits.
         self._map_group = MutuallyExclusiveCallbackGroup()
-        self.create_service(SaveMap, "~/save_map", self._on_save_map,
+        self.create_service(SaveMap, "~/save_map", answering(self, "~/save_map", self._on_save_map),
                             callback_group=MutuallyExclusiveCallbackGroup())
         self.get_logger().info(
             f"ready: {self.get_fully_qualified_name()}/save_map waits up to {self.params.save_map_timeout:g} s "

@@ -27,6 +27,7 @@ from rclpy.validate_topic_name import validate_topic_name
 from pppbot_common.errors import TimeoutExpired
 from pppbot_common.maps import MapFileError
 from pppbot_common.resources import maps_directory
+from pppbot_common.ros.nodes import unspun_node
 from pppbot_common.ros.wait import wait_for_messages
 from pppbot_nav.errors import MapSaverError
 from pppbot_nav.map_saving import (
@@ -83,7 +84,7 @@ def main(args: argparse.Namespace) -> int:
         print(f"{PROG}: warning: {warning}", file=sys.stderr)
     rclpy.init(args=[])
     try:
-        node = rclpy.create_node("map_saver_cli", start_parameter_services=False)
+        node = unspun_node("map_saver_cli")
         try:
             return _save(node, args, settings)
         finally:

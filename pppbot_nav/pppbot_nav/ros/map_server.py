@@ -62,15 +62,21 @@ def resolve_map_path(name: str) -> Path:
         MapLoadError: no such file (RESULT_MAP_DOES_NOT_EXIST), naming the places looked in.
     """
     text = name.removeprefix("file://")
-    given = Path(text).expanduser()
+    try:
+        given = Path(text).expanduser()
+    except RuntimeError:  # ~user of no user
+        given = Path(text)
     candidates = [given]
     if not given.suffix:
         candidates.append(given.with_suffix(".yaml"))
     if not given.is_absolute():
         candidates += [maps_directory() / c for c in list(candidates)]
     for candidate in candidates:
-        if candidate.is_file():
-            return candidate
+        try:
+            if candidate.is_file():
+                return candidate
+        except (OSError, ValueError):  # a name too long, a NUL in it: no such file either
+            continue
     raise MapLoadError(f"map file '{name}' not found (looked for {', '.join(str(c) for c in candidates)})",
                        LoadMap.Response.RESULT_MAP_DOES_NOT_EXIST)
 

@@ -19,6 +19,7 @@ from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField
 
+from pppbot_common.ros.nodes import unspun_node
 from pppbot_common.ros.wire import MessageTemplate, stamp_fields, stamp_values
 from pppbot_sim.camera_worker import CameraFrame, CameraWorker, FrameRequest
 from pppbot_sim.cameras import POINT_FIELDS, POINT_STEP, CameraKind, CameraSpec
@@ -120,8 +121,8 @@ class CameraPublisher:
             self._context = rclpy.Context()
             rclpy.init(args=[], context=self._context, domain_id=node.context.get_domain_id(),
                        signal_handler_options=SignalHandlerOptions.NO)
-            self.node = rclpy.create_node(f"{node.get_name()}_cameras", namespace=node.get_namespace(),
-                                          context=self._context, start_parameter_services=False)
+            self.node = unspun_node(f"{node.get_name()}_cameras", namespace=node.get_namespace(),
+                                    context=self._context)
             self.topics = [_CameraTopics(self.node, b.spec, node.resolve_topic_name) for b in sim.cameras]
 
     def describe(self) -> list[str]:
