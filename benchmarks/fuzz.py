@@ -89,13 +89,21 @@ def _fuzz_one(name: str, libfuzzer_args: list[str]) -> None:
     atheris.Fuzz()
 
 
+#: Wall seconds a plain process may take to import a target and check one input: longer is a hang.
+REPRODUCE_TIMEOUT_S = 120.0
+
+
 def _reproduces(name: str, data: bytes) -> bool:
-    """Whether ``data`` fails ``name``'s check in a plain (uninstrumented) process."""
+    """Whether ``data`` fails ``name``'s check in a plain (uninstrumented) process; a check that does
+    not end within :data:`REPRODUCE_TIMEOUT_S` fails it too (a hang)."""
     with tempfile.NamedTemporaryFile(prefix=f"fuzz-{name}-") as file:
         file.write(data)
         file.flush()
-        done = subprocess.run([sys.executable, __file__, "--reproduce", name, file.name], capture_output=True,
-                              check=False)
+        try:
+            done = subprocess.run([sys.executable, __file__, "--reproduce", name, file.name], capture_output=True,
+                                  check=False, timeout=REPRODUCE_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            return True
     return done.returncode != 0
 
 

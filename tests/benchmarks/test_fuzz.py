@@ -47,3 +47,16 @@ def test_each_parser_survives_a_short_fuzz(name: str, tmp_path: Path) -> None:
     (result,) = report["targets"]
     assert result["findings"] == 0 and done.returncode == 0, result.get("output")
     assert result["executions"] >= RUNS and list(tmp_path.iterdir()) == []
+
+
+def test_an_input_whose_plain_check_hangs_counts_as_reproduced(load_benchmark, monkeypatch) -> None:
+    fuzz = load_benchmark("fuzz")
+    asked: list[float] = []
+
+    def hangs(command: list[str], **kwargs: object) -> None:
+        asked.append(float(kwargs["timeout"]))  # type: ignore[arg-type]
+        raise subprocess.TimeoutExpired(command, fuzz.REPRODUCE_TIMEOUT_S)
+
+    monkeypatch.setattr(fuzz.subprocess, "run", hangs)
+    assert fuzz._reproduces("map_yaml", b"image: x.pgm\n") is True
+    assert asked == [fuzz.REPRODUCE_TIMEOUT_S]
