@@ -7,7 +7,8 @@
   each test the contexts rclpy kept are collected.
 - ``spawn`` starts children in their own process groups and stops every one of them
   after the test (SIGINT → SIGTERM → SIGKILL); ``module_spawn`` does the same for a
-  module's shared fixture; the session fails if one survives.
+  module's shared fixture; the session fails if one survives. Fast DDS's shared memory that
+  killed processes left is removed before the first test and after a child dies by a signal.
 - ``ros_node`` gives a test an rclpy node in a context of its own.
 - ``load_benchmark`` imports a ``benchmarks/`` script for tests of its pieces.
 """
@@ -30,6 +31,7 @@ import pytest
 
 from pppbot_common.dds_isolation import fresh_domain_if_crowded, isolate_dds
 from pppbot_common.dds_participants import own_participants
+from pppbot_common.dds_shm import clean_stale
 from pppbot_common.process import ChildProcess, StopTimeouts
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -37,6 +39,7 @@ SCRIPTS = Path(__file__).resolve().parent / "scripts"
 
 def pytest_configure(config: pytest.Config) -> None:
     isolate_dds()
+    clean_stale()  # DDS shared memory a killed run left can hang participants (pppbot_common.dds_shm)
     os.environ["PYTHONUNBUFFERED"] = "1"
 
 
@@ -176,6 +179,8 @@ def _children(failed: Callable[[], bool]) -> Iterator[Callable[..., ChildProcess
     finally:
         for child in reversed(mine):
             child.stop()
+        if any((child.proc.returncode or 0) < 0 for child in mine):
+            clean_stale()  # what the killed one's participants left in /dev/shm (pppbot_common.dds_shm)
         if failed():
             for child in mine:
                 lines = child.output.splitlines()[-FAILED_OUTPUT_LINES:]

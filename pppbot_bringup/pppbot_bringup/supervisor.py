@@ -230,6 +230,7 @@ class Supervisor:
 
     def run(self, until: Callable[[], bool] | None = None) -> int:
         """Start everything, watch until shutdown (or ``until()``); return the exit code."""
+        self._clean_shared_memory("launch")  # what a run killed before left could hang the first node
         try:
             while not self._shutdown.is_set():
                 if until is not None and until():
@@ -385,11 +386,11 @@ class Supervisor:
 
     def _clean_shared_memory(self, label: str) -> None:
         """Remove the DDS shared memory a process killed by a signal could not (as ``fastdds shm
-        clean`` would): files of segments no living process holds."""
+        clean`` would): files of segments no living process holds, and segments never sized."""
         removed = clean_stale()
         if removed:
-            self.output.event("INFO", label, f"removed {len(removed)} shared-memory file(s) of DDS segments no "
-                                             "process uses any more (/dev/shm/fastrtps_*)")
+            self.output.event("INFO", label, f"removed {len(removed)} shared-memory file(s) of DDS segments that "
+                                             "killed processes left (/dev/shm/fastrtps_*)")
 
     def _report_exit(self, running: _Running, code: int) -> None:
         # A program other than pppbot's nodes that keeps SIGINT's default action (rerun) ends

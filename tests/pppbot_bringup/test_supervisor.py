@@ -12,6 +12,9 @@ from pathlib import Path
 
 import pytest
 
+from pppbot_common.dds_isolation import claimed_domain_id
+from pppbot_common.dds_shm import SETTLING_S, SHM
+
 SCRIPT = str(Path(__file__).resolve().parents[1] / "scripts" / "supervise.py")
 
 SLEEPER = "print('up', flush=True)\nwhile True: time.sleep(0.1)\n"
@@ -228,3 +231,32 @@ def test_a_node_dying_before_ready_ends_the_launch_instead_of_hanging(supervise)
     assert sup.wait(20) == 1
     assert "[ERROR] [fragile-1]: exited before it was ready; dependent cannot start" in sup.output
     assert "dependent-1" not in sup.output
+
+
+def test_a_segment_never_sized_does_not_hang_the_first_node(supervise):
+    """A process killed between making a Fast DDS port segment and sizing it leaves 0 bytes, on
+    which the next participant with that port hangs forever (a CI run lost six bringups so). The
+    launch removes such files before its first node: a real rclpy node comes up over them."""
+    with claimed_domain_id() as domain:
+        ports = [7410 + 250 * domain + offset for offset in range(8)]  # participants 0-3: both unicast ports
+        planted = [SHM / f"fastrtps_port{port}" for port in ports]
+        then = time.time() - 10 * SETTLING_S
+        for path in planted:
+            for left in (path.with_name(f"{path.name}_el"), path.with_name(f"sem.{path.name}_mutex")):
+                left.unlink(missing_ok=True)  # (an unheld lock would let Fast DDS see the port as dead itself)
+            path.touch()
+            os.utime(path, (then, then))
+        try:
+            sup = supervise([{"name": "probe", "ready": "up", "ready_timeout": 60.0, "code": (
+                f"import os\nos.environ['ROS_DOMAIN_ID'] = '{domain}'\n"
+                "import rclpy\nrclpy.init()\nnode = rclpy.create_node('probe')\nmark('up')\n"
+                "while True: time.sleep(0.1)\n")}])
+            sup.wait_for_output(r"\[INFO\] \[probe-1\]: ready after", 90)
+            assert re.search(r"\[INFO\] \[launch\]: removed \d+ shared-memory file\(s\)", sup.output)
+            assert all(not p.exists() or p.stat().st_size > 0 for p in planted)  # gone, or made anew by the node
+            os.kill(sup.pid, signal.SIGINT)
+            assert sup.wait(20) == 0
+        finally:
+            for path in planted:
+                if path.exists() and path.stat().st_size == 0:
+                    path.unlink()

@@ -35,3 +35,28 @@ def test_only_segments_nobody_holds_are_stale_and_removed(tmp_path: Path) -> Non
     finally:
         os.close(fd)
     assert segments_of(os.getpid()) == set()  # this process opened no /dev/shm lock
+
+
+def test_a_segment_never_sized_is_stale_whoever_holds_it_but_a_lock_file_is_no_segment(tmp_path: Path) -> None:
+    """0 bytes: made by a process killed before it sized it; Fast DDS would wait on it forever.
+    One just made is kept while a process has it open (its maker may be sizing it right now)."""
+    then = time.time() - 10 * SETTLING_S
+    for name in ("fastrtps_port7411", "fastrtps_port7411_el", "sem.fastrtps_port7411_mutex",  # never sized
+                 "fastrtps_port7413_sl", "fastrtps_0a1b", "fastrtps_0a1b_el"):  # a shared lock; a live segment
+        (tmp_path / name).write_bytes(b"" if "7411" in name or name.endswith(("_el", "_sl")) else b"\0" * 64)
+        os.utime(tmp_path / name, (then, then))
+    for name in ("fastrtps_port7415", "fastrtps_port7417", "sem.fastrtps_port7417_mutex"):
+        (tmp_path / name).touch()  # just made: 7415 by a process sizing it, 7417 by one killed before it could
+    held = [os.open(tmp_path / name, os.O_RDWR) for name in ("fastrtps_port7411_el", "fastrtps_0a1b_el")]
+    maker = os.open(tmp_path / "fastrtps_port7415", os.O_RDWR)
+    try:
+        for fd in held:
+            fcntl.flock(fd, fcntl.LOCK_SH)
+        assert sorted(clean_stale(tmp_path)) == [
+            "fastrtps_port7411", "fastrtps_port7411_el", "fastrtps_port7417", "sem.fastrtps_port7411_mutex",
+            "sem.fastrtps_port7417_mutex"]
+        assert sorted(p.name for p in tmp_path.iterdir()) == [
+            "fastrtps_0a1b", "fastrtps_0a1b_el", "fastrtps_port7413_sl", "fastrtps_port7415"]
+    finally:
+        for fd in (*held, maker):
+            os.close(fd)
