@@ -2,6 +2,7 @@
 MB and in % of the RSS the warm-up ended with), descriptor growth and CPU share."""
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -69,3 +70,17 @@ def test_traced_processes_write_snapshots_on_a_signal_and_the_growth_names_its_l
     # First, the line that keeps the lists: 1000 of them and their numbers.
     grown = re.match(r"\+(\d+) KB in \+(\d+) blocks: <string>:8\b", lines[0])
     assert grown is not None and int(grown[1]) >= 50 and int(grown[2]) >= 1000, lines
+
+
+def test_a_progress_bar_on_a_terminal_reads_as_one_line_per_redraw(load_benchmark) -> None:
+    """soak.py gives the eval a terminal, so its bar is redrawn (sim time and all) every 0.2 s."""
+    soak = load_benchmark("soak")
+    terminal, their_end = os.openpty()
+    writer = subprocess.Popen([sys.executable, "-c", (
+        "import sys\nfor t in (1.5, 2.0, 2.5): sys.stderr.write(f'\\reval [##..] sim {t:6.1f} s\\033[K')\n"
+        "sys.stderr.write('\\ndone\\n')")], stderr=their_end)
+    os.close(their_end)
+    lines = list(soak.terminal_lines(terminal))
+    assert writer.wait() == 0
+    assert [float(t) for line in lines for t in soak.SIM_TIME.findall(line)] == [1.5, 2.0, 2.5]
+    assert lines[-1] == "done"
