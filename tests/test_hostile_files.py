@@ -115,6 +115,21 @@ def test_an_entity_declared_in_utf16_is_refused_too(tmp_path: Path, secret: Path
         parse_xml(data.encode("utf-16"), "robot.urdf")
 
 
+def test_an_entity_only_named_in_a_comment_or_a_text_is_no_declaration(tmp_path: Path, secret: Path) -> None:
+    """A file that talks about ``<!ENTITY`` is read; one that declares an entity after such a mention
+    is refused at the declaration's line."""
+    mention = "<!-- no <!ENTITY here: this file declares none -->\n"
+    urdf = tmp_path / "robot.urdf"
+    urdf.write_text(f"<?xml version='1.0'?>\n{mention}<robot name='r'><link name='base_link'/>"
+                    "<!-- <!ENTITY --></robot>")
+    assert parse_urdf(urdf.read_text(), str(urdf)).name == "r"
+    assert parse_xml(b"<r><![CDATA[<!ENTITY x 'y'>]]></r>", "cdata.xml").text == "<!ENTITY x 'y'>"
+    declared = tmp_path / "declared.urdf"
+    declared.write_text(xxe("robot", ROBOT, secret).replace("?>\n", "?>\n" + mention, 1))
+    assert refused(lambda: parse_urdf(declared.read_text(), str(declared)), DescriptionError, declared).startswith(
+        f"{declared}:3: declares an entity")
+
+
 def test_a_doctype_naming_an_outside_dtd_fetches_nothing(tmp_path: Path, secret: Path) -> None:
     dtd = tmp_path / "outside" / "defaults.dtd"
     dtd.write_text('<!ATTLIST robot name CDATA "from-the-dtd">')
