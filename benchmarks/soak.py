@@ -13,6 +13,7 @@ its CPU share over the whole run after the warm-up (% of one core against the wa
     ./pppbot env python benchmarks/soak.py --sim-minutes 120       # the record (about 25 min here)
     ./pppbot env python benchmarks/soak.py --sim-minutes 15 --warmup-minutes 3
     ./pppbot env python benchmarks/soak.py --sim-minutes 40 --trace-memory /tmp/soak_trace
+    ./pppbot env python benchmarks/soak.py --sim-minutes 30 --samples-csv /tmp/soak.csv   # every sample
 
 ``--trace-memory FOLDER`` finds what grows: every process of the stack traces its Python
 allocations (:func:`pppbot_common.process.trace_memory_if_asked`; much slower), writes a snapshot
@@ -25,6 +26,7 @@ target is met.
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import os
 import re
@@ -60,6 +62,8 @@ def parse_arguments(argv: list[str] | None = None) -> argparse.Namespace:
                         help="sim time left out of the growth fits (default 10)")
     parser.add_argument("--sample-s", type=float, default=30.0, help="sim seconds between samples (default 30)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--samples-csv", type=Path, metavar="FILE",
+                        help="write every sample (sim s, process, RSS MB, CPU ticks, descriptors) to FILE")
     parser.add_argument("--trace-memory", type=Path, metavar="FOLDER",
                         help="trace Python allocations; print what grew after the warm-up, per process")
     args = parser.parse_args(argv)
@@ -121,6 +125,17 @@ def growth(samples: list[tuple[float, float, dict[str, dict[str, float]]]], warm
             "fd_growth": int(last[2][name]["fds"] - first[2][name]["fds"]),
             "cpu_pct": round(cpu, 1)}
     return results
+
+
+def write_samples(samples: list[tuple[float, float, dict[str, dict[str, float]]]], path: Path) -> None:
+    """The samples as CSV: a row per sample and process."""
+    with path.open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["sim_s", "wall_s", "process", "rss_mb", "cpu_ticks", "fds"])
+        for sim_s, wall_s, by_name in samples:
+            for name, row in sorted(by_name.items()):
+                writer.writerow([f"{sim_s:.1f}", f"{wall_s - samples[0][1]:.1f}", name, f"{row['rss_mb']:.2f}",
+                                 int(row["cpu_ticks"]), int(row["fds"])])
 
 
 def snapshot_memory(root: int, folder: Path, timeout_s: float = 120.0) -> None:
@@ -199,6 +214,8 @@ def main(argv: list[str] | None = None) -> int:
     code = proc.wait()
     if sim_s < args.sim_minutes * 60:
         raise SystemExit(f"soak: the run ended at sim {sim_s:.0f} s (exit {code}):\n" + "\n".join(tail))
+    if args.samples_csv:
+        write_samples(samples, args.samples_csv)
     processes = growth(samples, args.warmup_minutes * 60)
     stack = {n: r for n, r in processes.items() if n != "eval"}
     worst_rss = max(r["rss_growth_pct_per_sim_hour"] for r in stack.values())

@@ -2,6 +2,7 @@
 MB and in % of the RSS the warm-up ended with), descriptor growth and CPU share."""
 from __future__ import annotations
 
+import csv
 import os
 import re
 import subprocess
@@ -84,3 +85,15 @@ def test_a_progress_bar_on_a_terminal_reads_as_one_line_per_redraw(load_benchmar
     assert writer.wait() == 0
     assert [float(t) for line in lines for t in soak.SIM_TIME.findall(line)] == [1.5, 2.0, 2.5]
     assert lines[-1] == "done"
+
+
+def test_samples_are_written_as_csv_a_row_per_process(load_benchmark, tmp_path) -> None:
+    soak = load_benchmark("soak")
+    samples = [(60.0 * m, 100.0 + 20.0 * m, {"navigation": {"rss_mb": 190.0 + m, "cpu_ticks": 7.0 * m, "fds": 31},
+                                             "simulator": {"rss_mb": 130.5, "cpu_ticks": 3.0 * m, "fds": 20}})
+               for m in range(3)]
+    soak.write_samples(samples, tmp_path / "s.csv")
+    rows = list(csv.DictReader((tmp_path / "s.csv").open()))
+    assert [(r["sim_s"], r["wall_s"], r["process"], float(r["rss_mb"])) for r in rows][-2:] == [
+        ("120.0", "40.0", "navigation", 192.0), ("120.0", "40.0", "simulator", 130.5)]
+    assert len(rows) == 6 and {r["fds"] for r in rows} == {"31", "20"}
