@@ -24,12 +24,10 @@ answers a step only once the work it set off has run.
 from __future__ import annotations
 
 import functools
-import math
 import time
 from collections.abc import Callable
 from typing import Any
 
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionServer
 from rclpy.client import Client
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -38,7 +36,6 @@ from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.service import Service
 
-from pppbot_common.errors import ParameterError
 from pppbot_common.throttle import Throttle
 from pppbot_lockstep.ros.port import FREE_RUNNING, StepPort, Timer
 from pppbot_lockstep.ros.requests import KeptRequest, action_key, counted_service, request_key
@@ -107,38 +104,11 @@ class StepService(Service):
         super().send_response(response, header)
 
 
-#: Nav2's parameter (every server node of Nav2 Jazzy has it): seconds a goal's result is kept after it ends.
-RESULT_TIMEOUT_PARAMETER = "action_server_result_timeout"
-#: Nav2 Jazzy's default (rclpy's own is 900 s: a navigation kept 15 minutes of goals and paths).
-RESULT_TIMEOUT_S = 10.0
-
-
-def result_timeout_of(node: Node) -> float:
-    """The node's ``action_server_result_timeout`` (declared with Nav2's default if it is not yet).
-
-    Raises:
-        ParameterError: not a number of seconds above 0.
-    """
-    if not node.has_parameter(RESULT_TIMEOUT_PARAMETER):
-        node.declare_parameter(RESULT_TIMEOUT_PARAMETER, RESULT_TIMEOUT_S, ParameterDescriptor(
-            description="seconds a goal's result is kept for its client after the goal ends (Nav2's)",
-            dynamic_typing=True))
-    value = node.get_parameter(RESULT_TIMEOUT_PARAMETER).value
-    if isinstance(value, bool) or not isinstance(value, int | float) or not 0 < value < math.inf:
-        raise ParameterError(RESULT_TIMEOUT_PARAMETER, value, "seconds above 0 (Nav2's default: 10.0)")
-    return float(value)
-
-
 class StepActionServer(ActionServer):
     """An action server whose goal, cancel and result requests, in lockstep, wait for the next step
-    and whose replies count as a round's work.
-
-    A goal's result is kept for the node's ``action_server_result_timeout`` (Nav2's parameter,
-    10 s) after the goal ends (Jazzy's rcl counts from there), unless ``result_timeout=`` is
-    given; then a request for it is answered with STATUS_UNKNOWN."""
+    and whose replies count as a round's work."""
 
     def __init__(self, node: Node, action_type: Any, action_name: str, *args: Any, **kwargs: Any) -> None:
-        kwargs.setdefault("result_timeout", result_timeout_of(node))
         super().__init__(node, action_type, action_name, *args, **kwargs)
         self._step_port = port_of(node)
         self._step_key = action_key(node, action_name)
