@@ -86,6 +86,14 @@ def sample(root: int) -> dict[str, dict[str, float]]:
     return by_name
 
 
+def kept_tail(tail: list[str], line: str, keep: int = 40) -> list[str]:
+    """The last ``keep`` lines with ``line`` added, a bar redrawn unchanged kept once (a run that
+    hangs redraws it until it ends, and its last words came before)."""
+    if tail and tail[-1] == line:
+        return tail
+    return (tail + [line])[-keep:]
+
+
 def terminal_lines(fd: int) -> Iterator[str]:
     """The lines (and progress-bar redraws) a child writes to the terminal ``fd``, until it closes."""
     pending = b""
@@ -188,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
     snapshot_at = [args.warmup_minutes * 60] if args.trace_memory else []
     tail: list[str] = []
     for line in output:
-        tail = (tail + [line])[-40:]
+        tail = kept_tail(tail, line)
         found = SIM_TIME.findall(line)
         if not found:
             continue
@@ -210,7 +218,7 @@ def main(argv: list[str] | None = None) -> int:
             proc.send_signal(signal.SIGINT)  # the eval stops its stack cleanly
             break
     for line in output:  # read on while it stops: a terminal nobody reads would block its last writes
-        tail = (tail + [line])[-40:]
+        tail = kept_tail(tail, line)
     code = proc.wait()
     if sim_s < args.sim_minutes * 60:
         raise SystemExit(f"soak: the run ended at sim {sim_s:.0f} s (exit {code}):\n" + "\n".join(tail))

@@ -97,3 +97,11 @@ def test_samples_are_written_as_csv_a_row_per_process(load_benchmark, tmp_path) 
     assert [(r["sim_s"], r["wall_s"], r["process"], float(r["rss_mb"])) for r in rows][-2:] == [
         ("120.0", "40.0", "navigation", 192.0), ("120.0", "40.0", "simulator", 130.5)]
     assert len(rows) == 6 and {r["fds"] for r in rows} == {"31", "20"}
+
+
+def test_a_failed_runs_tail_keeps_its_last_words_before_a_bar_redrawn_unchanged(load_benchmark) -> None:
+    soak = load_benchmark("soak")
+    tail: list[str] = []
+    for line in ["[ERROR] [eval]: no ground truth for 30 s", *["eval [##..] sim 124.3 s"] * 100, "[INFO] done"]:
+        tail = soak.kept_tail(tail, line, keep=3)
+    assert tail == ["[ERROR] [eval]: no ground truth for 30 s", "eval [##..] sim 124.3 s", "[INFO] done"]
