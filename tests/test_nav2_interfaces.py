@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 import importlib
-import importlib.util
 from pathlib import Path
 
 import pytest
 
 INTERFACES = Path(__file__).resolve().parent.parent / "interfaces" / "nav2_msgs"
-#: Built only with geographic_msgs, which PyPI lacks (CMakeLists.txt says so at build time).
-NEEDS_GEOGRAPHIC = {"FollowGPSWaypoints"}
 
 
 def definitions() -> list[tuple[str, str]]:
@@ -20,13 +17,12 @@ def definitions() -> list[tuple[str, str]]:
 
 @pytest.mark.parametrize(("kind", "name"), definitions(), ids=[f"{k}/{n}" for k, n in definitions()])
 def test_every_definition_imports(kind: str, name: str):
-    if name in NEEDS_GEOGRAPHIC and importlib.util.find_spec("geographic_msgs") is None:
-        pytest.skip("needs geographic_msgs, which this environment lacks")
     assert hasattr(importlib.import_module(f"nav2_msgs.{kind}"), name)
 
 
 def test_every_type_of_jazzy_is_there():
-    assert len(definitions()) == 50  # 17 messages, 15 services, 18 actions (FollowGPSWaypoints among them)
+    # 17 messages, 15 services, 19 actions: FollowGPSWaypoints (with geographic_msgs) and 1.3.13's FollowObject
+    assert len(definitions()) == 51
 
 
 def test_the_shapes_are_jazzys():
