@@ -48,10 +48,15 @@ def refuse_entities(data: bytes, name: str) -> None:
         if declaration < 0:
             raise XmlFileError(f"{name}:{exc.lineno}: malformed XML: {exc.msg}") from exc
         root = None  # (malformed by its entity, most likely: one used where it may not be)
-    dtd = None if root is None else root.getroottree().docinfo.internalDTD
-    if (root is None and declaration >= 0) or (dtd is not None and any(True for _ in dtd.iterentities())):
+    if (root is None and declaration >= 0) or (root is not None and _declares_entities(root)):
         line = data[:max(declaration, doctype, 0)].count(b"\n") + 1
         raise XmlFileError(f"{name}:{line}: {_ENTITY}")
+
+
+def _declares_entities(root: etree._Element) -> bool:
+    """Whether the document's own DTD declares an entity (general or parameter)."""
+    dtd = root.getroottree().docinfo.internalDTD
+    return dtd is not None and any(True for _ in dtd.iterentities())
 
 
 def parse_xml(source: Path | str | bytes, name: str | None = None) -> etree._Element:
@@ -78,7 +83,6 @@ def parse_xml(source: Path | str | bytes, name: str | None = None) -> etree._Ele
         raise XmlFileError(f"{name}:{exc.lineno}: malformed XML: {exc.msg}") from exc
     if root is None:
         raise XmlFileError(f"{name}: no XML element in the file")
-    dtd = root.getroottree().docinfo.internalDTD
-    if dtd is not None and any(True for _ in dtd.iterentities()):  # declared in an encoding the byte check missed
+    if _declares_entities(root):  # declared in an encoding the byte check missed
         raise XmlFileError(f"{name}: {_ENTITY}")
     return root
