@@ -44,6 +44,7 @@ from pppbot_eval.routes import Route
 from pppbot_eval.shortest_path import shortest_path
 from pppbot_eval.trajectory import (
     AteResult,
+    PoseRows,
     PoseSeries,
     absolute_trajectory_error,
     compose_chain,
@@ -139,9 +140,10 @@ class GoalRecord:
 class Recording:
     """What a run saw; times are sim seconds."""
 
-    truth_rows: list[tuple[float, float, float, float]] = field(default_factory=list)
-    estimate_rows: list[tuple[float, float, float, float]] = field(default_factory=list)  # from a topic
-    edge_rows: dict[tuple[str, str], list[tuple[float, float, float, float]]] = field(default_factory=dict)  # /tf
+    truth_rows: PoseRows | list[tuple[float, float, float, float]] = field(default_factory=PoseRows)
+    estimate_rows: PoseRows | list[tuple[float, float, float, float]] = field(default_factory=PoseRows)  # a topic's
+    edge_rows: dict[tuple[str, str], PoseRows | list[tuple[float, float, float, float]]] = field(
+        default_factory=dict)  # /tf
     collisions: list[tuple[float, float, float]] = field(default_factory=list)  # t, x, y
     route_progress: float = 0.0
     route_finished: bool = False

@@ -34,6 +34,7 @@ from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
 from pppbot_common.upright import UprightWatch
 from pppbot_eval.ros.behaviors import TICK_S, Behavior
 from pppbot_eval.scenarios import Estimate, Recording
+from pppbot_eval.trajectory import PoseRows
 from pppbot_lockstep.ros.action_client import ActionClient
 from pppbot_lockstep.ros.node import StepExecutor, StepNode
 from pppbot_lockstep.ros.participant import Participant
@@ -230,8 +231,9 @@ class EvalNode:
     def _keep_edges(self, msg: TFMessage) -> None:
         """Keep the estimate chain's edges; they are composed after the run (no extrapolation)."""
         for t in planar_transforms(msg):
-            if (t.parent, t.child) in self.wanted_edges:
-                self.recording.edge_rows.setdefault((t.parent, t.child), []).append((t.stamp_s, t.x, t.y, t.yaw))
+            edge = (t.parent, t.child)
+            if edge in self.wanted_edges:
+                self.recording.edge_rows.setdefault(edge, PoseRows()).append((t.stamp_s, t.x, t.y, t.yaw))
 
     def _on_collision(self, msg: PointStamped) -> None:
         if self.finished_wall is not None:  # after the behaviour: the robot stands, and it is not the run

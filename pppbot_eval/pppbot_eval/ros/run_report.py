@@ -2,6 +2,7 @@
 truth, whether it succeeded and why not, as ``report.json`` holds it."""
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -47,7 +48,7 @@ def slam_health(values: dict[str, str]) -> dict[str, Any]:
     return {key: parse(value) for key, value in values.items()}
 
 
-def posegraph_closures(posegraph: str, truth_rows: list[Any]) -> dict[str, Any]:
+def posegraph_closures(posegraph: str, truth_rows: Iterable[Sequence[float]]) -> dict[str, Any]:
     """The saved pose graph's loop closures against ground truth (:mod:`pppbot_eval.closures`): each
     keyframe's true pose at its scan's stamp, beside its solved one."""
     mapper = load_posegraph(posegraph)
