@@ -32,6 +32,8 @@ class RecordOptions:
     include_unpublished_topics: bool = False
     discovery: bool = True
     flush_period_s: float = 1.0
+    #: the output may exist: a recording stopped or killed, finished first and recorded on into
+    resume: bool = False
 
 
 @dataclass(frozen=True)
@@ -124,6 +126,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--include-unpublished-topics", action="store_true",
                    help="also subscribe to topics that have subscribers but no publisher yet")
     p.add_argument("--node-name", default="rosbag2_recorder")
+    p.add_argument("--resume", action="store_true",
+                   help="if the output exists (a recording that stopped or was killed), finish it as "
+                        "'bag reindex' does and record on into it, as its next file")
 
     p = sub.add_parser("play", help="publish a bag's messages with their recorded timing and QoS")
     p.add_argument("bag_path", help="bag directory (or one .mcap file)")
@@ -185,13 +190,13 @@ def record_options(args: argparse.Namespace, now: float | None = None) -> Record
     writer.validate()
     stamp = time.strftime("rosbag2_%Y_%m_%d-%H_%M_%S", time.localtime(now))
     output = Path(args.output) if args.output else Path(stamp)
-    if output.exists():
+    if output.exists() and not args.resume:
         raise BagError(f"output '{output}' exists already; pppbot never overwrites a bag "
-                       "(choose another name with -o)")
+                       "(choose another name with -o, or --resume to record on into it)")
     return RecordOptions(output=output, selection=selection, writer=writer, use_sim_time=args.use_sim_time,
                          polling_interval_s=args.polling_interval / 1000.0, node_name=args.node_name,
                          include_unpublished_topics=args.include_unpublished_topics,
-                         discovery=not args.no_discovery)
+                         discovery=not args.no_discovery, resume=args.resume)
 
 
 def play_options(args: argparse.Namespace) -> PlayOptions:

@@ -109,11 +109,18 @@ def salvage(bag: Path) -> str:
         BagError: not a bag directory, or no MCAP file in it.
         OSError: not even the few bytes that end a file could be written.
     """
+    return salvaged(bag)[1]
+
+
+def salvaged(bag: Path) -> tuple[BagMetadata, str]:
+    """:func:`salvage`, with the bag's metadata as written."""
+    if not bag.is_dir():
+        raise BagError(f"'{bag}' is not a bag directory")
     for path in sorted(bag.glob("*.mcap")):
         with path.open("rb") as stream:
             if not _scan(stream, keep_messages=False).complete:
                 seal(path)
-    return reindex(bag)
+    return reindexed(bag)
 
 
 def _index(name: str) -> tuple[int, str]:
@@ -127,6 +134,11 @@ def reindex(bag: Path) -> str:
     Raises:
         BagError: not a directory, or no MCAP file in it.
     """
+    return reindexed(bag)[1]
+
+
+def reindexed(bag: Path) -> tuple[BagMetadata, str]:
+    """:func:`reindex`, with the bag's metadata as written."""
     if not bag.is_dir():
         raise BagError(f"'{bag}' is not a bag directory")
     names = {p.name for p in bag.iterdir()}
@@ -185,4 +197,4 @@ def reindex(bag: Path) -> str:
     metadata.write(bag)
     lines = [f"reindexed '{bag}': {len(files)} file(s), {metadata.message_count} messages, "
              f"{len(topics)} topic(s)", *notes]
-    return "\n".join(lines)
+    return metadata, "\n".join(lines)

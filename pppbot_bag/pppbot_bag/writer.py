@@ -125,29 +125,42 @@ class _OpenFile:
 class BagWriter:
     """Writes one bag directory. Not thread-safe: one thread writes.
 
+    ``continuing``: the metadata of the finished bag at ``path`` (as
+    :func:`pppbot_bag.recover.salvaged` reads it back) that this writer records on into, as
+    its next files; its topics keep their counts and are written again once added again.
+
     Raises:
-        BagError: the directory exists (bags are never overwritten) or an option is bad.
+        BagError: the directory exists (bags are never overwritten) and is not continued, a
+            continued bag's compression differs from ``options``', or an option is bad.
     """
 
     def __init__(self, path: Path | str, options: WriterOptions = WriterOptions(),
-                 ros_distro: str = "jazzy") -> None:
+                 ros_distro: str = "jazzy", continuing: BagMetadata | None = None) -> None:
         options.validate()
         self.path = Path(path)
-        if self.path.exists():
-            raise BagError(f"output '{self.path}' exists already; pppbot never overwrites a bag "
-                           "(choose another name with -o)")
-        try:
-            self.path.mkdir(parents=True)
-        except OSError as exc:
-            raise BagError(f"cannot create bag directory '{self.path}': {exc.strerror}") from exc
-        self.options = options
-        self.preset = STORAGE_PRESETS[options.storage_preset]
         mode = options.compression_mode
         self.metadata = BagMetadata(
             compression_mode="" if mode is CompressionMode.NONE else mode.value,
             compression_format="" if mode is CompressionMode.NONE else options.compression_format,
             ros_distro=ros_distro)
         self._topics: dict[str, Topic] = {}
+        if continuing is not None:
+            if (continuing.compression_mode or "none") != mode.value and continuing.message_count:
+                raise BagError(f"'{self.path}' was recorded with compression mode "
+                               f"'{continuing.compression_mode or 'none'}'; recording on into it needs the same "
+                               f"(--compression-mode {continuing.compression_mode or 'none'})")
+            self.metadata.files = list(continuing.files)
+            self._topics = {topic.name: topic for topic in continuing.topics}
+        elif self.path.exists():
+            raise BagError(f"output '{self.path}' exists already; pppbot never overwrites a bag "
+                           "(choose another name with -o)")
+        else:
+            try:
+                self.path.mkdir(parents=True)
+            except OSError as exc:
+                raise BagError(f"cannot create bag directory '{self.path}': {exc.strerror}") from exc
+        self.options = options
+        self.preset = STORAGE_PRESETS[options.storage_preset]
         self._definitions: dict[str, TypeDefinition] = {}
         self._message_compressor = zstandard.ZstdCompressor(level=1)
         self._compressing: list[Future[None]] = []
@@ -166,11 +179,13 @@ class BagWriter:
                   type_hash: str = "") -> None:
         """Register a topic (once; a second registration of the same name is refused)."""
         self._check_open()
-        if name in self._topics:
-            raise BagError(f"topic '{name}' is already in the bag")
-        topic = Topic(name, definition.name, list(offered_qos_profiles),
-                      type_hash or definition.type_hash)
-        self._topics[name] = topic
+        topic = self._topics.get(name)
+        if topic is not None and (name in self._definitions or topic.type != definition.name):
+            raise BagError(f"topic '{name}' is already in the bag" + (
+                "" if topic.type == definition.name else f" as {topic.type}, not {definition.name}"))
+        if topic is None:  # else a continued bag's topic, written again from now on
+            topic = Topic(name, definition.name, list(offered_qos_profiles), type_hash or definition.type_hash)
+            self._topics[name] = topic
         self._definitions[name] = definition
         assert self._file is not None
         self._register(self._file, topic)
@@ -258,7 +273,8 @@ class BagWriter:
             "compression_format": self.metadata.compression_format,
             "ros_distro": self.metadata.ros_distro})
         for topic in self._topics.values():
-            self._register(file, topic)
+            if topic.name in self._definitions:  # a continued bag's other topics: once added again
+                self._register(file, topic)
         self._file = file
         self.metadata.files.append(file.info)
         self._write_metadata()

@@ -349,9 +349,11 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
         if bag.exists():
             raise ArgumentError(f"bag_path: '{bag}' exists already; a bag is never overwritten")
         # Right after the simulator, so the rest of the bringup (latched /robot_description,
-        # /tf_static) is in the bag; stopping the launch finishes the bag.
+        # /tf_static) is in the bag; stopping the launch finishes the bag. Respawned, the
+        # recorder finishes what it left and records on into the same bag.
         nodes.insert(0, NodeSpec("bag_record", [resolve("pppbot_bringup", "pppbot"), "bag", "record", "-a",
-                                                "--use-sim-time", "-o", str(bag)],
+                                                "--use-sim-time", "-o", str(bag),
+                                                *(["--resume"] if args.respawn else [])],
                                  after=("simulator",), ready=ReadyCheck("recording /clock", probes.endpoints(
                                      RECORDER_NODE, subscribes=("/clock",)))))
         start_info.append(f"recording every topic to {bag} (ends when the launch ends)")
@@ -513,8 +515,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                                   after=tuple(n.name for n in nodes if n.required), terminal=True))
         else:
             start_info.append("no terminal here for the keyboard teleop: run ./pppbot teleop in another terminal")
-    if args.respawn:  # every node but the simulator (the world: its death ends the stack), the terminal's and
-        # the recorder (started again it would find its own bag and refuse to overwrite it)
+    if args.respawn:  # every node but the simulator (the world: its death ends the stack) and the terminal's
         nodes = [replace(n, respawn=True, respawn_delay_s=args.respawn_delay, max_respawns=-1)
-                 if n.name not in ("simulator", "bag_record") and not n.terminal else n for n in nodes]
+                 if n.name != "simulator" and not n.terminal else n for n in nodes]
     return Plan(nodes, notes, info, files, start_info, once)

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import pytest
 import rclpy
+import yaml
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rclpy.context import Context
@@ -34,6 +35,7 @@ from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
+from pppbot_common.dds_shm import clean_stale
 from pppbot_common.errors import TimeoutExpired
 from pppbot_common.process import ChildProcess, StopTimeouts
 from pppbot_common.ros.wait import wait_until
@@ -265,6 +267,53 @@ def test_a_killed_recorder_leaves_a_bag_that_reindex_recovers_to_the_last_second
     # What was lost is what came in the last second before the kill (the recorder flushes every second), and
     # what DDS had not handed over yet (a few messages): 50 Hz, so at most 50 + 10 of what the test heard.
     assert numbers[-1] >= last_heard - 60, (numbers[-1], last_heard)
+
+
+def test_a_killed_recorder_started_again_with_resume_records_on_into_its_own_bag(tmp_path):
+    listener = IsolatedNode("bag_test_resume")
+    heard: list[int] = []
+
+    def on_tf(msg: Any) -> None:
+        heard.append(msg.transforms[0].header.stamp.nanosec)
+
+    listener.node.create_subscription(TFMessage, "/tf", on_tf, 50)
+    try:
+        talker, recorder, bag = record_talker(tmp_path)
+        with talker:
+            with recorder:
+                listener.spin_until(lambda: heard, 30, "the talker")
+                first = heard[-1]
+                listener.spin_until(lambda: heard[-1] >= first + 100, 60, "2 s of /tf")
+                recorder.proc.send_signal(signal.SIGKILL)
+                killed_at = heard[-1]
+                recorder.wait(10)
+            clean_stale()  # as the launch does before it starts a killed node again
+            again = ChildProcess([PPPBOT, "bag", "record", "/tf", "/particle_cloud", "-o", str(bag), "--resume"],
+                                 name="recorder again", timeouts=StopTimeouts(20.0, 5.0))
+            with again:
+                again.wait_for_lines(r"subscribed to '/(tf|particle_cloud)'", 2, 60)
+                second = bag / "talk_1.mcap"
+                wait_until(second.exists, 30, "the second recorder's file")
+                opened = second.stat().st_size
+                # Matched once a chunk of messages reached the file (flushed every second); then 2 s more.
+                wait_until(lambda: second.stat().st_size > opened + 2000, 60, "the second recorder's messages")
+                count = len(heard)  # what the listener holds but has not handled: at most its depth, 50
+                listener.spin_until(lambda: len(heard) >= count + 150, 60, "2 s more of /tf")
+                again.proc.send_signal(signal.SIGTERM)
+                assert again.wait(30) == 0
+    finally:
+        listener.close()
+    assert f"recording on into '{bag}' (reindexed '{bag}': 1 file(s)" in again.output
+    numbers = recorded_tf_numbers(bag)  # both recordings, one bag, by an independent reader
+    gaps = [(a, b) for a, b in zip(numbers, numbers[1:], strict=False) if b != a + 1]
+    # In order: what the first kept (to the last second before its kill), then what the second recorded.
+    assert len(gaps) == 1 and gaps[0][0] < gaps[0][1], gaps
+    (end_first, start_second), = gaps
+    assert end_first >= killed_at - 60 and numbers[-1] - start_second >= 100, (end_first, killed_at, numbers[-1])
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["relative_file_paths"] == ["talk_0.mcap", "talk_1.mcap"]
+    counts = {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
+    assert counts["/tf"] == len(numbers) and summary_count(again.output, "/tf") == len(numbers)
 
 
 def test_a_full_disk_ends_the_recording_with_one_message_and_a_readable_bag(tmp_path):

@@ -14,7 +14,7 @@ from pppbot_bag.definitions import type_definition
 from pppbot_bag.errors import BagError
 from pppbot_bag.metadata import qos
 from pppbot_bag.reader import open_bag
-from pppbot_bag.recover import reindex
+from pppbot_bag.recover import reindex, salvaged
 from pppbot_bag.writer import BagWriter, CompressionMode, WriterOptions
 
 
@@ -90,3 +90,32 @@ def test_a_bag_without_metadata_says_how_to_recover(tmp_path):
     (bag / "metadata.yaml").unlink()
     with pytest.raises(BagError, match="bag reindex"), open_bag(bag):
         pass
+
+
+def test_a_killed_bag_salvaged_is_recorded_on_into_as_its_next_file(tmp_path):
+    bag = killed_bag(tmp_path, WriterOptions(), 1200, 5)
+    metadata, report = salvaged(bag)
+    assert report.startswith(f"reindexed '{bag}': 1 file(s), 1200 messages")
+    with BagWriter(bag, WriterOptions(), continuing=metadata) as writer:
+        with pytest.raises(BagError, match="'/chatter' is already in the bag as std_msgs/msg/String, not "):
+            writer.add_topic("/chatter", type_definition("std_msgs/msg/Int32"), [qos()])
+        writer.add_topic("/chatter", type_definition("std_msgs/msg/String"), [qos()])  # recorded on
+        writer.add_topic("/other", type_definition("std_msgs/msg/String"), [qos()])
+        for i in range(1300, 1310):
+            writer.write("/chatter", serialize_message(String(data=f"m{i}")), 10_000 + i)
+        writer.write("/other", serialize_message(String(data="o")), 20_000)
+    with Reader(bag) as reader:  # an independent reader: both recordings, in order, one bag
+        chatter = [bytes(raw) for c, _, raw in reader.messages() if c.topic == "/chatter"]
+        assert {c.topic: c.msgcount for c in reader.connections} == {"/chatter": 1210, "/other": 1}
+    assert chatter == [serialize_message(String(data=f"m{i}")) for i in [*range(1200), *range(1300, 1310)]]
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    # (the first file was written as 'live' and copied to 'killed': the next is named after the bag)
+    assert info["relative_file_paths"] == ["live_0.mcap", "killed_1.mcap"] and info["message_count"] == 1211
+
+
+def test_a_bag_is_recorded_on_into_only_with_its_own_compression(tmp_path):
+    bag = killed_bag(tmp_path, WriterOptions(compression_mode=CompressionMode.MESSAGE), 100, 0)
+    with pytest.raises(BagError, match="compression mode 'message'; recording on into it needs the same"):
+        BagWriter(bag, WriterOptions(), continuing=salvaged(bag)[0])
+    with pytest.raises(BagError, match="exists already; pppbot never overwrites a bag"):
+        BagWriter(bag, WriterOptions(compression_mode=CompressionMode.MESSAGE))

@@ -577,9 +577,11 @@ def test_a_note_said_once_is_said_the_first_time_only(tmp_path):
 def test_respawn_restarts_every_node_but_the_simulator_and_the_terminals_and_not_in_lockstep():
     p, _ = fake_plan("respawn:=true", "respawn_delay:=0.5", "localization:=true", "record:=true", terminal=True)
     by_name = {n.name: n for n in p.nodes}
-    assert not any(by_name[n].respawn for n in ("simulator", "teleop_keyboard", "bag_record"))
-    others = [n for n in p.nodes if n.name not in ("simulator", "teleop_keyboard", "bag_record")]
-    assert {"localization", "navigation"} <= {n.name for n in others}
+    assert not any(by_name[n].respawn for n in ("simulator", "teleop_keyboard"))
+    others = [n for n in p.nodes if n.name not in ("simulator", "teleop_keyboard")]
+    assert {"localization", "navigation", "bag_record"} <= {n.name for n in others}
+    assert by_name["bag_record"].cmd[-1] == "--resume"  # started again, it records on into its own bag
+    assert "--resume" not in next(n for n in fake_plan("record:=true")[0].nodes if n.name == "bag_record").cmd
     assert all(n.respawn and n.respawn_delay_s == 0.5 and n.max_respawns == -1 for n in others)
     assert not any(n.respawn for n in fake_plan("localization:=true")[0].nodes)
     with pytest.raises(ArgumentError, match="respawn:=true needs lockstep:=false"):

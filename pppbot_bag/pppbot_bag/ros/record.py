@@ -36,7 +36,7 @@ from pppbot_bag.cli import RecordOptions
 from pppbot_bag.definitions import type_definition
 from pppbot_bag.errors import BagError
 from pppbot_bag.metadata import BagMetadata
-from pppbot_bag.recover import salvage
+from pppbot_bag.recover import salvage, salvaged
 from pppbot_bag.ros.qos import qos_to_bag, type_hash_string
 from pppbot_bag.writer import BagWriter
 from pppbot_common.errors import MessageTypeError
@@ -181,8 +181,13 @@ def main(options: RecordOptions) -> int:
               "(letters, digits and underscores, not starting with a digit)", file=sys.stderr)
         return 1
     try:
-        writer = BagWriter(options.output, options.writer, ros_distro=os.environ.get("ROS_DISTRO", "jazzy"))
-    except BagError as exc:
+        continuing = None
+        if options.resume and options.output.exists():
+            continuing, report = salvaged(options.output)
+            print(f"[bag record] recording on into '{options.output}' ({report})", flush=True)
+        writer = BagWriter(options.output, options.writer, ros_distro=os.environ.get("ROS_DISTRO", "jazzy"),
+                           continuing=continuing)
+    except (OSError, BagError) as exc:
         print(f"pppbot bag record: {exc}", file=sys.stderr)
         return 1
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
