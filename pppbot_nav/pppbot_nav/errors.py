@@ -83,3 +83,8 @@ class SmootherError(PppbotError, ValueError):
 
 class SmootherTimedOut(PppbotError, RuntimeError):
     """Smoothing took longer than the time it was given (Nav2's SmootherTimedOut)."""
+
+
+class BehaviorTreeError(PppbotError, ValueError):
+    """A behaviour tree cannot be loaded or run as written (bad XML, an unknown node, a missing or
+    bad port); the message names the file and line, the node and what is allowed."""
