@@ -21,6 +21,7 @@ can then be recovered with :func:`pppbot_bag.recover.reindex`.
 from __future__ import annotations
 
 import enum
+import re
 from collections.abc import Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
@@ -144,6 +145,7 @@ class BagWriter:
             compression_format="" if mode is CompressionMode.NONE else options.compression_format,
             ros_distro=ros_distro)
         self._topics: dict[str, Topic] = {}
+        self._next_file = 0  # the number of the next file: <bag>_<number>.mcap
         if continuing is not None:
             if (continuing.compression_mode or "none") != mode.value and continuing.message_count:
                 raise BagError(f"'{self.path}' was recorded with compression mode "
@@ -151,6 +153,8 @@ class BagWriter:
                                f"(--compression-mode {continuing.compression_mode or 'none'})")
             self.metadata.files = list(continuing.files)
             self._topics = {topic.name: topic for topic in continuing.topics}
+            numbers = [re.search(r"_(\d+)\.mcap", f.path) for f in continuing.files]
+            self._next_file = max((int(n[1]) + 1 for n in numbers if n), default=len(continuing.files))
         elif self.path.exists():
             raise BagError(f"output '{self.path}' exists already; pppbot never overwrites a bag "
                            "(choose another name with -o)")
@@ -263,7 +267,8 @@ class BagWriter:
              "topic_type_hash": topic.type_description_hash})
 
     def _open_file(self) -> _OpenFile:
-        path = self.path / f"{self.path.name}_{len(self.metadata.files)}.mcap"
+        path = self.path / f"{self.path.name}_{self._next_file}.mcap"
+        self._next_file += 1
         try:
             file = _OpenFile(path, self.preset)
         except OSError as exc:

@@ -58,6 +58,8 @@ from pppbot_nav.lifecycle import LOCALIZATION_NODES, NAVIGATION_NODES, command_r
 LOG_LEVELS = ("debug", "info", "warn", "error", "fatal")
 #: the simulator's largest ``wheel_slip`` (pppbot_sim.wheel_slip.MAX_SLIP_STDDEV)
 MAX_WHEEL_SLIP = 0.2
+#: With ``respawn:=true``, how often the recorder is started again (other nodes: without limit).
+RECORDER_RESPAWNS = 3
 #: ``pppbot bag record``'s node name (rosbag2's).
 RECORDER_NODE = "rosbag2_recorder"
 #: With ``respawn:=true``, sim seconds between the slam node's autosaves of its pose graph.
@@ -516,6 +518,8 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
         else:
             start_info.append("no terminal here for the keyboard teleop: run ./pppbot teleop in another terminal")
     if args.respawn:  # every node but the simulator (the world: its death ends the stack) and the terminal's
-        nodes = [replace(n, respawn=True, respawn_delay_s=args.respawn_delay, max_respawns=-1)
+        # (the recorder a few times: one that cannot record on into its bag would fail again and again)
+        nodes = [replace(n, respawn=True, respawn_delay_s=args.respawn_delay,
+                         max_respawns=RECORDER_RESPAWNS if n.name == "bag_record" else -1)
                  if n.name != "simulator" and not n.terminal else n for n in nodes]
     return Plan(nodes, notes, info, files, start_info, once)

@@ -48,7 +48,11 @@ class PoseRows:
         """Raises: PoseSeriesError: ``row`` is not four numbers."""
         if len(row) != 4:
             raise PoseSeriesError(f"a pose row is (t_s, x, y, yaw); got {len(row)} values: {tuple(row)}")
-        self._values.extend(row)
+        try:
+            values = array("d", row)  # whole before it is kept: a bad value leaves nothing behind
+        except TypeError as exc:
+            raise PoseSeriesError(f"a pose row is four numbers; got {tuple(row)}") from exc
+        self._values.extend(values)
 
     def __len__(self) -> int:
         return len(self._values) // 4

@@ -12,7 +12,7 @@ from std_msgs.msg import String
 
 from pppbot_bag.definitions import type_definition
 from pppbot_bag.errors import BagError
-from pppbot_bag.metadata import qos
+from pppbot_bag.metadata import BagMetadata, qos
 from pppbot_bag.reader import open_bag
 from pppbot_bag.recover import reindex, salvaged
 from pppbot_bag.writer import BagWriter, CompressionMode, WriterOptions
@@ -119,3 +119,22 @@ def test_a_bag_is_recorded_on_into_only_with_its_own_compression(tmp_path):
         BagWriter(bag, WriterOptions(), continuing=salvaged(bag)[0])
     with pytest.raises(BagError, match="exists already; pppbot never overwrites a bag"):
         BagWriter(bag, WriterOptions(compression_mode=CompressionMode.MESSAGE))
+
+
+def test_recording_on_numbers_the_next_file_after_the_highest_and_a_bag_killed_before_its_first_file_starts_anew(
+        tmp_path):
+    bag = killed_bag(tmp_path, WriterOptions(max_bag_size=5_000), 1500, 0)
+    (bag / "live_0.mcap").unlink()  # a gap in the numbering: the files left are live_1 ... live_N
+    metadata, _ = salvaged(bag)
+    last = max(int(f.path.split("_")[-1].split(".")[0]) for f in metadata.files)
+    with BagWriter(bag, WriterOptions(max_bag_size=5_000), continuing=metadata) as writer:
+        writer.add_topic("/chatter", type_definition("std_msgs/msg/String"), [qos()])
+        writer.write("/chatter", serialize_message(String(data="after")), 99_000)
+    assert writer.metadata.files[-1].path == f"killed_{last + 1}.mcap"
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with BagWriter(empty, WriterOptions(), continuing=BagMetadata()) as writer:
+        writer.add_topic("/chatter", type_definition("std_msgs/msg/String"), [qos()])
+        writer.write("/chatter", serialize_message(String(data="first")), 1)
+    with Reader(empty) as reader:
+        assert [bytes(raw) for _, _, raw in reader.messages()] == [serialize_message(String(data="first"))]

@@ -82,7 +82,9 @@ def test_pose_rows_keep_what_a_list_of_tuples_would_in_a_fifth_of_the_memory():
     assert sys.getsizeof(packed._values) * 5 < tuples
     with pytest.raises(PoseSeriesError, match=r"a pose row is \(t_s, x, y, yaw\); got 3 values"):
         packed.append((1.0, 2.0, 3.0))
-    assert len(packed) == 1000  # the bad row left nothing behind
+    with pytest.raises(PoseSeriesError, match="a pose row is four numbers; got"):
+        packed.append((1.0, 2.0, None, 3.0))  # type: ignore[arg-type]
+    assert len(packed) == 1000 and list(packed)[-1] == rows[-1]  # the bad rows left nothing behind
 
 
 def test_decreasing_times_are_refused():

@@ -189,6 +189,41 @@ def test_a_round_robin_starts_after_the_child_that_last_ended():
     assert t.tick_once() is F and Step.LOG == ["a", "b"]
 
 
+def test_a_round_robin_of_recoveries_that_run_for_ticks_fails_once_each_failed_and_restarts_after_a_halt():
+    t = tree(f"<RoundRobin>{steps('spin', 'wait', 'back_up')}</RoundRobin>",
+             {"spin": [R, F], "wait": [R, F, R, S], "back_up": [R, F]})
+    assert ticks(t, 4) == [R, R, R, F]  # each ran a tick and failed the next: all failed
+    assert Step.LOG == ["spin", "spin", "wait", "wait", "back_up", "back_up"]
+    assert t.tick_once() is R and Step.LOG[6:] == ["spin", "wait"]  # a new round: spin fails, wait runs
+    t.halt()  # the goal ended: the next starts at the first child, not at wait
+    Step.LOG.clear()
+    t.tick_once()
+    assert Step.LOG[0] == "spin"
+
+
+def test_an_action_that_ended_answers_the_same_when_a_pipeline_ticks_it_again_until_reset():
+    from pppbot_nav.bt.tree import StatefulAction
+
+    class Plan(StatefulAction):
+        starts = 0
+
+        def on_start(self) -> Status:
+            Plan.starts += 1
+            return Status.RUNNING
+
+        def on_running(self) -> Status:
+            return Status.SUCCESS
+
+    xml = ('<root BTCPP_format="4"><BehaviorTree ID="M"><PipelineSequence><Plan/><Step id="follow"/>'
+           "</PipelineSequence></BehaviorTree></root>")
+    Step.SCRIPTS, Step.LOG = {"follow": [R]}, []
+    t = TreeFactory({"Plan": Plan, "Step": Step}).load(xml, name="t.xml")
+    assert ticks(t, 5) == [R] * 5 and Plan.starts == 1  # started once; its SUCCESS stands
+    t.halt()
+    t.tick_once()
+    assert Plan.starts == 2
+
+
 def test_a_rate_controller_ticks_its_child_once_a_period_of_the_trees_clock():
     clock = Clock()
     t = tree(f'<PipelineSequence><RateController hz="1.0"><Step id="plan"/></RateController>{steps("follow")}'
@@ -243,6 +278,8 @@ def test_a_subtree_without_remapping_keeps_its_entries_to_itself():
      "</BehaviorTree></root>", r"RateController': port 'hz' = 'fast': could not convert"),
     ('<root BTCPP_format="4"><BehaviorTree ID="M"><Inverter>' + steps("a", "b") + "</Inverter></BehaviorTree></root>",
      r"Inverter 'Inverter' takes 1 child, not 2$"),
+    ('<root BTCPP_format="4"><BehaviorTree ID="M"><RecoveryNode><Step id="a"/></RecoveryNode></BehaviorTree></root>',
+     r"RecoveryNode 'RecoveryNode' takes 2 children, not 1$"),
     ('<root BTCPP_format="4"><BehaviorTree ID="M"><Sequence/></BehaviorTree></root>',
      r"Sequence 'Sequence' takes one or more children, not 0$"),
     ('<root BTCPP_format="3"><BehaviorTree ID="M"><AlwaysSuccess/></BehaviorTree></root>',

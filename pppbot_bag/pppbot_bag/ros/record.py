@@ -183,8 +183,11 @@ def main(options: RecordOptions) -> int:
     try:
         continuing = None
         if options.resume and options.output.exists():
-            continuing, report = salvaged(options.output)
-            print(f"[bag record] recording on into '{options.output}' ({report})", flush=True)
+            if options.output.is_dir() and not any(options.output.glob("*.mcap*")):
+                continuing = BagMetadata()  # killed before its first file: a bag begun, nothing in it
+            else:
+                continuing, report = salvaged(options.output)
+                print(f"[bag record] recording on into '{options.output}' ({report})", flush=True)
         writer = BagWriter(options.output, options.writer, ros_distro=os.environ.get("ROS_DISTRO", "jazzy"),
                            continuing=continuing)
     except (OSError, BagError) as exc:

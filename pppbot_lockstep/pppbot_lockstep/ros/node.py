@@ -138,8 +138,9 @@ class StepActionServer(ActionServer):
             return
         kept = Future()
         kept.set_result(serialize_message(result.result()))
-        self.remove_future(result)
-        self.add_future(kept)
+        if result in self._futures:  # not when the server was destroyed meanwhile
+            self.remove_future(result)
+            self.add_future(kept)
         self._result_futures[goal_uuid] = kept
 
     def _send_result_response(self, request_header: Any, future: Future) -> None:

@@ -106,7 +106,8 @@ class _Ordered(TreeNode):
         return Status.SKIPPED if self._all_skipped else self.go_on
 
     def halt(self) -> None:
-        self.current = 0
+        if not self.memory:  # SequenceWithMemory keeps its place, as BehaviorTree.CPP 4's
+            self.current = 0
         super().halt()
 
 

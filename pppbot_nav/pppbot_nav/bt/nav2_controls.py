@@ -43,7 +43,7 @@ class RecoveryNode(TreeNode):
     again. SUCCESS when the action succeeds; FAILURE when the recovery fails or is skipped,
     or the retries are spent."""
 
-    CHILDREN = None
+    CHILDREN = 2
     PORTS = (input_port("number_of_retries", int, 1),)
 
     def __init__(self, name: str, config: NodeConfig | None = None) -> None:
@@ -52,9 +52,6 @@ class RecoveryNode(TreeNode):
         self.retries = 0
 
     def tick(self) -> Status:
-        if len(self.children) != 2:
-            raise BehaviorTreeError(f"{self._where()}RecoveryNode '{self.name}' must have exactly 2 children, "
-                                    f"not {len(self.children)}")
         allowed = self.get_input("number_of_retries")
         while self.retries <= allowed:
             status = self.children[self.current].execute_tick()
@@ -96,24 +93,28 @@ class RoundRobin(TreeNode):
     def __init__(self, name: str, config: NodeConfig | None = None) -> None:
         super().__init__(name, config)
         self.current = 0
+        self.failed = 0  # children failed in a row, over ticks (a recovery runs for many)
 
     def tick(self) -> Status:
-        failed = 0
-        while failed < len(self.children):
+        while self.failed < len(self.children):
             status = self.children[self.current].execute_tick()
             if status is Status.RUNNING:
                 return status
             self.children[self.current].reset()
             self.current = (self.current + 1) % len(self.children)
             if status is Status.SUCCESS:
+                self.failed = 0
                 reset_all(self.children)
                 return status
-            failed += 1  # FAILURE or SKIPPED: the next one
+            self.failed += 1  # FAILURE or SKIPPED: the next one
+        self.failed = 0
         reset_all(self.children)
         return Status.FAILURE
 
     def halt(self) -> None:
-        super().halt()  # where it is stays: the next round starts after the last that ended
+        self.current = 0  # as Nav2's: a halted round robin (a goal's end) starts again at its first child
+        self.failed = 0
+        super().halt()
 
 
 class RateController(Decorator):

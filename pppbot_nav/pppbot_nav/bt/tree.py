@@ -242,12 +242,15 @@ def reset_all(nodes: Sequence[TreeNode]) -> None:
 
 
 class StatefulAction(TreeNode):
-    """An action that runs over many ticks: :meth:`on_start` on its first (and on a tick after it
-    ended: a pipeline ticks what succeeded again), :meth:`on_running` while it runs,
-    :meth:`on_halted` when it is halted while RUNNING (BehaviorTree.CPP's StatefulActionNode)."""
+    """An action that runs over many ticks: :meth:`on_start` on its first, :meth:`on_running`
+    while it runs, :meth:`on_halted` when it is halted while RUNNING; ticked again once it
+    ended (a pipeline ticks what succeeded), it answers what it ended with until it is reset
+    (BehaviorTree.CPP's StatefulActionNode)."""
 
     def tick(self) -> Status:
-        return self.on_running() if self.status is Status.RUNNING else self.on_start()
+        if self.status is Status.IDLE:
+            return self.on_start()
+        return self.on_running() if self.status is Status.RUNNING else self.status
 
     def on_start(self) -> Status:
         raise NotImplementedError
@@ -259,7 +262,8 @@ class StatefulAction(TreeNode):
         pass
 
     def halt(self) -> None:
-        self.on_halted()
+        if self.status is Status.RUNNING:
+            self.on_halted()
 
 
 class Tree:
@@ -273,7 +277,10 @@ class Tree:
         return self.root.execute_tick()
 
     def halt(self) -> None:
-        self.root.reset()
+        """Halt every node and make it IDLE, as BehaviorTree.CPP's haltTree (a goal's end)."""
+        for node in reversed(self.nodes()):  # leaves first
+            node.halt()
+            node.status = Status.IDLE
 
     def nodes(self) -> list[TreeNode]:
         """Every node, depth first."""
