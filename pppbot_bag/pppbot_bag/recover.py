@@ -10,6 +10,7 @@ as ``ros2 bag reindex`` does for rosbag2.
 """
 from __future__ import annotations
 
+import errno
 import io
 import re
 import struct
@@ -87,18 +88,30 @@ def seal(path: Path) -> None:
     """End an unfinished MCAP file where its last complete record ends, in place: for a file
     whose writing failed (a full disk), when there is no room for :func:`reindex`'s copy. The
     incomplete tail (at most the chunk being written) goes; the file needs only a few bytes
-    more than it already has beyond that, which cutting the tail freed."""
-    good = 0
+    more than it already has beyond that, which cutting the tail freed. When the writing failed
+    right at a record's end, there is no tail to free: the last record goes too, and so on,
+    until the end fits.
+
+    Raises:
+        OSError: not even a file cut to its first record could be ended.
+    """
+    ends = [0]
     with path.open("rb") as stream:
         try:
             for _ in StreamReader(stream).records:
-                good = stream.tell()
+                ends.append(stream.tell())
         except (McapError, EOFError, ValueError, zstandard.ZstdError, struct.error):
             pass
-    with path.open("r+b") as out:
-        out.truncate(good)
-        out.seek(good)
-        out.write(_SUMMARYLESS_END)
+    for good in reversed(ends):  # the last complete record first
+        try:
+            with path.open("r+b") as out:
+                out.truncate(good)
+                out.seek(good)
+                out.write(_SUMMARYLESS_END)
+            return
+        except OSError as exc:
+            if exc.errno not in (errno.EFBIG, errno.ENOSPC, errno.EDQUOT) or good <= ends[1 if len(ends) > 1 else 0]:
+                raise
 
 
 def salvage(bag: Path) -> str:
