@@ -6,6 +6,8 @@ and ``Sleep``; the controls ``Sequence``, ``SequenceWithMemory``, ``ReactiveSequ
 semantics are BehaviorTree.CPP 4's (see :mod:`pppbot_nav.bt.tree` for where they differ)."""
 from __future__ import annotations
 
+from typing import ClassVar
+
 from pppbot_nav.bt.tree import (
     NodeConfig,
     Port,
@@ -188,31 +190,30 @@ class Decorator(TreeNode):
         return self.children[0]
 
 
-class Inverter(Decorator):
+class _Mapped(Decorator):
+    """Inverter, ForceSuccess and ForceFailure: the child's SUCCESS and FAILURE answered as
+    ``answers`` says (the child reset); RUNNING and SKIPPED as they are."""
+
+    answers: ClassVar[dict[Status, Status]] = {}
+
     def tick(self) -> Status:
         status = self.child.execute_tick()
         if status.completed:
             self.child.reset()
-            return Status.FAILURE if status is Status.SUCCESS else Status.SUCCESS
+            return self.answers[status]
         return status
 
 
-class ForceSuccess(Decorator):
-    def tick(self) -> Status:
-        status = self.child.execute_tick()
-        if status.completed:
-            self.child.reset()
-            return Status.SUCCESS
-        return status
+class Inverter(_Mapped):
+    answers = {Status.SUCCESS: Status.FAILURE, Status.FAILURE: Status.SUCCESS}
 
 
-class ForceFailure(Decorator):
-    def tick(self) -> Status:
-        status = self.child.execute_tick()
-        if status.completed:
-            self.child.reset()
-            return Status.FAILURE
-        return status
+class ForceSuccess(_Mapped):
+    answers = {Status.SUCCESS: Status.SUCCESS, Status.FAILURE: Status.SUCCESS}
+
+
+class ForceFailure(_Mapped):
+    answers = {Status.SUCCESS: Status.FAILURE, Status.FAILURE: Status.FAILURE}
 
 
 class _Loop(Decorator):
