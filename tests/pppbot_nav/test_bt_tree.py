@@ -140,6 +140,12 @@ def test_repeat_and_retry_loop_within_a_tick_up_to_their_count():
     assert ticks(forever, 3) == [R, R, R] and Step.LOG == ["a"] * 3  # one cycle a tick
     keep = tree("<KeepRunningUntilFailure><Step id='a'/></KeepRunningUntilFailure>", {"a": [S, S, F]})
     assert ticks(keep, 3) == [R, R, F]
+    # no cycle to run: done at once, the child untouched (BehaviorTree.CPP's loops test before ticking)
+    assert tree('<Repeat num_cycles="0"><Step id="a"/></Repeat>', {"a": [F]}).tick_once() is S and not Step.LOG
+    assert tree('<RetryUntilSuccessful num_attempts="0"><Step id="a"/></RetryUntilSuccessful>',
+                {"a": [S]}).tick_once() is F and not Step.LOG
+    with pytest.raises(BehaviorTreeError, match=r"num_cycles = -2: -1 \(without end\) or a count from 0"):
+        tree('<Repeat num_cycles="-2"><Step id="a"/></Repeat>', {"a": [S]}).tick_once()
 
 
 def test_delay_and_timeout_count_the_trees_clock():
@@ -153,6 +159,10 @@ def test_delay_and_timeout_count_the_trees_clock():
     assert t.tick_once() is R
     clock.now = 1.0
     assert t.tick_once() is F and Step.LOG == ["a", "halt a"]
+    clock.now = 0.0
+    t = tree('<Timeout msec="0"><Step id="a"/></Timeout>', {"a": [R, R, S]}, clock)
+    clock.now = 1e6
+    assert ticks(t, 3) == [R, R, S]  # 0: no limit
 
 
 # -- Nav2's controls ------------------------------------------------------------------------------
@@ -234,6 +244,38 @@ def test_a_rate_controller_ticks_its_child_once_a_period_of_the_trees_clock():
     assert Step.LOG.count("plan") == 3  # at 0, 1 and 2 s
 
 
+def test_a_rate_controller_answers_running_between_its_periods():
+    clock = Clock()
+    t = tree('<RateController hz="2"><Step id="plan"/></RateController>', {"plan": [S]}, clock)
+    answers = []
+    for now in (0.0, 0.2, 0.5, 0.7):
+        clock.now = now
+        answers.append(t.tick_once())
+    # nobody resets the root: between periods it says RUNNING (Nav2's), not its last SUCCESS
+    assert answers == [S, R, S, R] and Step.LOG == ["plan", "plan"]
+
+
+def test_a_reactive_sequence_restarts_a_rate_controller_before_a_running_child():
+    clock = Clock()
+    t = tree(f'<ReactiveSequence><RateController hz="2"><Step id="plan"/></RateController>{steps("follow")}'
+             "</ReactiveSequence>", {"plan": [S], "follow": [R]}, clock)
+    for now in (0.0, 0.2):
+        clock.now = now
+        assert t.tick_once() is R
+    # BehaviorTree.CPP 4: a running child makes its siblings IDLE, so the controller starts anew
+    assert Step.LOG == ["plan", "follow", "plan", "follow"]
+
+
+def test_a_rate_controller_starts_its_period_again_when_its_parent_resets_it():
+    clock = Clock()
+    t = tree(f'<Sequence><RateController hz="2"><Step id="plan"/></RateController>{steps("after")}</Sequence>',
+             {"plan": [S], "after": [S]}, clock)
+    for now in (0.0, 0.2):
+        clock.now = now
+        assert t.tick_once() is S  # a sequence that ended made its children IDLE: a new first tick
+    assert Step.LOG == ["plan", "after", "plan", "after"]
+
+
 def test_a_single_trigger_ticks_its_child_once_until_reset():
     t = tree("<SingleTrigger><Step id='a'/></SingleTrigger>", {"a": [S]})
     assert ticks(t, 2) == [S, F] and Step.LOG == ["a"]
@@ -253,6 +295,14 @@ def test_ports_read_literals_and_entries_and_subtrees_remap_and_autoremap():
     assert (board.get("seen"), board.get("inner_seen"), board.get("auto_seen"), board.get("literal")) == (
         2.5, 2.5, 2.5, 7.0)
     assert "result" not in board and "v" not in board  # the subtree's own names stay in it
+
+
+def test_the_equals_shorthand_names_the_entry_after_the_port():
+    t = tree('<Sequence><SetBlackboard value="4" output_key="value"/><Read value="{=}" out="{=}"/>'
+             '<SubTree ID="Inner" out="{=}"/></Sequence>', {}, Inner='<Read value="1.5" out="{out}"/>')
+    assert t.tick_once() is S and t.blackboard.get("out") == 1.5  # the subtree wrote the parent's 'out'
+    t = tree('<Sequence><SetBlackboard value="4" output_key="value"/><Read value="{=}" out="{=}"/></Sequence>', {})
+    assert t.tick_once() is S and t.blackboard.get("out") == 4.0
 
 
 def test_a_subtree_without_remapping_keeps_its_entries_to_itself():

@@ -6,6 +6,7 @@ and ``Sleep``; the controls ``Sequence``, ``SequenceWithMemory``, ``ReactiveSequ
 semantics are BehaviorTree.CPP 4's (see :mod:`pppbot_nav.bt.tree` for where they differ)."""
 from __future__ import annotations
 
+import math
 from typing import ClassVar
 
 from pppbot_nav.bt.tree import (
@@ -229,6 +230,11 @@ class _Loop(Decorator):
 
     def tick(self) -> Status:
         limit = self.get_input(self.limit_port)
+        if limit < -1:
+            raise BehaviorTreeError(f"{self._where()}{type(self).__name__} '{self.name}': {self.limit_port} = "
+                                    f"{limit}: -1 (without end) or a count from 0")
+        if limit == 0:  # nothing to run: done as if every cycle had gone
+            return self.again
         while True:
             status = self.child.execute_tick()
             if status is Status.RUNNING:
@@ -295,14 +301,16 @@ class Delay(Decorator):
 
 
 class Timeout(Decorator):
-    """The child's answers, but FAILURE (the child halted) once it ran ``msec`` ms of the tree's clock."""
+    """The child's answers, but FAILURE (the child halted) once it ran ``msec`` ms of the tree's clock
+    (0 or less: no limit, as BehaviorTree.CPP's)."""
 
     PORTS = (input_port("msec", int),)
     _until: float | None = None
 
     def tick(self) -> Status:
         if self._until is None:
-            self._until = self.now() + self.get_input("msec") / 1000.0
+            msec = self.get_input("msec")
+            self._until = self.now() + msec / 1000.0 if msec > 0 else math.inf
         if self.now() >= self._until:
             self.halt()
             return Status.FAILURE

@@ -120,7 +120,8 @@ class RoundRobin(TreeNode):
 class RateController(Decorator):
     """Ticks its child at most ``hz`` times a second of the tree's clock (default 10): the first
     tick, while the child runs, and once the period has passed since the child last succeeded;
-    between, it answers what it answered last."""
+    between, RUNNING (as Nav2's: a Sequence above it waits, a PipelineSequence goes on to the
+    next child)."""
 
     PORTS = (input_port("hz", float, 10.0),)
 
@@ -133,19 +134,19 @@ class RateController(Decorator):
         hz = self.get_input("hz")
         if not hz > 0:
             raise BehaviorTreeError(f"{self._where()}RateController '{self.name}': hz = {hz}: must be above 0")
-        if self.status is Status.IDLE:
+        if self.status in (Status.IDLE, Status.SKIPPED):  # a new run: the period starts now
             self.start = self.now()
             self.first = True
         if self.first or self.child.status is Status.RUNNING or self.now() - self.start >= 1.0 / hz:
             self.first = False
             status = self.child.execute_tick()
-            if status is Status.RUNNING:
+            if status in (Status.RUNNING, Status.SKIPPED):
                 return status
             if status is Status.SUCCESS:
                 self.start = self.now()
             self.child.reset()
-            return Status.FAILURE if status is Status.FAILURE else status
-        return self.status
+            return status
+        return Status.RUNNING
 
 
 class SingleTrigger(Decorator):

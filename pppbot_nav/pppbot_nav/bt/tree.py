@@ -80,10 +80,11 @@ def output_port(name: str, description: str = "") -> Port:
     return Port(name, None, None, PortKind.OUTPUT, description)
 
 
-def blackboard_key(text: str) -> str | None:
-    """``{key}`` → ``key``; a literal → None."""
+def blackboard_key(text: str, port: str = "") -> str | None:
+    """``{key}`` → ``key``, ``{=}`` → ``port`` (the entry named as the port); a literal → None."""
     text = text.strip()
-    return text[1:-1].strip() if len(text) > 2 and text[0] == "{" and text[-1] == "}" else None
+    key = text[1:-1].strip() if len(text) > 2 and text[0] == "{" and text[-1] == "}" else None
+    return port if key == "=" and port else key
 
 
 class Blackboard:
@@ -98,7 +99,7 @@ class Blackboard:
         self._remap: dict[str, str] = {}
         self._autoremap = autoremap and parent is not None
         for key, text in (remap or {}).items():
-            parent_key = blackboard_key(text)
+            parent_key = blackboard_key(text, key)
             if parent_key is not None and parent is not None:
                 self._remap[key] = parent_key
             else:
@@ -165,7 +166,7 @@ class TreeNode:
             if port.default is _REQUIRED:
                 raise BehaviorTreeError(f"{self._where()}'{self.name}': input port '{name}' is not given")
             return port.default
-        key = blackboard_key(text)
+        key = blackboard_key(text, name)
         if key is not None:
             if key not in self.config.blackboard:
                 if port.default is not _REQUIRED:
@@ -188,7 +189,7 @@ class TreeNode:
         text = self.config.attributes.get(name)
         if text is None:
             return
-        key = blackboard_key(text)
+        key = blackboard_key(text, name)
         if key is None:
             raise BehaviorTreeError(f"{self._where()}'{self.name}': output port '{name}' must name a blackboard "
                                     f"entry ({{key}}), not '{text}'")
