@@ -109,14 +109,15 @@ class FakeService:
 
 class FakePorts:
     """Servers made on first use (or given beforehand in ``actions``/``services``), the robot's pose
-    in ``poses`` (frame pair → (x, y, yaw)), topics' newest messages in ``topics``."""
+    in ``poses`` (frame pair → (x, y, yaw)), topics' newest messages in ``topics``
+    (what was asked for in ``subscribed``: topic → latched)."""
 
     def __init__(self) -> None:
         self.actions: dict[str, FakeAction] = {}
         self.services: dict[str, FakeService] = {}
         self.poses: dict[tuple[str, str], tuple[float, float, float]] = {}
         self.topics: dict[str, Any] = {}
-        self.published: list[tuple[str, Any]] = []
+        self.subscribed: dict[str, bool] = {}  # topic → latched
 
     def action(self, name: str, action_type: Any) -> FakeAction:
         if name not in self.actions:
@@ -131,8 +132,6 @@ class FakePorts:
     def transform(self, target_frame: str, source_frame: str) -> tuple[float, float, float] | None:
         return self.poses.get((target_frame, source_frame))
 
-    def latest(self, topic: str, message_type: Any) -> Any | None:
+    def latest(self, topic: str, message_type: Any, *, latched: bool = False) -> Any | None:
+        self.subscribed[topic] = latched
         return self.topics.get(topic)
-
-    def publish(self, topic: str, message: Any) -> None:
-        self.published.append((topic, message))

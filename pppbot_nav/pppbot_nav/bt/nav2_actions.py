@@ -362,6 +362,27 @@ class AssistedTeleopNode(_Behavior):
         self.goal.time_allowance = duration_msg(self.get_input("time_allowance"))
 
 
+# -- navigating (a tree that sends goals to a navigator) --------------------------------------------
+
+
+class NavigateToPoseNode(ActionNode):
+    ACTION = nav2_action.NavigateToPose
+    PORTS = server_ports("navigate_to_pose", input_port("goal", None), input_port("behavior_tree", str, ""))
+
+    def on_tick(self) -> None:
+        self.goal.pose = self.get_input("goal")
+        self.goal.behavior_tree = self.get_input("behavior_tree")
+
+
+class NavigateThroughPosesNode(ActionNode):
+    ACTION = nav2_action.NavigateThroughPoses
+    PORTS = server_ports("navigate_through_poses", input_port("goals", None), input_port("behavior_tree", str, ""))
+
+    def on_tick(self) -> None:
+        self.goal.poses = list(self.get_input("goals"))
+        self.goal.behavior_tree = self.get_input("behavior_tree")
+
+
 # -- services -------------------------------------------------------------------------------------
 
 
@@ -471,6 +492,7 @@ NAV2_ACTION_NODES: dict[str, type[TreeNode]] = {
     "SmoothPath": SmoothPathNode, "FollowPath": FollowPathNode,
     "Spin": SpinNode, "BackUp": BackUpNode, "DriveOnHeading": DriveOnHeadingNode, "Wait": WaitNode,
     "AssistedTeleop": AssistedTeleopNode,
+    "NavigateToPose": NavigateToPoseNode, "NavigateThroughPoses": NavigateThroughPosesNode,
     "ClearEntireCostmap": ClearEntireCostmapNode, "ClearCostmapAroundRobot": ClearCostmapAroundRobotNode,
     "ClearCostmapExceptRegion": ClearCostmapExceptRegionNode,
     "ReinitializeGlobalLocalization": ReinitializeGlobalLocalizationNode,

@@ -84,8 +84,20 @@ class RobotPorts(Protocol):
         """The newest planar pose (x, y, yaw) of ``source_frame`` in ``target_frame``; None when TF
         cannot tell."""
 
-    def latest(self, topic: str, message_type: Any) -> Any | None:
-        """The newest message heard on ``topic`` (subscribed at the first call); None before one."""
+    def latest(self, topic: str, message_type: Any, *, latched: bool = False) -> Any | None:
+        """The newest message heard on ``topic`` (subscribed at the first call, ``latched``: transient
+        local, as Nav2's selectors); None before one."""
 
-    def publish(self, topic: str, message: Any) -> None:
-        """Publish ``message`` on ``topic``."""
+
+#: The navigator's settings its tree's nodes read where Nav2's read the navigator node's
+#: parameters: blackboard entry → Nav2's default.
+NAVIGATOR_DEFAULTS: dict[str, Any] = {
+    "global_frame": "map", "robot_base_frame": "base_link", "transform_tolerance": 0.1,
+    "goal_reached_tol": 0.25, "odom_topic": "odom", "goal_updater_topic": "goal_update",
+}
+
+
+def setting(blackboard: Any, key: str) -> Any:
+    """The navigator's setting ``key`` from the blackboard, else Nav2's default."""
+    value = blackboard.get(key)
+    return NAVIGATOR_DEFAULTS[key] if value is None else value
