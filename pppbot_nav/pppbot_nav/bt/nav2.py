@@ -3,6 +3,7 @@ the factory that builds trees with them (BehaviorTree.CPP's own nodes included).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from pathlib import Path
 
 from pppbot_nav.bt.nav2_actions import NAV2_ACTION_NODES
 from pppbot_nav.bt.nav2_conditions import NAV2_CONDITION_NODES
@@ -17,3 +18,9 @@ NAV2_NODES: dict[str, type[TreeNode]] = {**NAV2_ACTION_NODES, **NAV2_CONDITION_N
 def nav2_factory(extra: Mapping[str, type[TreeNode]] | None = None) -> TreeFactory:
     """A factory with BehaviorTree.CPP's nodes, Nav2's, and ``extra`` (a user's, by XML name)."""
     return TreeFactory({**NAV2_NODES, **(extra or {})})
+
+
+#: pppbot's default trees (bt_navigator's default_nav_to_pose_bt_xml and default_nav_through_poses_bt_xml)
+TREES = Path(__file__).resolve().parents[1] / "behavior_trees"
+DEFAULT_NAV_TO_POSE_BT_XML = TREES / "navigate_to_pose_w_replanning_and_recovery.xml"
+DEFAULT_NAV_THROUGH_POSES_BT_XML = TREES / "navigate_through_poses_w_replanning_and_recovery.xml"
