@@ -1,4 +1,4 @@
-"""Nav2's behaviours (``behavior_server`` plugins) and the navigator's recovery round robin, without ROS.
+"""Nav2's behaviours (``behavior_server`` plugins), without ROS.
 
 Each behaviour is started at the robot's pose and then stepped with the current pose and
 time; a step returns the velocity to command, (v m/s, ω rad/s), or the :class:`Outcome` it
@@ -10,8 +10,6 @@ behaviour must stop as Nav2's collision check would: it simulates the command
 ``simulate_ahead_time_s`` ahead (no further than the behaviour still has to go) and refuses
 once a simulated pose puts the footprint circle on an obstacle. :func:`assisted` is Nav2's
 assisted teleop: a teleop command scaled down by how soon it would collide.
-:class:`RecoveryRoundRobin` is the default tree's RoundRobin: clear the costmaps, spin, wait,
-back up, then again from the start.
 """
 from __future__ import annotations
 
@@ -26,13 +24,6 @@ from pppbot_common.se2 import wrap_angle
 
 Pose = tuple[float, float, float]
 Velocity = tuple[float, float]
-
-
-class Recovery(enum.Enum):
-    CLEAR_COSTMAPS = "clear_costmaps"
-    SPIN = "spin"
-    WAIT = "wait"
-    BACKUP = "backup"
 
 
 class Outcome(enum.Enum):
@@ -223,20 +214,3 @@ def assisted(command: Velocity, pose: Pose, costmap: OccupancyGrid | None, *, pr
             scale = t / projection_time_s
             return v * scale, w * scale
     return command
-
-
-class RecoveryRoundRobin:
-    """The recoveries in turn; ``next()`` gives the one to run and moves on."""
-
-    ORDER = (Recovery.CLEAR_COSTMAPS, Recovery.SPIN, Recovery.WAIT, Recovery.BACKUP)
-
-    def __init__(self) -> None:
-        self._index = 0
-
-    def reset(self) -> None:
-        self._index = 0
-
-    def next(self) -> Recovery:
-        recovery = self.ORDER[self._index % len(self.ORDER)]
-        self._index += 1
-        return recovery

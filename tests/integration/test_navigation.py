@@ -48,7 +48,7 @@ def truth_pose(msg: Odometry) -> tuple[float, float, float]:
 
 @pytest.mark.ros
 @pytest.mark.heavy
-def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spawn: Any) -> None:
+def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spawn: Any, tmp_path: Path) -> None:
     launch = spawn([PPPBOT, "launch_sim", "world:=room", "localization:=true", "use_teleop:=false",
                     "use_rviz:=false", "use_viz:=false", "lockstep:=true", "real_time_factor:=1.0"], name="launch_sim")
     launch.wait_for_output(r"ppp_bot is up in 'room'", 90)
@@ -127,6 +127,35 @@ def test_goals_are_reached_canceled_and_taken_from_goal_pose(ros_node: Any, spaw
     #    remaining counted down in the feedback.
     assert_goes_through_poses(ros_node, truths, [(0.0, 0.0), (1.5, -1.0)])
 
+    # 7. A goal's own tree (NavigateToPose's behavior_tree) runs instead of the default; a tree
+    #    written wrong is rejected, naming file and line.
+    assert_a_goals_own_tree_runs(ros_node, client, truths, launch, tmp_path)
+
+
+def assert_a_goals_own_tree_runs(ros_node: Any, client: Any, truths: list[Odometry], launch: Any,
+                                 tmp_path: Path) -> None:
+    """This one turns the robot about in place."""
+    x0, y0, yaw0 = truth_pose(truths[-1])
+    status, result = run_goal(ros_node, client, 0.0, 0.0, behavior_tree=str(tree_file(tmp_path, "turn_about.xml",
+                              '<Sequence><Spin spin_dist="3.14" is_recovery="false"/><Wait wait_duration="0.5"/>'
+                              "</Sequence>")))
+    assert status == GoalStatus.STATUS_SUCCEEDED, result.error_msg
+    x, y, yaw = truth_pose(truths[-1])
+    # turned about where it stood (by the behavior_server's odometry: the wheels slip a little on
+    # a turn in place), not driven to (0, 0) as the default tree would
+    assert abs(wrap_angle(yaw - yaw0)) > 2.5 and math.hypot(x - x0, y - y0) < 0.1 < math.hypot(x, y)
+    bad = tree_file(tmp_path, "bad.xml", '<Sequence>\n<Fly/></Sequence>')
+    handle = send_goal(client, NavigateToPose.Goal(pose=goal_pose(0.0, 0.0, 0.0), behavior_tree=str(bad)), ros_node)
+    assert not handle.accepted
+    launch.wait_for_output(rf"goal rejected: its behavior_tree cannot be loaded: {bad}:3: unknown node 'Fly'", 10)
+
+
+def tree_file(folder: Path, name: str, body: str) -> Path:
+    """A BehaviorTree.CPP 4 file of one tree, ``body``."""
+    path = folder / name
+    path.write_text(f'<root BTCPP_format="4">\n<BehaviorTree ID="MainTree">{body}</BehaviorTree>\n</root>\n')
+    return path
+
 
 def assert_nav2_up(node: Any) -> None:
     """Up as BasicNavigator sees it: amcl and bt_navigator active (waitUntilNav2Active), the
@@ -197,8 +226,8 @@ def lifecycle_state(node: Any, name: str) -> str:
     return str(call(node, GetState, f"/{name}/get_state", GetState.Request()).current_state.label)
 
 
-def run_goal(node: Any, client: Any, x: float, y: float) -> tuple[int, Any]:
-    handle = send_goal(client, NavigateToPose.Goal(pose=goal_pose(x, y, 0.0)), node)
+def run_goal(node: Any, client: Any, x: float, y: float, behavior_tree: str = "") -> tuple[int, Any]:
+    handle = send_goal(client, NavigateToPose.Goal(pose=goal_pose(x, y, 0.0), behavior_tree=behavior_tree), node)
     assert handle.accepted
     done = handle.get_result_async()
     wait_until(done.done, 120, f"the result of ({x}, {y})", node=node)

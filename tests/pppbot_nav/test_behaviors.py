@@ -12,8 +12,6 @@ from pppbot_nav.behaviors import (
     Behavior,
     DriveOnHeading,
     Outcome,
-    Recovery,
-    RecoveryRoundRobin,
     Spin,
     Wait,
     assisted,
@@ -103,14 +101,6 @@ def test_wait_stands_still_for_its_duration():
     commands, _, t, outcome = run(wait, (0.0, 0.0, 0.0))
     assert outcome is Outcome.DONE and wait.remaining == 0.0
     assert set(commands) == {(0.0, 0.0)} and t == pytest.approx(2.0, abs=DT)
-
-
-def test_round_robin_cycles_in_nav2_order_and_resets():
-    robin = RecoveryRoundRobin()
-    order = [robin.next() for _ in range(5)]
-    assert order == [Recovery.CLEAR_COSTMAPS, Recovery.SPIN, Recovery.WAIT, Recovery.BACKUP, Recovery.CLEAR_COSTMAPS]
-    robin.reset()
-    assert robin.next() is Recovery.CLEAR_COSTMAPS
 
 
 # ------------------------------------------------------------------------------- collision gate

@@ -11,10 +11,10 @@ from geometry_msgs.msg import PoseStamped
 from nav2_msgs.action import ComputePathThroughPoses, ComputePathToPose, FollowPath
 from nav_msgs.msg import Path
 
-from pppbot_nav.bt.nav2 import DEFAULT_NAV_THROUGH_POSES_BT_XML, DEFAULT_NAV_TO_POSE_BT_XML, nav2_factory
-from pppbot_nav.bt.nav2_actions import RECOVERIES_KEY
 from pppbot_nav.bt.ports import PORTS_KEY, GoalStatus
 from pppbot_nav.bt.tree import Blackboard, Status
+from pppbot_nav.ros.bt.nav2 import DEFAULT_NAV_THROUGH_POSES_BT_XML, DEFAULT_NAV_TO_POSE_BT_XML, nav2_factory
+from pppbot_nav.ros.bt.nav2_actions import RECOVERIES_KEY
 
 sys.path.insert(0, str(FilePath(__file__).parent))
 from bt_fakes import FakeAction, FakePorts  # noqa: E402
@@ -53,6 +53,8 @@ class Navigation:
         board.set(PORTS_KEY, self.ports)
         board.set("server_timeout", 1000.0)
         board.set(RECOVERIES_KEY, 0)
+        board.set("replanning_frequency", 1.0)  # the navigator's parameters the trees read
+        board.set("number_of_retries", 6)
         for name in ("compute_path_error_code", "follow_path_error_code"):  # the navigator's error_code_names
             board.set(name, 0)
         for key, value in entries.items():
@@ -146,9 +148,9 @@ def test_a_plan_no_recovery_can_help_fails_the_goal_at_once_with_the_planners_co
     assert nav.tree.blackboard.get("compute_path_error_code") == ComputePathToPose.Result.START_OCCUPIED
 
 
-def test_the_through_poses_tree_plans_through_the_poses_still_ahead_every_three_seconds():
+def test_the_through_poses_tree_plans_through_the_poses_still_ahead_at_its_replanning_frequency():
     nav = Navigation(DEFAULT_NAV_THROUGH_POSES_BT_XML, planning(ComputePathThroughPoses),
-                     goals=[pose(0.5), pose(2.0), pose(3.0)])
+                     goals=[pose(0.5), pose(2.0), pose(3.0)], replanning_frequency=0.333)
     assert nav.run(until_s=3.15) is Status.RUNNING
     planner = nav.ports.actions["compute_path_through_poses"]
     assert len(planner.goals) == 2  # at 0 and 3.1 s (0.333 Hz)

@@ -12,11 +12,11 @@ from nav2_msgs.action import ComputePathToPose, FollowPath, Spin, Wait
 from nav2_msgs.srv import ClearCostmapAroundRobot
 from nav_msgs.msg import Path
 
-from pppbot_nav.bt.nav2_actions import NAV2_ACTION_NODES, RECOVERIES_KEY, duration_s
 from pppbot_nav.bt.ports import PORTS_KEY, GoalStatus
 from pppbot_nav.bt.tree import Blackboard, Status
 from pppbot_nav.bt.xml_tree import TreeFactory
 from pppbot_nav.errors import BehaviorTreeError
+from pppbot_nav.ros.bt.nav2_actions import NAV2_ACTION_NODES, RECOVERIES_KEY, duration_s
 
 sys.path.insert(0, str(FilePath(__file__).parent))
 from bt_fakes import FakeAction, FakePorts  # noqa: E402

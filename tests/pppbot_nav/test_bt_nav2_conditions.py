@@ -16,10 +16,10 @@ from sensor_msgs.msg import BatteryState
 from std_msgs.msg import String
 
 from pppbot_common.se2 import yaw_from_quaternion
-from pppbot_nav.bt.nav2 import nav2_factory
 from pppbot_nav.bt.ports import PORTS_KEY
 from pppbot_nav.bt.tree import Blackboard, NodeConfig, Status, TreeNode, input_port
 from pppbot_nav.errors import BehaviorTreeError
+from pppbot_nav.ros.bt.nav2 import nav2_factory
 
 sys.path.insert(0, str(FilePath(__file__).parent))
 from bt_fakes import FakePorts, FakeService  # noqa: E402

@@ -315,6 +315,13 @@ def test_a_subtree_without_remapping_keeps_its_entries_to_itself():
     assert parent.get("x") == 5
 
 
+def test_a_file_without_btcpp_format_is_read_as_4_with_a_warning_naming_it():
+    t = TreeFactory().load('<root>\n<BehaviorTree ID="M"><AlwaysSuccess/></BehaviorTree></root>', name="old.xml")
+    assert t.tick_once() is S
+    assert t.warnings == ['old.xml:1: <root> has no BTCPP_format: read as BehaviorTree.CPP 4\'s (BTCPP_format="4")']
+    assert tree("<AlwaysSuccess/>", {}).warnings == []
+
+
 # -- what the loader refuses -------------------------------------------------------------------------
 
 @pytest.mark.parametrize(("xml", "message"), [

@@ -273,6 +273,8 @@ class Tree:
     def __init__(self, root: TreeNode, blackboard: Blackboard) -> None:
         self.root = root
         self.blackboard = blackboard
+        #: what the loader found worth saying (the file's own words), for its user to log
+        self.warnings: list[str] = []
 
     def tick_once(self) -> Status:
         return self.root.execute_tick()

@@ -1,6 +1,7 @@
 """Loading behaviour trees from BehaviorTree.CPP 4 XML, as Nav2 Jazzy's trees are written.
 
-A file is ``<root BTCPP_format="4" main_tree_to_execute="MainTree">`` with one or more
+A file is ``<root BTCPP_format="4" main_tree_to_execute="MainTree">`` (without ``BTCPP_format``,
+read as 4 with a warning in :attr:`Tree.warnings`, as BehaviorTree.CPP 4 does) with one or more
 ``<BehaviorTree ID="...">`` (one root node each); a node is written by its type
 (``<Sequence>``, ``<ComputePathToPose goal="{goal}"/>``) or, as BehaviorTree.CPP 3 did, as
 ``<Action ID="...">`` / ``<Condition>`` / ``<Control>`` / ``<Decorator>``; ``<SubTree ID="...">``
@@ -67,7 +68,12 @@ class _Loader:
             raise self.error(root, f"the document is <{root.tag}>; a behaviour tree file is "
                                    "<root BTCPP_format=\"4\"> holding <BehaviorTree> elements")
         version = root.get("BTCPP_format")
-        if version != "4":
+        #: what is worth saying but does not stop the load
+        self.warnings: list[str] = []
+        if version is None:  # as BehaviorTree.CPP 4: read as its own format, with a warning
+            self.warnings.append(f"{name}:{root.sourceline}: <root> has no BTCPP_format: read as "
+                                 "BehaviorTree.CPP 4's (BTCPP_format=\"4\")")
+        elif version != "4":
             raise self.error(root, f"BTCPP_format is {version!r}: pppbot reads BehaviorTree.CPP 4's format "
                                    "(BTCPP_format=\"4\", as Nav2 Jazzy's trees)")
         self.trees: dict[str, etree._Element] = {}
@@ -99,7 +105,9 @@ class _Loader:
             main = next(iter(self.trees))
         if main not in self.trees:
             raise self.error(self.root, f"main tree '{main}' is not in the file; its trees: {', '.join(self.trees)}")
-        return Tree(self.body(main, blackboard, (main,)), blackboard)
+        tree = Tree(self.body(main, blackboard, (main,)), blackboard)
+        tree.warnings = list(self.warnings)
+        return tree
 
     def body(self, tree_id: str, blackboard: Blackboard, stack: tuple[str, ...]) -> TreeNode:
         element = self.trees[tree_id]

@@ -1,31 +1,32 @@
-"""``bt_navigator``: goals to the robot's arrival, in Nav2's ``bt_navigator`` place.
+"""``bt_navigator``: goals to the robot's arrival, in Nav2's ``bt_navigator`` place, by running a
+behaviour tree.
 
 Accepts goals as the ``navigate_to_pose`` action (nav2_msgs/action/NavigateToPose), on
 ``goal_pose`` (geometry_msgs/PoseStamped, RViz's "2D Goal Pose") and as the
-``navigate_through_poses`` action (nav2_msgs/action/NavigateThroughPoses: through each pose in
-turn, planned by ``compute_path_through_poses``; a pose the robot has come within
-:data:`PASSED_GOAL_M` of is dropped before the next plan, as Nav2's ``RemovePassedGoals``, and
-the feedback counts the poses remaining); a new goal of either preempts the running one,
-cancel stops the robot. It runs Nav2's default tree
-(``navigate_to_pose_w_replanning_and_recovery``) as a loop:
+``navigate_through_poses`` action (nav2_msgs/action/NavigateThroughPoses). Each goal runs a tree
+(BehaviorTree.CPP 4 XML, :mod:`pppbot_nav.bt`): the goal's ``behavior_tree`` file, else
+``default_nav_to_pose_bt_xml`` / ``default_nav_through_poses_bt_xml``, else pppbot's own default
+trees (:mod:`pppbot_nav.ros.bt.nav2`: replanning at ``replanning_frequency`` while following, a
+costmap cleared and one retry, then ``number_of_retries`` recoveries in a round robin). The tree
+is ticked every ``bt_loop_duration`` ms of sim time, and at once when a server's prompt answer
+(a goal accepted, a plan, a cleared costmap) came. A tree that cannot be loaded is refused:
+the default ones at configure, a goal's own by rejecting the goal, with the file and line.
 
-* plan (``compute_path_to_pose``) at ``replanning_frequency`` (1 Hz) and hand each path to the
-  controller (``follow_path``), which takes a new path as an update of the one it follows;
-* a failed plan clears the global costmap and tries once more, a failed follow clears the
-  local costmap and tries once more; then one recovery of the round robin (clear both
-  costmaps, then the behavior_server's actions: ``spin`` by ``spin_dist``, ``wait``
-  ``wait_duration``, ``backup`` ``backup_dist`` at ``backup_speed``) and the loop again, at most
-  ``number_of_retries`` recoveries per goal. These decisions are
-  :class:`pppbot_nav.navigation_policy.NavigationPolicy`'s (no ROS, unit-tested); this node
-  carries them out.
+A new goal for the tree that runs takes the place of the running one (which aborts) and the tree
+ticks on with it, as Nav2's; a goal for another tree halts the running one and starts its own.
+Cancel halts the tree, which cancels what its nodes started.
 
-Feedback: the robot's pose in ``global_frame``, the navigation time, the distance left along
-the path, an estimated time remaining, and the recoveries so far. A goal that fails carries
-the failing server's error code and message. The navigator commands no velocity itself: the
-controller and the behaviours do (and stop the robot when their goal ends or is canceled).
+Before the first tick the navigator waits (up to ``server_timeout`` s) for the clock, the planner
+and controller servers and the robot's pose in ``global_frame``. Feedback: the robot's pose, the
+navigation time, the distance left along the tree's path (``path_blackboard_id``), an estimated
+time remaining, the recoveries so far (``number_recoveries``) and, through poses, the poses
+remaining (``goals_blackboard_id``). A failed goal carries the smallest non-zero error code of
+``error_code_names`` (Nav2's rule) and that node's message. The navigator commands no velocity
+itself: the controller and the behaviours do.
 """
 from __future__ import annotations
 
+import importlib
 import math
 import sys
 from dataclasses import dataclass
@@ -34,7 +35,6 @@ from typing import Any
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
-from nav2_msgs.action import BackUp as BackUpAction
 from nav2_msgs.action import (
     ComputePathThroughPoses,
     ComputePathToPose,
@@ -42,13 +42,8 @@ from nav2_msgs.action import (
     NavigateThroughPoses,
     NavigateToPose,
 )
-from nav2_msgs.action import Spin as SpinAction
-from nav2_msgs.action import Wait as WaitAction
-from nav2_msgs.srv import ClearEntireCostmap
-from nav_msgs.msg import Path
 from rclpy.action.server import ServerGoalHandle
 from rclpy.duration import Duration
-from rclpy.task import Future
 
 from pppbot_common.params import check_finite_range, param
 from pppbot_common.ros.params import declare_parameters, fixed_parameters
@@ -56,61 +51,92 @@ from pppbot_common.se2 import quaternion_from_yaw
 from pppbot_common.transforms import TransformError
 from pppbot_common.upright import UPRIGHT_STATUS
 from pppbot_lockstep.ros.action_client import ActionClient
-from pppbot_lockstep.ros.goals import (
-    Cancels,
-    Flow,
-    GoalEnd,
-    GoalServer,
-    Sleep,
-    Step,
-    Stopped,
-    check_running,
-    send_feedback,
-    stopped_end,
-)
+from pppbot_lockstep.ros.goals import Cancels, GoalEnd, GoalServer, send_feedback
 from pppbot_lockstep.ros.lifecycle import ManagedNode
 from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
 from pppbot_lockstep.ros.tf_listener import TfListener
-from pppbot_nav.behaviors import Recovery
-from pppbot_nav.navigation_policy import FollowDecision, NavigationPolicy, PlanDecision, PolicySettings
+from pppbot_nav.bt.tree import Status, Tree, TreeNode
+from pppbot_nav.errors import BehaviorTreeError
+from pppbot_nav.ros.bt.nav2_actions import RECOVERIES_KEY
+from pppbot_nav.ros.bt.navigation import NavigatorTrees, TreeSettings, error_of
+from pppbot_nav.ros.bt_ports import RosPorts
 
 
 @dataclass(frozen=True)
 class NavigatorParameters:
     global_frame: str = param("map", "frame of goals and feedback")
     robot_base_frame: str = param("base_link", "the robot's frame")
-    replanning_frequency: float = param(1.0, "plans per second while following (Hz, sim time)")
-    number_of_retries: int = param(6, "recoveries per goal before it fails")
-    server_timeout: float = param(10.0, "wait this long for the planner and controller servers (s)")
-    spin_dist: float = param(1.57, "spin recovery: angle (rad)")
-    wait_duration: float = param(5.0, "wait recovery: duration (s)")
-    backup_dist: float = param(0.30, "backup recovery: distance (m)")
-    backup_speed: float = param(0.05, "backup recovery: speed (m/s)")
+    transform_tolerance: float = param(0.1, "s; given to the tree's nodes")
+    default_nav_to_pose_bt_xml: str = param("", "tree file of navigate_to_pose goals (empty: pppbot's default)")
+    default_nav_through_poses_bt_xml: str = param("", "tree file of navigate_through_poses goals (empty: "
+                                                      "pppbot's default)")
+    always_reload_bt_xml: bool = param(False, "load a goal's tree file again for each goal")
+    plugin_lib_names: list = param([], "Python modules whose BT_NODES (XML name → class) the trees may use; "
+                                       "Nav2's own library names are known already")
+    error_code_names: list = param(["follow_path_error_code", "compute_path_error_code"],
+                                   "blackboard entries whose smallest non-zero value is a failed goal's code")
+    goal_blackboard_id: str = param("goal", "blackboard entry of a navigate_to_pose goal")
+    goals_blackboard_id: str = param("goals", "blackboard entry of a navigate_through_poses goal's poses")
+    path_blackboard_id: str = param("path", "blackboard entry of the path (the feedback's distance remaining)")
+    bt_loop_duration: int = param(50, "ms of sim time between ticks (Nav2's default is 10: pppbot also ticks "
+                                      "when a prompt answer comes, and in lockstep each tick is a round)")
+    default_server_timeout: int = param(1000, "ms a tree's node waits for a server to take its goal or answer "
+                                              "(Nav2's default is 20)")
+    goal_reached_tol: float = param(0.25, "m; GoalReached's tolerance")
+    odom_topic: str = param("odom", "odometry for the tree's nodes that read it")
+    replanning_frequency: float = param(1.0, "pppbot's default trees: plans per second while following (Hz)")
+    number_of_retries: int = param(6, "pppbot's default trees: recoveries per goal before it fails")
+    server_timeout: float = param(10.0, "s to wait before the first tick for the servers and the robot's pose")
 
     def validate(self) -> None:
         check_finite_range("replanning_frequency", self.replanning_frequency, 0.0, 100.0, low_open=True)
         check_finite_range("server_timeout", self.server_timeout, 0.0, 3600.0, low_open=True)
-        check_finite_range("spin_dist", self.spin_dist, -2 * math.pi, 2 * math.pi)
-        check_finite_range("wait_duration", self.wait_duration, 0.0, 3600.0)
-        check_finite_range("backup_dist", self.backup_dist, 0.0, 10.0)
-        check_finite_range("backup_speed", self.backup_speed, 0.0, 2.0, low_open=True)
         check_finite_range("number_of_retries", self.number_of_retries, 0, 1000)
+        check_finite_range("bt_loop_duration", self.bt_loop_duration, 1, 10_000)
+        check_finite_range("default_server_timeout", self.default_server_timeout, 1, 3_600_000)
+        check_finite_range("transform_tolerance", self.transform_tolerance, 0.0, 60.0)
+        check_finite_range("goal_reached_tol", self.goal_reached_tol, 0.0, 100.0)
+
+    def tree_settings(self) -> TreeSettings:
+        return TreeSettings(
+            default_nav_to_pose_bt_xml=self.default_nav_to_pose_bt_xml,
+            default_nav_through_poses_bt_xml=self.default_nav_through_poses_bt_xml,
+            always_reload_bt_xml=self.always_reload_bt_xml, server_timeout_ms=float(self.default_server_timeout),
+            error_code_names=tuple(str(name) for name in self.error_code_names),
+            goal_blackboard_id=self.goal_blackboard_id, goals_blackboard_id=self.goals_blackboard_id,
+            path_blackboard_id=self.path_blackboard_id,
+            entries={"global_frame": self.global_frame, "robot_base_frame": self.robot_base_frame,
+                     "transform_tolerance": self.transform_tolerance, "goal_reached_tol": self.goal_reached_tol,
+                     "odom_topic": self.odom_topic, "replanning_frequency": self.replanning_frequency,
+                     "number_of_retries": self.number_of_retries, "initial_pose_received": False})
+
+
+def plugin_nodes(modules: list[str]) -> dict[str, type[TreeNode]]:
+    """The BT nodes of ``plugin_lib_names``: each a Python module with ``BT_NODES`` (XML name →
+    class); Nav2's own library names (``nav2_*``) are skipped, their nodes being built in.
+
+    Raises:
+        BehaviorTreeError: a module that cannot be imported or has no ``BT_NODES``.
+    """
+    found: dict[str, type[TreeNode]] = {}
+    for name in modules:
+        if str(name).startswith("nav2_"):
+            continue
+        try:
+            module = importlib.import_module(str(name))
+        except ImportError as exc:
+            raise BehaviorTreeError(f"plugin_lib_names: '{name}' cannot be imported ({exc}); it is a Python "
+                                    "module with BT_NODES, a mapping of XML names to node classes") from exc
+        nodes = getattr(module, "BT_NODES", None)
+        if not isinstance(nodes, dict):
+            raise BehaviorTreeError(f"plugin_lib_names: module '{name}' has no BT_NODES (a mapping of XML names "
+                                    "to pppbot_nav.bt.tree.TreeNode classes)")
+        found.update(nodes)
+    return found
 
 
 #: a planned path ending further than this from the goal means the planner moved the goal (m)
 GOAL_MOVED_M = 0.05
-
-
-class NotUpright(Exception):  # noqa: N818 (a signal of the navigator's own, not an error record)
-    """The robot's base reports it is not upright: the goal ends at once, with no recovery."""
-
-
-class Failed(Exception):
-    """A navigation step failed: ``code`` and ``message`` of the server that failed it."""
-
-    def __init__(self, code: int, message: str) -> None:
-        super().__init__(message)
-        self.code = code
 
 
 def path_length_from(path: np.ndarray, xy: tuple[float, float]) -> float:
@@ -122,28 +148,41 @@ def path_length_from(path: np.ndarray, xy: tuple[float, float]) -> float:
     return float(math.hypot(rest[0, 0] - xy[0], rest[0, 1] - xy[1]) + np.hypot(*np.diff(rest, axis=0).T).sum())
 
 
-#: A pose of a navigate_through_poses goal is passed once the robot comes this close (m; Nav2's
-#: RemovePassedGoals radius).
-PASSED_GOAL_M = 0.5
-#: The navigator's loop period (sim s): feedback, goal checks, recovery commands.
-TICK_S = 0.05
-
-
-_NO_TREE = "no behaviour tree is loaded: the default tree's logic is fixed code"
 #: bt_navigator keys that mean nothing here, with the reason (named in the start-up warning when given).
 NO_EFFECT = {
-    "plugin_lib_names": _NO_TREE, "default_nav_to_pose_bt_xml": _NO_TREE, "default_nav_through_poses_bt_xml": _NO_TREE,
-    "default_bt_xml_filename": _NO_TREE, "navigators": _NO_TREE, "navigate_to_pose.*": _NO_TREE,
-    "navigate_through_poses.*": _NO_TREE, "error_code_names": _NO_TREE, "error_code_name_prefixes": _NO_TREE,
-    "bt_loop_duration": "the navigator ticks on its replanning_frequency and each server's answers",
-    "default_server_timeout": "server_timeout is pppbot's name for how long it waits for the servers",
-    "enable_groot_monitoring": "no Groot: no behaviour tree to monitor",
-    "groot_*": "no Groot: no behaviour tree to monitor",
-    "odom_topic": "the navigator reads the robot's pose from TF, not odometry",
-    "transform_tolerance": "the navigator uses the newest transform",
-    "filter_duration": "the navigator reads the robot's pose from TF, not odometry",
+    "default_bt_xml_filename": "Humble's name: default_nav_to_pose_bt_xml",
+    "navigators": "pppbot's bt_navigator runs navigate_to_pose and navigate_through_poses, fixed",
+    "navigate_to_pose.*": "pppbot's navigators are fixed", "navigate_through_poses.*": "pppbot's navigators are fixed",
+    "error_code_name_prefixes": "Kilted's; pppbot reads Jazzy's error_code_names",
+    "wait_for_service_timeout": "the navigator waits for its servers up to server_timeout before the first tick",
+    "enable_groot_monitoring": "no Groot", "groot_*": "no Groot",
+    "filter_duration": "the feedback's speed comes from the robot's pose over the last ticks",
     "use_sim_time": "",
 }
+#: the robot's speed for the feedback's time estimate is its pose's change over this long (sim s)
+SPEED_WINDOW_S = 0.3
+
+
+class NotUpright(Exception):  # noqa: N818 (a signal of the navigator's own, not an error record)
+    """The robot's base reports it is not upright: the goal ends at once, with no recovery."""
+
+
+class _Run:
+    """One goal's run of a tree."""
+
+    def __init__(self, handle: ServerGoalHandle, tree: Tree, through: bool, start_s: float, deadline_s: float,
+                 goal: PoseStamped) -> None:
+        self.handle = handle
+        self.tree = tree
+        self.through = through
+        self.action: Any = NavigateThroughPoses if through else NavigateToPose
+        self.start_s = start_s
+        self.deadline_s = deadline_s  # for the servers and the robot's pose, before the first tick
+        self.goal = goal  # the last pose asked for
+        self.ticking = False  # past the wait for servers and pose
+        self.moved_note: str | None = None
+        self.seen_path: Any = None
+        self.poses: list[tuple[float, float, float]] = []  # (t, x, y) for the speed
 
 
 class Navigator(ManagedNode):
@@ -159,31 +198,36 @@ class Navigator(ManagedNode):
         self.planner = ActionClient(self, ComputePathToPose, "compute_path_to_pose")
         self.planner_through = ActionClient(self, ComputePathThroughPoses, "compute_path_through_poses")
         self.controller = ActionClient(self, FollowPath, "follow_path")
-        self.clear_global = self.create_client(ClearEntireCostmap, "global_costmap/clear_entirely_global_costmap")
-        self.clear_local = self.create_client(ClearEntireCostmap, "local_costmap/clear_entirely_local_costmap")
-        self.behaviors = {Recovery.SPIN: ActionClient(self, SpinAction, "spin"),
-                          Recovery.BACKUP: ActionClient(self, BackUpAction, "backup"),
-                          Recovery.WAIT: ActionClient(self, WaitAction, "wait")}
         self.port.require_when("the compute_path_to_pose server", self.planner.server_is_ready)
         self.port.require_when("the compute_path_through_poses server", self.planner_through.server_is_ready)
         self.port.require_when("the follow_path server", self.controller.server_is_ready)
-        for recovery, client in self.behaviors.items():
-            self.port.require_when(f"the {recovery.value} server", client.server_is_ready)
-        self._active: tuple[ServerGoalHandle, Flow[None], _Progress] | None = None
+        self._active: _Run | None = None
+        self._ticking = False
+        self._again = False
+        self.trees: NavigatorTrees | None = None
         self._self_client = ActionClient(self, NavigateToPose, "navigate_to_pose")
-        self.server = GoalServer(self, NavigateToPose, "navigate_to_pose", self._on_goal, accept=self.taking_goals)
+        self.server = GoalServer(self, NavigateToPose, "navigate_to_pose", self._on_goal, accept=self._accept)
         self.through_server = GoalServer(self, NavigateThroughPoses, "navigate_through_poses", self._on_through_goal,
-                                         accept=self.taking_goals)
+                                         accept=self._accept)
         self.create_subscription(PoseStamped, "goal_pose", guarded(self, self._on_goal_pose, "PoseStamped"), 10)
         #: why the robot is not upright, from its base's /diagnostics (the simulator's, or a driver's); None: upright
         self.not_upright: str | None = None
         on_diagnostics = guarded(self, self._on_diagnostics, "DiagnosticArray")
         self.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
         # Ticks while a goal runs (an idle navigator makes no sync times in lockstep).
-        self.timer = self.step_timer(TICK_S, self._tick)
+        self.timer = self.step_timer(self.params.bt_loop_duration / 1000.0, self._tick)
         self.timer.cancel()
-        self._cancels = Cancels(self._now_s, self.timer)  # FollowPath and behavior goals canceled, until they end
+        self._cancels = Cancels(self._now_s, self.timer)  # goals the tree canceled, asked again until they end
+        self.ports = RosPorts(self, self.tf, self._cancels, self._wake)
         self.get_logger().info("bt_navigator: navigate_to_pose and goal_pose once active")
+
+    def configure(self) -> None:
+        """Load the default trees (a tree written wrong fails the configure, naming file and line)."""
+        p = self.params
+        self.trees = NavigatorTrees(p.tree_settings(), self._now_s, plugin_nodes(list(p.plugin_lib_names)),
+                                    warn=self.get_logger().warning)
+        for through in (False, True):
+            self.trees.tree("", through)
 
     def destroy_node(self) -> None:
         self.server.destroy()
@@ -200,7 +244,7 @@ class Navigator(ManagedNode):
 
     def _on_goal_pose(self, msg: PoseStamped) -> None:
         """As bt_navigator does: a goal on the topic becomes a goal of the action (while active)."""
-        if not self.taking_goals():
+        if not self.active:
             return
         goal = NavigateToPose.Goal()
         goal.pose = msg
@@ -208,328 +252,218 @@ class Navigator(ManagedNode):
                                f"in '{msg.header.frame_id}'")
         self._self_client.send_goal_async(goal)
 
+    def _accept(self, request: Any) -> bool:
+        """Only while active, and only a goal whose tree loads (Nav2 rejects it otherwise)."""
+        if not self.taking_goals() or self.trees is None:
+            return False
+        through = isinstance(request, NavigateThroughPoses.Goal)
+        try:
+            self.trees.tree(request.behavior_tree, through)
+        except BehaviorTreeError as exc:
+            self.get_logger().error(f"goal rejected: its behavior_tree cannot be loaded: {exc}")
+            return False
+        return True
+
     def _on_goal(self, handle: ServerGoalHandle) -> None:
-        """A navigate_to_pose goal."""
         self._start(handle, [handle.request.pose], through=False)
 
     def _on_through_goal(self, handle: ServerGoalHandle) -> None:
-        """A navigate_through_poses goal."""
         self._start(handle, list(handle.request.poses), through=True)
 
     def _start(self, handle: ServerGoalHandle, goals: list[PoseStamped], through: bool) -> None:
-        """A new goal preempts the running one (which aborts) and starts its flow."""
-        previous = self._active
+        assert self.trees is not None
         for goal in goals:
             if not goal.header.frame_id:
                 goal.header.frame_id = self.params.global_frame
-        p = self.params
-        state = _Progress(self._now_s(), NavigationPolicy(PolicySettings(
-            number_of_retries=p.number_of_retries, server_timeout_s=p.server_timeout)), goals, through)
-        if goals:
-            at = goals[-1].pose.position
-            self.get_logger().info(f"navigating to ({at.x:.2f}, {at.y:.2f}) in '{goals[-1].header.frame_id}'"
-                                   + (f" through {len(goals) - 1} poses" if through else ""))
-        flow: Flow[None] = Flow(self._navigate(handle, state), self._now_s,
-                                lambda value, error: self._ended(handle, state, error),
-                                check=lambda: self._check(handle), port=self.port)
-        self._active = (handle, flow, state)
-        if previous is not None:
-            previous[1].tick()  # it sees the preemption now and ends
-        else:
-            self.timer.reset()
-        flow.start()
-
-    def _tick(self) -> None:
-        if self._active is None:
-            if not self._cancels.tick():
-                self.timer.cancel()
+        tree = self.trees.tree(handle.request.behavior_tree, through)
+        previous = self._active
+        now = self._now_s()
+        if not goals:
+            self._finish(_Run(handle, tree, through, now, now, PoseStamped()), GoalEnd.ABORTED, 0,
+                         "no poses to navigate through")
             return
-        handle, flow, state = self._active
-        flow.tick()
-        if not flow.ended:  # recoveries included: a client sees the robot and the count all along
-            self._feedback(handle, state)
+        at = goals[-1].pose.position
+        self.get_logger().info(f"navigating to ({at.x:.2f}, {at.y:.2f}) in '{goals[-1].header.frame_id}'"
+                               + (f" through {len(goals) - 1} poses" if through else ""))
+        entries: dict[str, Any] = {"goals": goals} if through else {"goal": goals[0]}
+        run = _Run(handle, tree, through, now, now + self.params.server_timeout, goals[-1])
+        run.seen_path = tree.blackboard.get(self.params.path_blackboard_id)  # an earlier goal's: no news
+        if previous is not None and previous.tree is tree and previous.ticking:
+            # Nav2's preemption: the new goal takes the running tree's blackboard; the old one aborts
+            self.trees.update_goal(tree, **entries)
+            run.ticking = True
+            self._active = run
+            self._end_preempted(previous)
+        else:
+            if previous is not None:
+                previous.tree.halt()
+                self._end_preempted(previous)
+            self.trees.start(tree, self.ports, **entries)
+            self._active = run
+        if self.timer.is_canceled():
+            self.timer.reset()
+        self._tick()
 
-    # ---------------------------------------------------------------- helpers
+    def _end_preempted(self, previous: _Run) -> None:
+        result = previous.action.Result()
+        result.error_msg = "preempted by a new goal"
+        (self.through_server if previous.through else self.server).finish(previous.handle, GoalEnd.ABORTED, result)
+
+    # ---------------------------------------------------------------- ticking
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _pose(self, frame: str) -> tuple[float, float, float]:
         return self.tf.lookup(frame, self.params.robot_base_frame)
 
-    def _check(self, handle: ServerGoalHandle) -> None:
-        check_running(handle, None if self._active is None else self._active[0])
-        if self.not_upright is not None:  # no goal succeeds with a robot on its side
-            raise NotUpright(self.not_upright)
+    def _wake(self) -> None:
+        """A prompt answer came: tick again now (within the same step, in lockstep)."""
+        if self._active is not None and self._active.ticking:
+            self._tick()
 
-    def _ended(self, handle: ServerGoalHandle, state: _Progress, error: BaseException | None) -> None:
-        """The goal's flow ended: success, a stop (cancel or preemption) or a failure."""
-        if self._active is not None and self._active[0] is handle:
-            self._active = None
-        result = state.action.Result()
-        server = self.through_server if state.through else self.server
-        if error is None:
-            self.get_logger().info(f"goal reached in {self._now_s() - state.start_s:.1f} s "
-                                   f"({state.recoveries} recoveries)")
-            result.error_msg = state.moved_note or ""
-            server.finish(handle, GoalEnd.SUCCEEDED, result)
+    def _tick(self) -> None:
+        if self._ticking:  # a wake from within a tick: once more after it
+            self._again = True
             return
-        self._cancel_follow(state)
-        if isinstance(error, Stopped):
-            result.error_msg = str(error)
-            server.finish(handle, stopped_end(handle), result)
+        self._ticking = True
+        try:
+            for _ in range(10):  # a prompt answer at once, a bounded number of times
+                self._again = False
+                self._tick_once()
+                if not self._again:
+                    break
+        finally:
+            self._ticking = False
+
+    def _tick_once(self) -> None:
+        run = self._active
+        if run is None:
+            if not self._cancels.tick():
+                self.timer.cancel()
             return
-        if isinstance(error, Failed):
-            result.error_code, result.error_msg = error.code, str(error)
-        elif isinstance(error, NotUpright):
-            result.error_code, result.error_msg = 0, str(error)
-        else:
-            result.error_code, result.error_msg = 0, f"{type(error).__name__}: {error}"
-        self.get_logger().warning(f"navigation failed: {result.error_msg}")
-        server.finish(handle, GoalEnd.ABORTED, result)
+        self._cancels.tick()
+        stop = self._stop(run)
+        if stop is not None:
+            run.tree.halt()
+            self._finish(run, stop[0], 0, stop[1])
+            return
+        if not run.ticking and not self._ready(run):
+            return
+        try:
+            status = run.tree.tick_once()
+        except BehaviorTreeError as exc:
+            run.tree.halt()
+            self._finish(run, GoalEnd.ABORTED, 0, f"the behaviour tree failed: {exc}")
+            return
+        self._note_moved_goal(run)
+        if status is Status.RUNNING:
+            self._feedback(run)
+            return
+        run.tree.halt()
+        if status is Status.SUCCESS:
+            self.get_logger().info(f"goal reached in {self._now_s() - run.start_s:.1f} s "
+                                   f"({self._recoveries(run)} recoveries)")
+            self._finish(run, GoalEnd.SUCCEEDED, 0, run.moved_note or "")
+            return
+        code, message = error_of(run.tree.blackboard, [str(n) for n in self.params.error_code_names])
+        message = f"{message or 'the behaviour tree failed'} (after {self._recoveries(run)} recoveries)"
+        self.get_logger().warning(f"navigation failed: {message}")
+        self._finish(run, GoalEnd.ABORTED, code, message)
 
-    def _cancel_follow(self, state: _Progress) -> None:
-        if state.follow is not None:
-            self._cancels.cancel(state.follow, state.follow_result)
-            state.follow = None
-            state.follow_result = None
+    def _stop(self, run: _Run) -> tuple[GoalEnd, str] | None:
+        """Why the goal stops before its tree's next tick: canceled, or a robot not upright (no goal
+        succeeds with a robot on its side)."""
+        if run.handle.is_cancel_requested:
+            return GoalEnd.CANCELED, "canceled"
+        if self.not_upright is not None:
+            return GoalEnd.ABORTED, self.not_upright
+        return None
 
-    def _sleep(self, seconds: float) -> Sleep:
-        return Sleep(self._now_s() + seconds)
-
-    # ------------------------------------------------------------ navigation
-    def _navigate(self, handle: ServerGoalHandle, state: _Progress) -> Step[None]:
-        p = self.params
-        if not state.goals:
-            raise Failed(0, "no poses to navigate through")
-        while self._now_s() <= 0.0:
-            # On sim time with no /clock heard yet (a process started a moment ago, its clock's
-            # reader not matched yet) the clock reads 0: a deadline from it would pass at the first
-            # /clock. The goal waits for the clock instead.
-            yield self._sleep(TICK_S)
-        deadline = self._now_s() + p.server_timeout
-        planner = (self.planner_through, "compute_path_through_poses") if state.through \
+    def _ready(self, run: _Run) -> bool:
+        """Before the first tick: the clock runs (on sim time, 0 until /clock is heard), the planner
+        and controller servers are there, and the robot has a pose in the global frame (a stack
+        just started may not have one yet). Past ``server_timeout``, the goal aborts."""
+        now = self._now_s()
+        if now <= 0.0:
+            run.start_s = now
+            run.deadline_s = math.inf
+            return False
+        if not math.isfinite(run.deadline_s):
+            run.start_s, run.deadline_s = now, now + self.params.server_timeout
+        planner, name = (self.planner_through, "compute_path_through_poses") if run.through \
             else (self.planner, "compute_path_to_pose")
-        for client, name in (planner, (self.controller, "follow_path")):
-            while not client.server_is_ready():
-                if self._now_s() > deadline:
-                    raise Failed(0, f"the {name} server is not available")
-                yield self._sleep(TICK_S)
-        yield from self._wait_for_pose()
-        while True:
-            try:
-                yield from self._plan_and_follow(state)
-                return
-            except Failed as exc:
-                recovery = state.policy.after_failure(exc.code)
-                if recovery is None:
-                    raise Failed(exc.code, f"{exc} (after {state.recoveries} recoveries)") from exc
-                self._cancel_follow(state)
-                self.get_logger().info(f"recovery {state.recoveries}/{p.number_of_retries}: {recovery.value} "
-                                       f"(after: {exc})")
-                yield from self._recover(recovery)
-
-    def _wait_for_pose(self) -> Step[None]:
-        """As bt_navigator does before it navigates: wait (up to ``server_timeout``) for the robot's pose
-        in the global frame, which a just-started stack may not have yet."""
-        deadline = self._now_s() + self.params.server_timeout
-        while True:
-            try:
-                self._pose(self.params.global_frame)
-                return
-            except TransformError as exc:
-                if self._now_s() > deadline:
-                    raise Failed(ComputePathToPose.Result.TF_ERROR, f"no robot pose: {exc}") from exc
-            yield self._sleep(0.1)
-
-    def _plan(self, state: _Progress) -> Step[Path]:
-        """A path from the planner. A planner that is not ready yet (no robot pose, no map: TF_ERROR
-        or UNKNOWN, as a just-started stack's may be) is asked again every half second for up to
-        ``server_timeout`` s; any other failure once more after clearing the global costmap.
-
-        Raises:
-            Failed: with the planner's error code.
-        """
-        policy = state.policy
-        action, client = (ComputePathThroughPoses, self.planner_through) if state.through \
-            else (ComputePathToPose, self.planner)
-        goal = action.Goal()
-        if state.through:
-            goal.goals = list(state.goals)
-        else:
-            goal.goal = state.goals[0]
-        not_ready = (action.Result.TF_ERROR, action.Result.UNKNOWN)
-        started_s = self._now_s()
-        cleared = False
-        while True:
-            handle = yield client.send_goal_async(goal)
-            if handle is None or not handle.accepted:
-                raise Failed(action.Result.UNKNOWN, "the planner refused the goal")
-            response = yield handle.get_result_async()
-            res = response.result
-            if res.error_code == action.Result.NONE and res.path.poses:
-                return res.path
-            decision = policy.after_plan_failure(res.error_code in not_ready, self._now_s() - started_s, cleared)
-            if decision is PlanDecision.RETRY_LATER:
-                yield self._sleep(policy.settings.planner_not_ready_retry_s)
-            elif decision is PlanDecision.CLEAR_AND_RETRY:
-                yield from self._clear(self.clear_global)
-                cleared = True
+        servers = ((planner, name), (self.controller, "follow_path"))
+        missing = [what for client, what in servers if not client.server_is_ready()]
+        try:
+            self._pose(self.params.global_frame)
+            pose_error = None
+        except TransformError as exc:
+            pose_error = str(exc)
+        if not missing and pose_error is None:
+            run.ticking = True
+            return True
+        if now > run.deadline_s:
+            if missing:
+                self._finish(run, GoalEnd.ABORTED, 0, f"the {missing[0]} server is not available")
             else:
-                raise Failed(res.error_code, f"planning: {res.error_msg}")
+                self._finish(run, GoalEnd.ABORTED, ComputePathToPose.Result.TF_ERROR, f"no robot pose: {pose_error}")
+        return False
 
-    def _plan_and_follow(self, state: _Progress) -> Step[None]:
-        follow_failures = 0
-        next_plan = -math.inf
-        while True:
-            now = self._now_s()
-            if now >= next_plan:
-                next_plan = now + 1.0 / self.params.replanning_frequency
-                self._drop_passed_goals(state)
-                path = yield from self._plan(state)
-                state.path = np.array([[ps.pose.position.x, ps.pose.position.y] for ps in path.poses])
-                self._note_moved_goal(state.goals[-1], state)
-                follow = FollowPath.Goal()
-                follow.path = path
-                handle = yield self.controller.send_goal_async(follow, feedback_callback=state.on_feedback)
-                if handle is None or not handle.accepted:
-                    raise Failed(FollowPath.Result.UNKNOWN, "the controller refused the path")
-                state.follow, state.follow_result = handle, handle.get_result_async()
-            if state.follow_result is not None and state.follow_result.done():
-                res = state.follow_result.result().result
-                state.follow, state.follow_result = None, None
-                if res.error_code == FollowPath.Result.NONE:
-                    return
-                follow_failures += 1
-                if state.policy.after_follow_failure(follow_failures) is FollowDecision.FAIL:
-                    raise Failed(res.error_code, f"following: {res.error_msg}")
-                yield from self._clear(self.clear_local)
-                next_plan = -math.inf
-                continue
-            # Until the follow ends or the next plan is due, whichever comes first.
-            yield Sleep(next_plan, wake=state.follow_result)
+    def _finish(self, run: _Run, end: GoalEnd, code: int, message: str) -> None:
+        if self._active is run:
+            self._active = None
+        result = run.action.Result()
+        result.error_code, result.error_msg = code, message
+        (self.through_server if run.through else self.server).finish(run.handle, end, result)
 
-    def _drop_passed_goals(self, state: _Progress) -> None:
-        """Nav2's RemovePassedGoals: the poses before the last that the robot has come within
-        :data:`PASSED_GOAL_M` of (in their frame) are done."""
-        while state.through and len(state.goals) > 1:
-            goal = state.goals[0]
-            try:
-                x, y, _ = self._pose(goal.header.frame_id)
-            except TransformError:
-                return
-            if math.hypot(goal.pose.position.x - x, goal.pose.position.y - y) > PASSED_GOAL_M:
-                return
-            state.goals.pop(0)
+    def _recoveries(self, run: _Run) -> int:
+        return int(run.tree.blackboard.get(RECOVERIES_KEY) or 0)
 
-    def _note_moved_goal(self, request: PoseStamped, state: _Progress) -> None:
+    def _note_moved_goal(self, run: _Run) -> None:
         """The planner moved an unreachable goal to the nearest free pose within its tolerance: say so
         once (the log, and the result's message)."""
-        assert state.path is not None
-        end = state.path[-1]
-        moved = math.hypot(end[0] - request.pose.position.x, end[1] - request.pose.position.y)
-        if moved > GOAL_MOVED_M and state.moved_note is None:
-            state.moved_note = (f"the goal ({request.pose.position.x:.2f}, {request.pose.position.y:.2f}) is in an "
-                                f"obstacle: navigating to the nearest free pose ({end[0]:.2f}, {end[1]:.2f}), "
-                                f"{moved:.2f} m away (the planner's tolerance)")
-            self.get_logger().info(state.moved_note)
+        path = run.tree.blackboard.get(self.params.path_blackboard_id)
+        if path is None or path is run.seen_path or not getattr(path, "poses", None):
+            return
+        run.seen_path = path
+        end = path.poses[-1].pose.position
+        asked = run.goal.pose.position
+        moved = math.hypot(end.x - asked.x, end.y - asked.y)
+        if moved > GOAL_MOVED_M and run.moved_note is None:
+            run.moved_note = (f"the goal ({asked.x:.2f}, {asked.y:.2f}) is in an obstacle: navigating to the "
+                              f"nearest free pose ({end.x:.2f}, {end.y:.2f}), {moved:.2f} m away "
+                              "(the planner's tolerance)")
+            self.get_logger().info(run.moved_note)
 
-    def _feedback(self, handle: ServerGoalHandle, state: _Progress) -> None:
+    def _feedback(self, run: _Run) -> None:
         try:
             x, y, yaw = self._pose(self.params.global_frame)
         except TransformError:
-            return  # no pose yet (a stack starting): the flow says so if it lasts
-        fb = state.action.Feedback()
-        if state.through:
-            fb.number_of_poses_remaining = len(state.goals)
+            return  # no pose (a stack starting): the tree's nodes say so if it lasts
+        now = self._now_s()
+        run.poses = [sample for sample in run.poses if now - sample[0] <= SPEED_WINDOW_S] + [(now, x, y)]
+        board = run.tree.blackboard
+        fb = run.action.Feedback()
+        if run.through:
+            fb.number_of_poses_remaining = len(board.get(self.params.goals_blackboard_id) or [])
         fb.current_pose.header.frame_id = self.params.global_frame
         fb.current_pose.header.stamp = self.get_clock().now().to_msg()
         fb.current_pose.pose.position.x, fb.current_pose.pose.position.y = x, y
         o = fb.current_pose.pose.orientation
         o.x, o.y, o.z, o.w = quaternion_from_yaw(yaw)
-        fb.navigation_time = Duration(seconds=max(0.0, self._now_s() - state.start_s)).to_msg()
-        fb.number_of_recoveries = state.recoveries
-        remaining = path_length_from(state.path, (x, y)) if state.path is not None else 0.0
+        fb.navigation_time = Duration(seconds=max(0.0, now - run.start_s)).to_msg()
+        fb.number_of_recoveries = self._recoveries(run)
+        path = board.get(self.params.path_blackboard_id)
+        poses = getattr(path, "poses", None) or []
+        xy = np.array([[p.pose.position.x, p.pose.position.y] for p in poses]).reshape(-1, 2)
+        remaining = path_length_from(xy, (x, y))
         fb.distance_remaining = float(remaining)
-        speed = state.speed if state.speed > 0.05 else 0.0
-        fb.estimated_time_remaining = Duration(seconds=remaining / speed if speed else 0.0).to_msg()
-        send_feedback(self.port, handle, fb)
-
-    def _clear(self, client: Any) -> Step[None]:
-        if not client.service_is_ready():
-            self._warn("clear", f"{client.srv_name} is not available: not cleared")
-            return
-        yield client.call_async(ClearEntireCostmap.Request())
-
-    # ------------------------------------------------------------ recoveries
-    def _recover(self, recovery: Recovery) -> Step[None]:
-        """One recovery of the round robin: clear both costmaps, or the behavior_server's spin, wait
-        or backup action (its failure, a collision ahead or a timeout, is logged; the round robin
-        goes on)."""
-        p = self.params
-        if recovery is Recovery.CLEAR_COSTMAPS:
-            yield from self._clear(self.clear_local)
-            yield from self._clear(self.clear_global)
-            return
-        client = self.behaviors[recovery]
-        goal: Any
-        if recovery is Recovery.SPIN:
-            goal = SpinAction.Goal(target_yaw=p.spin_dist,
-                                   time_allowance=Duration(seconds=BEHAVIOR_ALLOWANCE_S).to_msg())
-            allowance = BEHAVIOR_ALLOWANCE_S
-        elif recovery is Recovery.BACKUP:
-            goal = BackUpAction.Goal(speed=p.backup_speed,
-                                     time_allowance=Duration(seconds=BEHAVIOR_ALLOWANCE_S).to_msg())
-            goal.target.x = p.backup_dist
-            allowance = BEHAVIOR_ALLOWANCE_S
-        else:
-            goal = WaitAction.Goal(time=Duration(seconds=p.wait_duration).to_msg())
-            allowance = p.wait_duration
-        if not client.server_is_ready():
-            self._warn("behavior", f"{recovery.value} skipped: the behavior_server's {recovery.value} action "
-                                   "is not available")
-            return
-        handle = yield client.send_goal_async(goal)
-        if handle is None or not handle.accepted:
-            self._warn("behavior", f"{recovery.value} skipped: the behavior_server refused it (not active?)")
-            return
-        result = handle.get_result_async()
-        try:
-            deadline = self._now_s() + allowance + BEHAVIOR_ALLOWANCE_S
-            while not result.done() and self._now_s() < deadline:
-                yield Sleep(deadline, wake=result)
-        finally:
-            if not result.done():  # the goal was canceled or preempted meanwhile, or the server hangs
-                self._cancels.cancel(handle, result)
-        if result.done() and result.result().result.error_code != 0:
-            res = result.result().result
-            self.get_logger().info(f"{recovery.value} ended early: {res.error_msg}")
-
-
-#: The time a spin or backup recovery is allowed (s; Nav2's default tree's time_allowance).
-BEHAVIOR_ALLOWANCE_S = 10.0
-
-
-class _Progress:
-    """One goal's running state."""
-
-    def __init__(self, start_s: float, policy: NavigationPolicy, goals: list[PoseStamped], through: bool) -> None:
-        self.start_s = start_s
-        self.policy = policy
-        self.goals = goals  # the poses still to reach, the goal last
-        self.through = through  # a navigate_through_poses goal
-        self.action: Any = NavigateThroughPoses if through else NavigateToPose
-        self.path: np.ndarray | None = None
-        self.follow: Any = None
-        self.follow_result: Future | None = None
-        self.speed = 0.0
-        self.moved_note: str | None = None  # set when the planner moved an unreachable goal
-
-    @property
-    def recoveries(self) -> int:
-        return self.policy.recoveries
-
-    def on_feedback(self, msg: Any) -> None:
-        self.speed = float(msg.feedback.speed)
+        t0, x0, y0 = run.poses[0]
+        speed = math.hypot(x - x0, y - y0) / (now - t0) if now > t0 else 0.0
+        # Nav2's: an estimate only while moving (above 1 cm/s) and still 10 cm or more away
+        eta = remaining / speed if speed > 0.01 and remaining > 0.1 else 0.0
+        fb.estimated_time_remaining = Duration(seconds=eta).to_msg()
+        send_feedback(self.port, run.handle, fb)
 
 
 def main(args: list[str] | None = None) -> int:

@@ -16,10 +16,10 @@ from nav2_msgs import srv as nav2_srv
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import BatteryState
 
-from pppbot_nav.bt.nav2_actions import DEFAULT_SERVER_TIMEOUT_MS, SERVER_TIMEOUT_KEY, ports_of
 from pppbot_nav.bt.ports import ServiceCall, setting
 from pppbot_nav.bt.tree import NodeConfig, Port, Status, TreeNode, as_bool, input_port
 from pppbot_nav.errors import BehaviorTreeError
+from pppbot_nav.ros.bt.nav2_actions import DEFAULT_SERVER_TIMEOUT_MS, SERVER_TIMEOUT_KEY, ports_of
 
 #: a deceleration beyond this (m/s², forward speed) means the robot hit something (Nav2's IsStuck)
 STUCK_DECELERATION = 10.0

@@ -16,11 +16,11 @@ from std_msgs.msg import String
 
 from pppbot_common.se2 import quaternion_from_yaw, wrap_angles, yaw_from_quaternion
 from pppbot_nav.bt.builtin import Decorator
-from pppbot_nav.bt.nav2_actions import ports_of
-from pppbot_nav.bt.nav2_conditions import _goal_and_goals, _same, robot_pose_in
 from pppbot_nav.bt.ports import setting
 from pppbot_nav.bt.tree import NodeConfig, Status, TreeNode, input_port, output_port
 from pppbot_nav.errors import BehaviorTreeError
+from pppbot_nav.ros.bt.nav2_actions import ports_of
+from pppbot_nav.ros.bt.nav2_conditions import _goal_and_goals, _same, robot_pose_in
 
 
 def path_xy(path: Any) -> np.ndarray:

@@ -1,0 +1,1 @@
+"""Nav2's behaviour-tree nodes on ROS messages, and the navigator's trees."""
