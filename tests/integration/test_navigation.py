@@ -18,7 +18,7 @@ from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, Twist
 from lifecycle_msgs.srv import GetState
 from nav2_msgs.action import ComputePathThroughPoses, NavigateThroughPoses, NavigateToPose
-from nav2_msgs.srv import GetCostmap
+from nav2_msgs.srv import GetCostmap, IsPathValid
 from nav_msgs.msg import OccupancyGrid, Odometry
 from nav_msgs.msg import Path as PathMsg
 from rclpy.action import ActionClient
@@ -192,6 +192,15 @@ def assert_plans_through_poses(node: Any) -> None:
     assert math.hypot(xy[-1][0] - end[0], xy[-1][1] - end[1]) < 0.05
     last = result.path.poses[-1].pose.orientation
     assert abs(yaw_from_quaternion(last.x, last.y, last.z, last.w) - 1.57) < 1e-3
+    # is_path_valid (the planner server's, Nav2's IsPathValid): the plan is; a straight line
+    # from the robot at (0, 0) through the room's west wall (x = -2.5) is not, from its poses
+    # within the robot's radius of the wall on
+    assert call(node, IsPathValid, "/is_path_valid", IsPathValid.Request(path=result.path)).is_valid
+    line = PathMsg()
+    line.header.frame_id = "map"
+    line.poses = [goal_pose(-0.1 * i, 0.0, 0.0) for i in range(30)]  # 0 … -2.9 m
+    answer = call(node, IsPathValid, "/is_path_valid", IsPathValid.Request(path=line))
+    assert not answer.is_valid and answer.invalid_pose_indices and 20 < answer.invalid_pose_indices[0] < 26
     empty = send_goal(client, ComputePathThroughPoses.Goal(), node).get_result_async()
     failed = wait_until(lambda: empty.result() if empty.done() else None, 30, "no goals' answer", node=node)
     assert failed.result.error_code == ComputePathThroughPoses.Result.NO_VIAPOINTS_GIVEN

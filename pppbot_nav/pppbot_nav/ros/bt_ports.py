@@ -6,7 +6,8 @@ server that answers promptly (a planner, a smoother, a costmap's clearing, ``is_
 are waited for within the step that asked (:meth:`StepPort.hold_for`), and ``wake`` is called
 when they came so the tree is ticked again at once (BehaviorTree.CPP's wake-up signal). The
 result of a goal that runs for a while (following a path, a spin) is seen at the tree's next
-tick, whenever it happened to arrive within that period.
+tick, whenever it happened to arrive within that period. A goal or request to a server that is
+not there is not sent (no step could wait for its answer): the node sees it refused.
 """
 from __future__ import annotations
 
@@ -77,6 +78,26 @@ class RosGoalCall:
             cancel_once_accepted(self._sent)
 
 
+class Unsent:
+    """A goal or request not sent, its server not being there: refused at once, never answered (no
+    step waits for it; the node fails as Nav2's does when its server is missing)."""
+
+    def accepted(self) -> bool | None:
+        return False
+
+    def outcome(self) -> Outcome | None:
+        return None
+
+    def response(self) -> Any | None:
+        return None
+
+    def ended(self) -> bool:
+        return True
+
+    def cancel(self) -> None:
+        pass
+
+
 class RosActionPort:
     def __init__(self, ports: RosPorts, name: str, action_type: Any) -> None:
         self.ports = ports
@@ -87,8 +108,11 @@ class RosActionPort:
     def ready(self) -> bool:
         return self.client.server_is_ready()
 
-    def send(self, goal: Any, on_feedback: Callable[[Any], None] | None = None) -> RosGoalCall:
+    def send(self, goal: Any, on_feedback: Callable[[Any], None] | None = None) -> RosGoalCall | Unsent:
         self.live = [call for call in self.live if not call.ended()]
+        if not self.ready():
+            self.ports.missing(f"action server '{self.client._action_name}'")  # noqa: SLF001 - rclpy keeps it there
+            return Unsent()
         return RosGoalCall(self, goal, on_feedback)
 
     def cancel_all(self) -> None:
@@ -117,7 +141,10 @@ class RosServicePort:
     def ready(self) -> bool:
         return self.client.service_is_ready()
 
-    def call(self, request: Any) -> RosServiceCall:
+    def call(self, request: Any) -> RosServiceCall | Unsent:
+        if not self.ready():
+            self.ports.missing(f"service '{self.client.srv_name}'")
+            return Unsent()
         future = self.client.call_async(request)
         self.ports.waited(future)
         return RosServiceCall(future)
@@ -127,8 +154,10 @@ class RosPorts:
     """The tree's ports on ``node``: ``tf`` its transform buffer, ``cancels`` what re-asks canceled
     goals until they end, ``wake`` what ticks the tree again (a prompt answer came)."""
 
-    def __init__(self, node: Node, tf: TransformBuffer, cancels: Cancels, wake: Callable[[], None]) -> None:
+    def __init__(self, node: Node, tf: TransformBuffer, cancels: Cancels, wake: Callable[[], None],
+                 warn: Callable[[str, str], None] = lambda key, message: None) -> None:
         self.node = node
+        self._warn = warn
         self.tf = tf
         self.cancels = cancels
         self.wake = wake
@@ -136,6 +165,9 @@ class RosPorts:
         self._actions: dict[str, RosActionPort] = {}
         self._services: dict[str, RosServicePort] = {}
         self._topics: dict[str, list[Any]] = {}
+
+    def missing(self, what: str) -> None:
+        self._warn("bt_server", f"the tree's node found no {what}: it fails, as Nav2's does without its server")
 
     def waited(self, future: Future, then: Callable[[Future], None] | None = None) -> None:
         """In lockstep the step waits for ``future`` (a prompt answer); when it is done, ``then`` and a tick."""

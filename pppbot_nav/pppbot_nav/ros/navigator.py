@@ -218,7 +218,7 @@ class Navigator(ManagedNode):
         self.timer = self.step_timer(self.params.bt_loop_duration / 1000.0, self._tick)
         self.timer.cancel()
         self._cancels = Cancels(self._now_s, self.timer)  # goals the tree canceled, asked again until they end
-        self.ports = RosPorts(self, self.tf, self._cancels, self._wake)
+        self.ports = RosPorts(self, self.tf, self._cancels, self._wake, self._warn)
         self.get_logger().info("bt_navigator: navigate_to_pose and goal_pose once active")
 
     def configure(self) -> None:

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from geometry_msgs.msg import PoseStamped
 from nav2_msgs.action import ComputePathThroughPoses, ComputePathToPose
+from nav2_msgs.srv import IsPathValid
 from nav_msgs.msg import Path
 from rclpy.action.server import ServerGoalHandle
 from rclpy.duration import Duration
@@ -39,6 +40,7 @@ from pppbot_common.transforms import TransformError, compose
 from pppbot_lockstep.ros.lifecycle import ManagedNode
 from pppbot_lockstep.ros.node import StepActionServer
 from pppbot_lockstep.ros.runner import run_nodes
+from pppbot_nav.costmap.costs import INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION
 from pppbot_nav.planner import errors
 from pppbot_nav.planner.plugin_settings import DEFAULT_PLANNER_TYPES, LIVE_PLANNER, PLANNER_TYPES
 from pppbot_nav.ros.costmap_node import CostmapNode
@@ -118,6 +120,7 @@ class PlannerServer(ManagedNode):
                                            lambda handle: self._execute(handle, ComputePathThroughPoses,
                                                                         self.compute_through),
                                            goal_callback=self.gated())
+        self.create_service(IsPathValid, "is_path_valid", self._is_path_valid)
         serve_live_parameters(self, [LiveParameters("", lambda: self.params, self._set_params,
                                                     {"expected_planner_frequency"}),
                                      *live_plugin_parameters(self.plugins, self._set_planner_params, LIVE_PLANNER)])
@@ -146,6 +149,28 @@ class PlannerServer(ManagedNode):
         if source == frame:
             return pose
         return compose(self.costmap_node.tf.lookup(frame, source), pose)
+
+    def _is_path_valid(self, request: IsPathValid.Request, response: IsPathValid.Response) -> IsPathValid.Response:
+        """Nav2's ``is_path_valid``: the path from its pose closest to the robot on is valid unless one
+        of those poses is on a lethal or inscribed cell of the global costmap (an unknown cell or
+        one off the map does not count); ``invalid_pose_indices`` lists each that is."""
+        costmap = self.costmap_node.update() if self.active else None
+        robot = self.costmap_node.robot_pose()
+        if costmap is None or not request.path.poses:
+            response.is_valid = costmap is not None  # an empty path has nothing in the way
+            return response
+        try:
+            xy = np.array([self._in_costmap_frame(pose)[:2] for pose in request.path.poses])
+        except TransformError as exc:
+            self.get_logger().warning(f"is_path_valid: the path's frame is not known: {exc}")
+            response.is_valid = False
+            return response
+        first = int(np.argmin(np.hypot(xy[:, 0] - robot[0], xy[:, 1] - robot[1]))) if robot is not None else 0
+        costs = costmap.cost_at(xy[first:, 0], xy[first:, 1], outside=NO_INFORMATION)
+        blocked = np.flatnonzero((costs == LETHAL_OBSTACLE) | (costs == INSCRIBED_INFLATED_OBSTACLE)) + first
+        response.invalid_pose_indices = [int(i) for i in blocked]
+        response.is_valid = len(blocked) == 0
+        return response
 
     def _execute(self, goal_handle: ServerGoalHandle, action: Any, compute: Any) -> Any:
         """One goal of ``action`` (either planning action), planned by ``compute``, with its error codes."""
