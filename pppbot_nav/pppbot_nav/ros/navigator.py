@@ -183,6 +183,8 @@ class _Run:
         self.moved_note: str | None = None
         self.seen_path: Any = None
         self.poses: list[tuple[float, float, float]] = []  # (t, x, y) for the speed
+        self.path_msg: Any = None  # the path the feedback measures along, and its points (K, 2)
+        self.path_xy = np.zeros((0, 2))
 
 
 class Navigator(ManagedNode):
@@ -317,11 +319,12 @@ class Navigator(ManagedNode):
         return self.tf.lookup(frame, self.params.robot_base_frame)
 
     def _wake(self) -> None:
-        """A prompt answer came: tick again now (within the same step, in lockstep)."""
+        """A prompt answer came: tick again now (within the same step, in lockstep), without feedback
+        (that goes out on the timer's ticks, at a steady rate)."""
         if self._active is not None and self._active.ticking:
-            self._tick()
+            self._tick(feedback=False)
 
-    def _tick(self) -> None:
+    def _tick(self, feedback: bool = True) -> None:
         if self._ticking:  # a wake from within a tick: once more after it
             self._again = True
             return
@@ -329,13 +332,14 @@ class Navigator(ManagedNode):
         try:
             for _ in range(10):  # a prompt answer at once, a bounded number of times
                 self._again = False
-                self._tick_once()
+                self._tick_once(feedback)
                 if not self._again:
                     break
+                feedback = False
         finally:
             self._ticking = False
 
-    def _tick_once(self) -> None:
+    def _tick_once(self, feedback: bool = True) -> None:
         run = self._active
         if run is None:
             if not self._cancels.tick():
@@ -357,7 +361,8 @@ class Navigator(ManagedNode):
             return
         self._note_moved_goal(run)
         if status is Status.RUNNING:
-            self._feedback(run)
+            if feedback:
+                self._feedback(run)
             return
         run.tree.halt()
         if status is Status.SUCCESS:
@@ -454,9 +459,11 @@ class Navigator(ManagedNode):
         fb.navigation_time = Duration(seconds=max(0.0, now - run.start_s)).to_msg()
         fb.number_of_recoveries = self._recoveries(run)
         path = board.get(self.params.path_blackboard_id)
-        poses = getattr(path, "poses", None) or []
-        xy = np.array([[p.pose.position.x, p.pose.position.y] for p in poses]).reshape(-1, 2)
-        remaining = path_length_from(xy, (x, y))
+        if path is not run.path_msg:  # a new path: its points once
+            poses = getattr(path, "poses", None) or []
+            run.path_msg = path
+            run.path_xy = np.array([[p.pose.position.x, p.pose.position.y] for p in poses]).reshape(-1, 2)
+        remaining = path_length_from(run.path_xy, (x, y))
         fb.distance_remaining = float(remaining)
         t0, x0, y0 = run.poses[0]
         speed = math.hypot(x - x0, y - y0) / (now - t0) if now > t0 else 0.0
