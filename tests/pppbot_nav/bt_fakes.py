@@ -86,6 +86,9 @@ class FakeServiceCall:
     def response(self) -> Any | None:
         return self._response
 
+    def refused(self) -> bool:
+        return False
+
     def respond(self, response: Any) -> None:
         self._response = response
 

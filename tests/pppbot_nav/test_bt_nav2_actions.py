@@ -106,6 +106,7 @@ def test_a_goal_the_server_does_not_acknowledge_within_server_timeout_fails_and_
     assert tree.tick_once() is R
     clock.now = 0.05
     assert tree.tick_once() is F
+    assert ports.actions["wait"].last.canceled  # should the server take it late, it is canceled
     tree.halt()
     assert tree.tick_once() is R  # a new goal
     ports.actions["wait"].last.refuse()
@@ -194,3 +195,20 @@ def test_a_wait_of_a_negative_time_waits_its_opposite_and_one_not_a_number_is_re
     assert duration_s(ports.actions["wait"].last.goal.time) == 1.5
     with pytest.raises(BehaviorTreeError, match=r"Wait 'Wait': wait_duration = nan: a finite number"):
         load('<Wait wait_duration="nan"/>', FakePorts()).tick_once()
+
+
+def test_a_pipeline_ticks_a_finished_plan_again_and_it_answers_its_end_without_planning_again():
+    ports = FakePorts()
+    tree = load('<PipelineSequence><ComputePathToPose goal="{goal}" path="{path}"/><FollowPath path="{path}"/>'
+                "</PipelineSequence>", ports, goal=pose(3.0, 1.0))
+    assert tree.tick_once() is R
+    planner = ports.actions["compute_path_to_pose"]
+    planner.last.end(GoalStatus.SUCCEEDED, planner.result(path=path_to(0.0, 3.0)))
+    assert [tree.tick_once(), tree.tick_once(), tree.tick_once()] == [R, R, R]
+    assert len(planner.goals) == 1 and len(ports.actions["follow_path"].goals) == 1
+
+
+def test_a_literal_on_an_output_port_is_refused_at_load():
+    with pytest.raises(BehaviorTreeError, match=r"^nav\.xml:1: ComputePathToPose 'ComputePathToPose': output port "
+                                                r"'path' must name a blackboard entry \(\{key\}\), not 'path'$"):
+        load('<ComputePathToPose goal="{goal}" path="path"/>', FakePorts())

@@ -78,3 +78,14 @@ def test_plugin_lib_names_add_a_modules_nodes_and_nav2s_own_names_are_known_alre
     assert answer == TransitionCallbackReturn.FAILURE and "module 'not_nodes' has no BT_NODES" in failure
     answer, failure, _ = configured(plugin_lib_names=["no_such_module_here"])
     assert answer == TransitionCallbackReturn.FAILURE and "'no_such_module_here' cannot be imported" in failure
+
+
+@pytest.mark.ros
+def test_a_goals_tree_path_that_is_no_path_is_named(tmp_path: Path) -> None:
+    from pppbot_nav.errors import BehaviorTreeError
+
+    answer, failure, trees = configured()
+    assert answer == TransitionCallbackReturn.SUCCESS, failure
+    for text, why in (("bad\x00name.xml", "embedded null byte"), ("~no_such_user_here/t.xml", "home directory")):
+        with pytest.raises(BehaviorTreeError, match=why):
+            trees.tree(text, False)

@@ -62,6 +62,9 @@ class ServiceCall(Protocol):
     def response(self) -> Any | None:
         """The response; None until it came."""
 
+    def refused(self) -> bool:
+        """True when the request was not sent (no such service): no response will come."""
+
 
 class ServicePort(Protocol):
     def ready(self) -> bool:

@@ -144,8 +144,12 @@ class _Loader:
         node = node_class(label, NodeConfig(attributes, blackboard, self.clock, where))
         for key, text in attributes.items():  # a literal its port refuses: now, not at the first tick
             port = ports[key]
-            if blackboard_key(text) is None and port.kind is not PortKind.OUTPUT:
-                node._convert(port, text)
+            if blackboard_key(text) is not None:
+                continue
+            if port.kind is PortKind.OUTPUT:
+                raise self.error(element, f"{type_name} '{label}': output port '{key}' must name a blackboard "
+                                          f"entry ({{key}}), not '{text}'")
+            node._convert(port, text)
         children = list(element)
         wanted = node_class.CHILDREN
         if (wanted is None and not children) or (wanted is not None and len(children) != wanted):

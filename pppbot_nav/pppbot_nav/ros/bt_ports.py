@@ -24,7 +24,7 @@ from rclpy.task import Future
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.transforms import TransformBuffer, TransformError
 from pppbot_lockstep.ros.action_client import ActionClient
-from pppbot_lockstep.ros.goals import Cancels, cancel_once_accepted
+from pppbot_lockstep.ros.goals import Arrival, Cancels
 from pppbot_lockstep.ros.node import port_of
 from pppbot_lockstep.ros.runner import guarded
 from pppbot_nav.bt.ports import GoalStatus, Outcome
@@ -41,19 +41,25 @@ class RosGoalCall:
         feedback = None if on_feedback is None else (lambda msg: on_feedback(msg.feedback))
         self._sent: Future = port.client.send_goal_async(goal, feedback_callback=feedback)
         self._handle: ClientGoalHandle | None = None
-        self._result: Future | None = None
+        self._result: Future | Arrival | None = None
         self._canceled = False
+        port.live.append(self)
         port.ports.waited(self._sent, self._on_sent)
 
     def _on_sent(self, sent: Future) -> None:
         handle = None if sent.cancelled() or sent.exception() is not None else sent.result()
-        if not isinstance(handle, ClientGoalHandle) or not handle.accepted or self._canceled:
+        if not isinstance(handle, ClientGoalHandle) or not handle.accepted:
+            return
+        if self._canceled:  # canceled before it was taken: cancel it now, asked again until it ends
+            self._port.ports.cancels.cancel(handle, handle.get_result_async())
             return
         self._handle = handle
-        self._result = handle.get_result_async()
+        future = handle.get_result_async()
         if self._port.prompt:
-            self._port.ports.waited(self._result)
-        self._port.live.append(self)
+            self._port.ports.waited(future)
+            self._result = future
+        else:  # seen from the first tick after it came, the same tick on every machine
+            self._result = Arrival(future, self._port.ports.clock_s, self._port.ports.step_port)
 
     def accepted(self) -> bool | None:
         if not self._sent.done():
@@ -61,21 +67,25 @@ class RosGoalCall:
         return self._handle is not None
 
     def outcome(self) -> Outcome | None:
-        if self._result is None or not self._result.done() or self._result.exception() is not None:
+        if self._result is None or not self._result.done():
             return None
-        wrapped = self._result.result()
+        future = self._result.future if isinstance(self._result, Arrival) else self._result
+        if future.exception() is not None:
+            return None
+        wrapped = future.result()
         status = _ENDS.get(wrapped.status)
         return None if status is None else Outcome(status, wrapped.result)
 
     def ended(self) -> bool:
-        return self._result is not None and self._result.done()
+        return (self._sent.done() and self._handle is None) or (self._result is not None and self._result.done())
 
     def cancel(self) -> None:
+        if self._canceled:
+            return
         self._canceled = True
         if self._handle is not None:
-            self._port.ports.cancels.cancel(self._handle, self._result)
-        else:
-            cancel_once_accepted(self._sent)
+            future = self._result.future if isinstance(self._result, Arrival) else self._result
+            self._port.ports.cancels.cancel(self._handle, future)
 
 
 class Unsent:
@@ -90,6 +100,9 @@ class Unsent:
 
     def response(self) -> Any | None:
         return None
+
+    def refused(self) -> bool:
+        return True
 
     def ended(self) -> bool:
         return True
@@ -132,6 +145,9 @@ class RosServiceCall:
             return None
         return self._future.result()
 
+    def refused(self) -> bool:
+        return False
+
 
 class RosServicePort:
     def __init__(self, ports: RosPorts, name: str, service_type: Any) -> None:
@@ -161,17 +177,20 @@ class RosPorts:
         self.tf = tf
         self.cancels = cancels
         self.wake = wake
-        self._step_port = port_of(node)
+        self.step_port = port_of(node)
         self._actions: dict[str, RosActionPort] = {}
         self._services: dict[str, RosServicePort] = {}
         self._topics: dict[str, list[Any]] = {}
+
+    def clock_s(self) -> float:
+        return float(self.node.get_clock().now().nanoseconds * 1e-9)
 
     def missing(self, what: str) -> None:
         self._warn("bt_server", f"the tree's node found no {what}: it fails, as Nav2's does without its server")
 
     def waited(self, future: Future, then: Callable[[Future], None] | None = None) -> None:
         """In lockstep the step waits for ``future`` (a prompt answer); when it is done, ``then`` and a tick."""
-        release = self._step_port.hold_for(future)
+        release = self.step_port.hold_for(future)
 
         def done(answered: Future) -> None:
             try:

@@ -9,8 +9,9 @@ Accepts goals as the ``navigate_to_pose`` action (nav2_msgs/action/NavigateToPos
 trees (:mod:`pppbot_nav.ros.bt.nav2`: replanning at ``replanning_frequency`` while following, a
 costmap cleared and one retry, then ``number_of_retries`` recoveries in a round robin). The tree
 is ticked every ``bt_loop_duration`` ms of sim time, and at once when a server's prompt answer
-(a goal accepted, a plan, a cleared costmap) came. A tree that cannot be loaded is refused:
-the default ones at configure, a goal's own by rejecting the goal, with the file and line.
+(a goal accepted, a plan, a cleared costmap) came. A tree that cannot be loaded is refused
+with the file and line: the default ones at configure, a goal's own by aborting the goal (as
+Nav2 Jazzy's takes it and ends it).
 
 A new goal for the tree that runs takes the place of the running one (which aborts) and the tree
 ticks on with it, as Nav2's; a goal for another tree halts the running one and starts its own.
@@ -57,7 +58,7 @@ from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
 from pppbot_lockstep.ros.tf_listener import TfListener
 from pppbot_nav.bt.tree import Status, Tree, TreeNode
 from pppbot_nav.errors import BehaviorTreeError
-from pppbot_nav.ros.bt.nav2_actions import RECOVERIES_KEY
+from pppbot_nav.ros.bt.nav2_actions import RECOVERIES_KEY, ActionNode, ServiceNode
 from pppbot_nav.ros.bt.navigation import NavigatorTrees, TreeSettings, error_of
 from pppbot_nav.ros.bt_ports import RosPorts
 
@@ -84,6 +85,7 @@ class NavigatorParameters:
                                               "(Nav2's default is 20)")
     goal_reached_tol: float = param(0.25, "m; GoalReached's tolerance")
     odom_topic: str = param("odom", "odometry for the tree's nodes that read it")
+    goal_updater_topic: str = param("goal_update", "GoalUpdater's topic of newer goals")
     replanning_frequency: float = param(1.0, "pppbot's default trees: plans per second while following (Hz)")
     number_of_retries: int = param(6, "pppbot's default trees: recoveries per goal before it fails")
     server_timeout: float = param(10.0, "s to wait before the first tick for the servers and the robot's pose")
@@ -107,7 +109,8 @@ class NavigatorParameters:
             path_blackboard_id=self.path_blackboard_id,
             entries={"global_frame": self.global_frame, "robot_base_frame": self.robot_base_frame,
                      "transform_tolerance": self.transform_tolerance, "goal_reached_tol": self.goal_reached_tol,
-                     "odom_topic": self.odom_topic, "replanning_frequency": self.replanning_frequency,
+                     "odom_topic": self.odom_topic, "goal_updater_topic": self.goal_updater_topic,
+                     "replanning_frequency": self.replanning_frequency,
                      "number_of_retries": self.number_of_retries, "initial_pose_received": False})
 
 
@@ -170,8 +173,8 @@ class NotUpright(Exception):  # noqa: N818 (a signal of the navigator's own, not
 class _Run:
     """One goal's run of a tree."""
 
-    def __init__(self, handle: ServerGoalHandle, tree: Tree, through: bool, start_s: float, deadline_s: float,
-                 goal: PoseStamped) -> None:
+    def __init__(self, handle: ServerGoalHandle, tree: Tree | None, through: bool, start_s: float,
+                 deadline_s: float, goal: PoseStamped) -> None:
         self.handle = handle
         self.tree = tree
         self.through = through
@@ -255,16 +258,8 @@ class Navigator(ManagedNode):
         self._self_client.send_goal_async(goal)
 
     def _accept(self, request: Any) -> bool:
-        """Only while active, and only a goal whose tree loads (Nav2 rejects it otherwise)."""
-        if not self.taking_goals() or self.trees is None:
-            return False
-        through = isinstance(request, NavigateThroughPoses.Goal)
-        try:
-            self.trees.tree(request.behavior_tree, through)
-        except BehaviorTreeError as exc:
-            self.get_logger().error(f"goal rejected: its behavior_tree cannot be loaded: {exc}")
-            return False
-        return True
+        """Only while active (a goal whose tree cannot be loaded is taken and aborted, as Nav2's)."""
+        return self.taking_goals() and self.trees is not None
 
     def _on_goal(self, handle: ServerGoalHandle) -> None:
         self._start(handle, [handle.request.pose], through=False)
@@ -277,9 +272,15 @@ class Navigator(ManagedNode):
         for goal in goals:
             if not goal.header.frame_id:
                 goal.header.frame_id = self.params.global_frame
-        tree = self.trees.tree(handle.request.behavior_tree, through)
         previous = self._active
         now = self._now_s()
+        try:
+            tree = self.trees.tree(handle.request.behavior_tree, through)
+        except Exception as exc:  # noqa: BLE001 - whatever the file is, the goal ends and the node goes on
+            self.get_logger().error(f"goal aborted: its behavior_tree cannot be loaded: {exc}")
+            self._finish(_Run(handle, None, through, now, now, PoseStamped()), GoalEnd.ABORTED, 0,
+                         f"the behavior_tree cannot be loaded: {exc}")
+            return
         if not goals:
             self._finish(_Run(handle, tree, through, now, now, PoseStamped()), GoalEnd.ABORTED, 0,
                          "no poses to navigate through")
@@ -298,18 +299,47 @@ class Navigator(ManagedNode):
             self._end_preempted(previous)
         else:
             if previous is not None:
-                previous.tree.halt()
+                self._halt(previous)
                 self._end_preempted(previous)
-            self.trees.start(tree, self.ports, **entries)
             self._active = run
+            try:
+                self.trees.start(tree, self.ports, **entries)
+            except Exception as exc:  # noqa: BLE001 - a tree that cannot start ends its goal, not the node
+                self._fail(run, exc)
+                return
         if self.timer.is_canceled():
             self.timer.reset()
         self._tick()
 
     def _end_preempted(self, previous: _Run) -> None:
+        """The goal a new one took the place of: aborted, or canceled if its client had asked."""
         result = previous.action.Result()
-        result.error_msg = "preempted by a new goal"
-        (self.through_server if previous.through else self.server).finish(previous.handle, GoalEnd.ABORTED, result)
+        end = GoalEnd.CANCELED if previous.handle.is_cancel_requested else GoalEnd.ABORTED
+        result.error_msg = "canceled" if end is GoalEnd.CANCELED else "preempted by a new goal"
+        (self.through_server if previous.through else self.server).finish(previous.handle, end, result)
+
+    def _halt(self, run: _Run) -> None:
+        """Halt the run's tree (what its nodes started is canceled); a node that fails to halt is logged."""
+        if run.tree is None:
+            return
+        try:
+            run.tree.halt()
+        except Exception as exc:  # noqa: BLE001 - the goal still ends
+            self.get_logger().error(f"halting the behaviour tree failed: {type(exc).__name__}: {exc}")
+
+    def _fail(self, run: _Run, exc: BaseException) -> None:
+        """A tree's node raised: the goal aborts, naming it, and the node goes on."""
+        self._halt(run)
+        what = str(exc) if isinstance(exc, BehaviorTreeError) else f"{type(exc).__name__}: {exc}"
+        self.get_logger().error(f"the behaviour tree failed: {what}")
+        self._finish(run, GoalEnd.ABORTED, 0, f"the behaviour tree failed: {what}")
+
+    def deactivate(self) -> None:
+        """As Nav2's: a goal running when the navigator is deactivated ends (its tree halted)."""
+        run = self._active
+        if run is not None:
+            self._halt(run)
+            self._finish(run, GoalEnd.ABORTED, 0, "bt_navigator deactivated")
 
     # ---------------------------------------------------------------- ticking
     def _now_s(self) -> float:
@@ -348,23 +378,23 @@ class Navigator(ManagedNode):
         self._cancels.tick()
         stop = self._stop(run)
         if stop is not None:
-            run.tree.halt()
+            self._halt(run)
             self._finish(run, stop[0], 0, stop[1])
             return
         if not run.ticking and not self._ready(run):
             return
+        assert run.tree is not None
         try:
             status = run.tree.tick_once()
-        except BehaviorTreeError as exc:
-            run.tree.halt()
-            self._finish(run, GoalEnd.ABORTED, 0, f"the behaviour tree failed: {exc}")
+        except Exception as exc:  # noqa: BLE001 - a node's failure ends its goal, not the navigator
+            self._fail(run, exc)
             return
         self._note_moved_goal(run)
         if status is Status.RUNNING:
             if feedback:
                 self._feedback(run)
             return
-        run.tree.halt()
+        self._halt(run)
         if status is Status.SUCCESS:
             self.get_logger().info(f"goal reached in {self._now_s() - run.start_s:.1f} s "
                                    f"({self._recoveries(run)} recoveries)")
@@ -395,10 +425,7 @@ class Navigator(ManagedNode):
             return False
         if not math.isfinite(run.deadline_s):
             run.start_s, run.deadline_s = now, now + self.params.server_timeout
-        planner, name = (self.planner_through, "compute_path_through_poses") if run.through \
-            else (self.planner, "compute_path_to_pose")
-        servers = ((planner, name), (self.controller, "follow_path"))
-        missing = [what for client, what in servers if not client.server_is_ready()]
+        missing = self._missing_servers(run)
         try:
             self._pose(self.params.global_frame)
             pose_error = None
@@ -409,10 +436,33 @@ class Navigator(ManagedNode):
             return True
         if now > run.deadline_s:
             if missing:
-                self._finish(run, GoalEnd.ABORTED, 0, f"the {missing[0]} server is not available")
+                self._finish(run, GoalEnd.ABORTED, 0, f"the {missing[0]} server is not available "
+                                                      "(the behaviour tree uses it)")
             else:
-                self._finish(run, GoalEnd.ABORTED, ComputePathToPose.Result.TF_ERROR, f"no robot pose: {pose_error}")
+                self._finish(run, GoalEnd.ABORTED, ComputePathToPose.Result.TF_ERROR,
+                             f"no robot pose: {pose_error}")
         return False
+
+    def _missing_servers(self, run: _Run) -> list[str]:
+        """The action servers and services the run's tree uses that are not there yet (their clients
+        made now: as Nav2's nodes wait for their servers when the tree is made)."""
+        assert run.tree is not None
+        missing: list[str] = []
+        for node in run.tree.nodes():
+            try:
+                if isinstance(node, ActionNode):
+                    name = node.get_input("server_name")
+                    ready = self.ports.action(name, node.ACTION).ready()
+                elif isinstance(node, ServiceNode):
+                    name = node.get_input("service_name")
+                    ready = self.ports.service(name, node.SERVICE).ready()
+                else:
+                    continue
+            except BehaviorTreeError:
+                continue  # a name from a blackboard entry not set yet: the node says so when ticked
+            if not ready and name not in missing:
+                missing.append(name)
+        return missing
 
     def _finish(self, run: _Run, end: GoalEnd, code: int, message: str) -> None:
         if self._active is run:
@@ -422,11 +472,12 @@ class Navigator(ManagedNode):
         (self.through_server if run.through else self.server).finish(run.handle, end, result)
 
     def _recoveries(self, run: _Run) -> int:
-        return int(run.tree.blackboard.get(RECOVERIES_KEY) or 0)
+        return int(run.tree.blackboard.get(RECOVERIES_KEY) or 0) if run.tree is not None else 0
 
     def _note_moved_goal(self, run: _Run) -> None:
         """The planner moved an unreachable goal to the nearest free pose within its tolerance: say so
         once (the log, and the result's message)."""
+        assert run.tree is not None
         path = run.tree.blackboard.get(self.params.path_blackboard_id)
         if path is None or path is run.seen_path or not getattr(path, "poses", None):
             return
@@ -446,7 +497,10 @@ class Navigator(ManagedNode):
         except TransformError:
             return  # no pose (a stack starting): the tree's nodes say so if it lasts
         now = self._now_s()
-        run.poses = [sample for sample in run.poses if now - sample[0] <= SPEED_WINDOW_S] + [(now, x, y)]
+        # the samples within the window, and the newest older one (a window longer than a tick)
+        older = [sample for sample in run.poses if now - sample[0] > SPEED_WINDOW_S][-1:]
+        run.poses = older + [sample for sample in run.poses if now - sample[0] <= SPEED_WINDOW_S] + [(now, x, y)]
+        assert run.tree is not None
         board = run.tree.blackboard
         fb = run.action.Feedback()
         if run.through:

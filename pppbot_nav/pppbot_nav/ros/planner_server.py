@@ -153,11 +153,11 @@ class PlannerServer(ManagedNode):
     def _is_path_valid(self, request: IsPathValid.Request, response: IsPathValid.Response) -> IsPathValid.Response:
         """Nav2's ``is_path_valid``: the path from its pose closest to the robot on is valid unless one
         of those poses is on a lethal or inscribed cell of the global costmap (an unknown cell or
-        one off the map does not count); ``invalid_pose_indices`` lists each that is."""
+        one off the map does not count), or it is empty; ``invalid_pose_indices`` lists each that is."""
         costmap = self.costmap_node.update() if self.active else None
         robot = self.costmap_node.robot_pose()
-        if costmap is None or not request.path.poses:
-            response.is_valid = costmap is not None  # an empty path has nothing in the way
+        if costmap is None or not request.path.poses:  # an empty path is no path (Nav2's)
+            response.is_valid = False
             return response
         try:
             xy = np.array([self._in_costmap_frame(pose)[:2] for pose in request.path.poses])

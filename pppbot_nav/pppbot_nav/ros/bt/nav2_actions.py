@@ -126,6 +126,8 @@ class ActionNode(TreeNode):
         self.feedback = feedback
 
     def tick(self) -> Status:
+        if self.status.completed:  # ticked again once it ended (a pipeline does): its end, until reset
+            return self.status
         if self.status in (Status.IDLE, Status.SKIPPED):
             self.goal = self.ACTION.Goal()
             self.should_send_goal = True
@@ -163,6 +165,7 @@ class ActionNode(TreeNode):
         if accepted is None:
             if self.now() - self.sent_s < self.timeout_s():
                 return Status.RUNNING
+            self.call.cancel()  # should the server take it late, it does not run on unwatched
             self.call = None
             return Status.FAILURE  # timed out waiting for the server to acknowledge the goal
         if not accepted:
@@ -406,12 +409,17 @@ class ServiceNode(TreeNode):
         return Status.SUCCESS
 
     def tick(self) -> Status:
+        if self.status.completed:  # ticked again once it ended: its end, until reset
+            return self.status
         if self.status in (Status.IDLE, Status.SKIPPED):
             self.request = self.SERVICE.Request()
             self.on_tick()
             self.call = ports_of(self).service(self.get_input("service_name"), self.SERVICE).call(self.request)
             self.sent_s = self.now()
         assert self.call is not None
+        if self.call.refused():  # no such service
+            self.call = None
+            return Status.FAILURE
         response = self.call.response()
         if response is None:
             ms = self.get_input("server_timeout")

@@ -117,6 +117,9 @@ class IsPathValid(TreeNode):
             request = nav2_srv.IsPathValid.Request(path=self.get_input("path"))
             self.call = ports_of(self).service("is_path_valid", nav2_srv.IsPathValid).call(request)
             self.sent_s = self.now()
+        if self.call.refused():  # no planner serving it
+            self.call = None
+            return Status.FAILURE
         response = self.call.response()
         if response is None:
             ms = self.get_input("server_timeout")

@@ -63,11 +63,15 @@ class NavigatorTrees:
         Raises:
             BehaviorTreeError: no such file, or the tree as :mod:`pppbot_nav.bt.xml_tree` refuses it.
         """
-        path = Path(file).expanduser() if str(file) else self.settings.default_tree(through)
-        path = path.resolve()
+        try:
+            path = Path(file).expanduser() if str(file) else self.settings.default_tree(through)
+            path = path.resolve()
+            found = path.is_file()
+        except (ValueError, RuntimeError, OSError) as exc:  # a NUL in it, ~nobody, a loop of links
+            raise BehaviorTreeError(f"{str(file)!r} is not a behaviour tree file's path ({exc})") from exc
         if path in self._loaded and not self.settings.always_reload_bt_xml:
             return self._loaded[path]
-        if not path.is_file():
+        if not found:
             raise BehaviorTreeError(f"{path}: no such behaviour tree file")
         tree = self.factory.load(path, clock=self.clock, blackboard=Blackboard())
         for warning in tree.warnings:
