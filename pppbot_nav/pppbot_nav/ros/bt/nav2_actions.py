@@ -54,6 +54,15 @@ def ports_of(node: TreeNode) -> RobotPorts:
     return ports
 
 
+def server_timeout_s(node: TreeNode) -> float:
+    """How long (s) ``node`` waits for its server: its ``server_timeout`` port (ms), else the
+    navigator's (the blackboard's ``server_timeout``, bt_navigator's default_server_timeout)."""
+    ms = node.get_input("server_timeout")
+    if ms is None:
+        ms = node.config.blackboard.get(SERVER_TIMEOUT_KEY, DEFAULT_SERVER_TIMEOUT_MS)
+    return float(ms) / 1000.0
+
+
 def server_ports(default_name: str, *own: Port, errors: bool = True) -> tuple[Port, ...]:
     """A server node's ports: ``server_name``, ``server_timeout``, ``own``, and with ``errors`` the
     outputs ``error_code_id`` and ``error_msg``."""
@@ -112,10 +121,7 @@ class ActionNode(TreeNode):
         return ports_of(self).action(self.get_input("server_name"), self.ACTION)
 
     def timeout_s(self) -> float:
-        ms = self.get_input("server_timeout")
-        if ms is None:
-            ms = self.config.blackboard.get(SERVER_TIMEOUT_KEY, DEFAULT_SERVER_TIMEOUT_MS)
-        return float(ms) / 1000.0
+        return server_timeout_s(self)
 
     def send_new_goal(self) -> None:
         self.call = self.server().send(self.goal, self._on_feedback)
@@ -422,10 +428,7 @@ class ServiceNode(TreeNode):
             return Status.FAILURE
         response = self.call.response()
         if response is None:
-            ms = self.get_input("server_timeout")
-            if ms is None:
-                ms = self.config.blackboard.get(SERVER_TIMEOUT_KEY, DEFAULT_SERVER_TIMEOUT_MS)
-            if self.now() - self.sent_s < float(ms) / 1000.0:
+            if self.now() - self.sent_s < server_timeout_s(self):
                 return Status.RUNNING
             self.call = None
             return Status.FAILURE

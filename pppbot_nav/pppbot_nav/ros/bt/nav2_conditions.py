@@ -19,7 +19,7 @@ from sensor_msgs.msg import BatteryState
 from pppbot_nav.bt.ports import ServiceCall, setting
 from pppbot_nav.bt.tree import NodeConfig, Port, Status, TreeNode, as_bool, input_port
 from pppbot_nav.errors import BehaviorTreeError
-from pppbot_nav.ros.bt.nav2_actions import DEFAULT_SERVER_TIMEOUT_MS, SERVER_TIMEOUT_KEY, ports_of
+from pppbot_nav.ros.bt.nav2_actions import ports_of, server_timeout_s
 
 #: a deceleration beyond this (m/s², forward speed) means the robot hit something (Nav2's IsStuck)
 STUCK_DECELERATION = 10.0
@@ -122,9 +122,7 @@ class IsPathValid(TreeNode):
             return Status.FAILURE
         response = self.call.response()
         if response is None:
-            ms = self.get_input("server_timeout")
-            ms = self.config.blackboard.get(SERVER_TIMEOUT_KEY, DEFAULT_SERVER_TIMEOUT_MS) if ms is None else ms
-            if self.now() - self.sent_s < float(ms) / 1000.0:
+            if self.now() - self.sent_s < server_timeout_s(self):
                 return Status.RUNNING
             self.call = None
             return Status.FAILURE
