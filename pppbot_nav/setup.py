@@ -35,6 +35,36 @@ setup(
             'localization = pppbot_nav.ros.localization:main',
             'lifecycle_manager = pppbot_nav.ros.lifecycle_manager:main',
         ],
+        # Nav2's plugins by type name (pluginlib's role: pppbot_nav.plugins); a user's package
+        # registers its own in the same groups.
+        'pppbot_nav.planners': [
+            'nav2_navfn_planner::NavfnPlanner = pppbot_nav.planner.plugin_settings:NavfnParameters',
+            'nav2_smac_planner::SmacPlanner2D = pppbot_nav.planner.plugin_settings:Smac2DParameters',
+            'pppbot_nav::GridAStar = pppbot_nav.planner.plugin_settings:GridAStarParameters',
+        ],
+        'pppbot_nav.controllers': [
+            'dwb_core::DWBLocalPlanner = pppbot_nav.controller.plugin_settings:DWBParameters',
+            'nav2_regulated_pure_pursuit_controller::RegulatedPurePursuitController = '
+            'pppbot_nav.controller.plugin_settings:RegulatedPurePursuitParameters',
+        ],
+        'pppbot_nav.goal_checkers': [
+            'nav2_controller::SimpleGoalChecker = pppbot_nav.controller.plugin_settings:SimpleGoalCheckerParameters',
+            'nav2_controller::StoppedGoalChecker = pppbot_nav.controller.plugin_settings:StoppedGoalCheckerParameters',
+            'nav2_controller::PositionGoalChecker = '
+            'pppbot_nav.controller.plugin_settings:PositionGoalCheckerParameters',
+        ],
+        'pppbot_nav.progress_checkers': [
+            'nav2_controller::SimpleProgressChecker = '
+            'pppbot_nav.controller.plugin_settings:SimpleProgressCheckerParameters',
+            'nav2_controller::PoseProgressChecker = '
+            'pppbot_nav.controller.plugin_settings:PoseProgressCheckerParameters',
+        ],
+        'pppbot_nav.costmap_layers': [
+            'nav2_costmap_2d::StaticLayer = pppbot_nav.costmap.layer_settings:StaticLayerParameters',
+            'nav2_costmap_2d::ObstacleLayer = pppbot_nav.costmap.layer_settings:ObstacleLayerParameters',
+            'nav2_costmap_2d::VoxelLayer = pppbot_nav.costmap.layer_settings:VoxelLayerParameters',
+            'nav2_costmap_2d::InflationLayer = pppbot_nav.costmap.layer_settings:InflationLayerParameters',
+        ],
         # `pppbot <verb>`: found by pppbot_bringup.cli (a module with add_arguments and main).
         'pppbot.verbs': [
             'nav = pppbot_nav.ros.nav_cli',

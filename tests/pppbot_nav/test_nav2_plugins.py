@@ -127,7 +127,7 @@ def test_several_planners_and_controllers_by_type_and_an_unknown_type_refused(co
     finally:
         planner.destroy_node()
     with pytest.raises(ParameterError, match=r"'GridBased.plugin' = 'nav2_theta_star_planner/ThetaStarPlanner'.*"
-                                             r"known: .*NavfnPlanner.*SmacPlanner2D"):
+                                             r"group .pppbot_nav.planners.; installed: .*NavfnPlanner.*SmacPlanner2D"):
         PlannerServer(parameter_overrides=[Parameter("GridBased.plugin",
                                                      value="nav2_theta_star_planner/ThetaStarPlanner")])
     controller = ControllerServer(parameter_overrides=[
@@ -144,7 +144,8 @@ def test_several_planners_and_controllers_by_type_and_an_unknown_type_refused(co
     finally:
         controller.destroy_node()
     with pytest.raises(ParameterError, match=r"'FollowPath.plugin' = 'nav2_mppi_controller::MPPIController'.*"
-                                             r"known: dwb_core::DWBLocalPlanner, nav2_regulated_pure_pursuit"):
+                                             r"'pppbot_nav.controllers'; installed: "
+                                             r"dwb_core::DWBLocalPlanner, nav2_regulated_pure_pursuit"):
         ControllerServer(parameter_overrides=[Parameter("FollowPath.plugin",
                                                         value="nav2_mppi_controller::MPPIController")])
     with pytest.raises(ParameterError, match="'FollowPath.critics'.*PathDist"):

@@ -19,11 +19,11 @@ each time and keep their state (the stateful goal checker's latch, the progress 
 from __future__ import annotations
 
 import math
-from typing import Protocol
 
 import numpy as np
 
 from pppbot_common.se2 import PoseLike, wrap_angle
+from pppbot_nav.controller.interface import GoalChecker, ProgressChecker  # noqa: F401 (their old home)
 from pppbot_nav.errors import ControllerError
 
 
@@ -38,20 +38,6 @@ def _finite(value: PoseLike, size: int, name: str) -> np.ndarray:
     if array.shape != (size,) or not np.isfinite(array).all():
         raise ControllerError(f"{name} must be {size} finite numbers, not {np.asarray(value).tolist()}", name)
     return array
-
-
-class GoalChecker(Protocol):
-    def reset(self) -> None: ...
-
-    def is_goal_reached(self, pose: PoseLike, goal: PoseLike, speed: tuple[float, float] = (0.0, 0.0)) -> bool: ...
-
-
-class ProgressChecker(Protocol):
-    def reset(self) -> None: ...
-
-    def check(self, pose_xy: PoseLike, now_s: float) -> bool: ...
-
-    def failure(self) -> str: ...
 
 
 class SimpleGoalChecker:

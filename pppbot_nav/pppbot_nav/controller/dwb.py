@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
@@ -64,12 +64,15 @@ from pppbot_nav.controller.dwb_critics import (
     ObstacleFootprint,
     RotateToGoal,
     Trajectories,
+    TrajectoryCritic,
     build_critics,
     critic_class,
+    plugin_critic_type,
 )
 from pppbot_nav.controller.pure_pursuit import Command, ControlMode
 from pppbot_nav.costmap.grid import Costmap
 from pppbot_nav.errors import CollisionAhead, ControllerError
+from pppbot_nav.plugins import plugins
 
 STANDARD_GENERATOR = "dwb_plugins::StandardTrajectoryGenerator"
 LIMITED_ACCEL_GENERATOR = "dwb_plugins::LimitedAccelGenerator"
@@ -167,9 +170,9 @@ class DWBSettings:
         if not self.critics:
             raise ControllerError(f"critics must name at least one critic of {', '.join(KNOWN_CRITICS)}", "critics")
         for name in self.critics:
-            if critic_class(name) is None:
-                raise ControllerError(f"unknown critic {name!r} in critics; known: {', '.join(KNOWN_CRITICS)}",
-                                      "critics")
+            if critic_class(name) is None and plugin_critic_type(name) is None:
+                raise ControllerError(f"unknown critic {name!r} in critics; DWB's: {', '.join(KNOWN_CRITICS)}; "
+                                      + plugins("DWB critic").unknown(name), "critics")
         if self.trajectory_generator_name not in (STANDARD_GENERATOR, LIMITED_ACCEL_GENERATOR):
             raise ControllerError(f"trajectory_generator_name must be {STANDARD_GENERATOR!r} or "
                                   f"{LIMITED_ACCEL_GENERATOR!r}, not {self.trajectory_generator_name!r}",
@@ -331,11 +334,16 @@ def _to_frame(points: np.ndarray, source: tuple[float, ...], target: tuple[float
 class DWBLocalPlanner:
     """Nav2's DWB local planner, one :meth:`compute` per control period (see the module doc)."""
 
-    def __init__(self, settings: DWBSettings) -> None:
-        """Raises ControllerError: bad settings (an unknown critic among them)."""
+    def __init__(self, settings: DWBSettings, plugin_critics: Mapping[str, TrajectoryCritic] | None = None) -> None:
+        """``plugin_critics``: the critics of ``settings.critics`` that are installed plugins, not
+        DWB's own, by their name there (the controller server makes them with their parameters).
+
+        Raises ControllerError: bad settings (an unknown critic among them, or a plugin critic not given).
+        """
         settings.validate()
         self.settings = settings
-        self.critics = build_critics(settings)
+        self.plugin_critics = dict(plugin_critics or {})
+        self.critics = build_critics(settings, self.plugin_critics)
         self._path: np.ndarray | None = None  # as given
         self._plan = np.empty((0, 2))  # what is left of the path (prune_plan drops passed points)
         self._goal_yaw: float | None = None
@@ -349,7 +357,7 @@ class DWBLocalPlanner:
         keeps its state (Oscillation's), and the path its progress."""
         self.settings = replace(self.settings, robot_radius=robot_radius, footprint_padding=footprint_padding)
         self.settings.validate()
-        fresh = build_critics(self.settings)
+        fresh = build_critics(self.settings, self.plugin_critics)
         self.critics = [new if isinstance(new, ObstacleFootprint) else old for old, new in zip(self.critics, fresh,
                                                                                             strict=True)]
 

@@ -28,7 +28,7 @@ given out, and cells are unreachable only when no plan cell is on the costmap.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar
 
@@ -37,6 +37,8 @@ from scipy import ndimage
 
 from pppbot_nav.costmap.costs import INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION
 from pppbot_nav.costmap.grid import Costmap
+from pppbot_nav.errors import ControllerError
+from pppbot_nav.plugins import canonical, plugins
 
 if TYPE_CHECKING:
     from pppbot_nav.controller.dwb import DWBSettings
@@ -565,11 +567,36 @@ def critic_class(name: str) -> str | None:
     return base if base in _FACTORIES else None
 
 
-def build_critics(settings: DWBSettings) -> list[TrajectoryCritic]:
-    """The critics of ``settings.critics``, in that order (names already checked by ``validate``)."""
+def plugin_critic_type(name: str) -> str | None:
+    """The installed critic plugin (entry-point group ``pppbot_nav.dwb_critics``) a ``critics`` entry
+    names, or None: its full type (``my_pkg::Clearance``), or, as Nav2's default critic namespaces
+    resolve a short name, a type whose class is the name with or without ``Critic``."""
+    group = plugins("DWB critic")
+    exact = group.name_of(name)
+    if exact is not None:
+        return exact
+    for type_name in group:
+        if canonical(type_name).rsplit("/", 1)[-1] in (name, f"{name}Critic"):
+            return type_name
+    return None
+
+
+def build_critics(settings: DWBSettings, plugin_critics: Mapping[str, TrajectoryCritic] | None = None
+                  ) -> list[TrajectoryCritic]:
+    """The critics of ``settings.critics``, in that order (names already checked by ``validate``):
+    DWB's own made from ``settings``, the others taken from ``plugin_critics`` by name.
+
+    Raises:
+        ControllerError: a critic that is neither DWB's nor in ``plugin_critics``.
+    """
     critics = []
     for name in settings.critics:
         kind = critic_class(name)
-        assert kind is not None, f"unknown critic {name!r}: validate() lets none through"
-        critics.append(_FACTORIES[kind](name, settings))
+        if kind is not None:
+            critics.append(_FACTORIES[kind](name, settings))
+        elif plugin_critics is not None and name in plugin_critics:
+            critics.append(plugin_critics[name])
+        else:
+            raise ControllerError(f"critic {name!r} is not DWB's own, and no plugin critic of that name was made "
+                                  "(the controller server makes installed ones)", "critics")
     return critics

@@ -8,14 +8,16 @@ defaults, under the plugin's name) and what may change while the server runs.
   ``PositionGoalChecker``; progress checkers: ``nav2_controller::SimpleProgressChecker``,
   ``PoseProgressChecker`` (:mod:`pppbot_nav.controller.checkers`).
 
-A parameter set applies to the running plugin (its attributes), so a goal checker keeps its latch
-and a progress checker its baseline.
+Each is registered in its entry-point group (``pppbot_nav/setup.py``), as a user's plugin is
+(:mod:`pppbot_nav.controller.interface`). A parameter set applies to the running plugin (its
+attributes), so a goal checker keeps its latch and a progress checker its baseline.
 """
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Collection
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from pppbot_common.params import ParameterError, param
 from pppbot_nav.controller.checkers import (
@@ -47,12 +49,13 @@ def _checked(make: Any) -> Any:
 
 
 def settings_parameters(settings: type, name: str, description: str, make: Any,
-                        exclude: frozenset[str] = frozenset()) -> type:
+                        exclude: frozenset[str] = frozenset(), live: frozenset[str] | None = None) -> type:
     """A parameter dataclass with the fields of the frozen ``settings`` dataclass but ``exclude`` (same
     names and defaults; ROS names relative to the plugin: a field's ``ros`` metadata, else its
     name), whose ``validate()`` builds the settings (``settings()``) and the plugin (``make()``, as
     ``make(settings)``). ``settings(**given)`` and ``make(**given)`` take the excluded fields
-    (what the plugin reads from elsewhere, the costmap's robot radius)."""
+    (what the plugin reads from elsewhere, the costmap's robot radius: ``FROM_COSTMAP``), and
+    ``make(critics=...)`` a DWB's plugin critics. ``live``: its ``LIVE_PARAMETERS``."""
     fields = []
     for f in dataclasses.fields(settings):
         if f.name in exclude:
@@ -69,31 +72,35 @@ def settings_parameters(settings: type, name: str, description: str, make: Any,
         return settings(**values, **given)
 
     def validate(self: Any) -> None:
-        _checked(lambda: make(to_settings(self)))
+        _checked(lambda: to_settings(self).validate())
+
+    def make_plugin(self: Any, critics: Any = None, **given: Any) -> Any:
+        return make(to_settings(self, **given)) if critics is None else make(to_settings(self, **given), critics)
 
     return dataclasses.make_dataclass(name, fields, frozen=True, namespace={
-        "validate": validate, "settings": to_settings,
-        "make": lambda self, **given: make(to_settings(self, **given))})
+        "validate": validate, "settings": to_settings, "make": make_plugin, "LIVE_PARAMETERS": live,
+        "FROM_COSTMAP": exclude})
 
 
+#: RPP's every parameter may change at run time.
 RegulatedPurePursuitParameters = settings_parameters(PurePursuitSettings, "RegulatedPurePursuitParameters",
                                                      "regulated pure pursuit", PurePursuit)
 #: DWB's footprint is the local costmap's (its robot_radius and footprint_padding), as in Nav2.
 DWB_FROM_COSTMAP = frozenset({"robot_radius", "footprint_padding"})
-DWBParameters = settings_parameters(DWBSettings, "DWBParameters", "DWB", DWBLocalPlanner, DWB_FROM_COSTMAP)
-
-#: The controller types pppbot implements, by Nav2's type name.
-CONTROLLER_TYPES: dict[str, type] = {DWB: DWBParameters, RPP: RegulatedPurePursuitParameters}
-#: DWB's kinematic limits may change at run time (Nav2's KinematicsHandler); RPP's every parameter.
+#: DWB's kinematic limits may change at run time (Nav2's KinematicsHandler).
 DWB_LIVE = frozenset({"min_vel_x", "min_vel_y", "max_vel_x", "max_vel_y", "max_vel_theta", "min_speed_xy",
                       "max_speed_xy", "min_speed_theta", "acc_lim_x", "acc_lim_y", "acc_lim_theta", "decel_lim_x",
                       "decel_lim_y", "decel_lim_theta"})
+DWBParameters = settings_parameters(DWBSettings, "DWBParameters", "DWB", DWBLocalPlanner, DWB_FROM_COSTMAP,
+                                    live=DWB_LIVE)
 #: Nav2's default controller, for ``FollowPath`` without a ``plugin``.
 DEFAULT_CONTROLLER_TYPES = {"FollowPath": DWB}
 
 
 @dataclass(frozen=True)
 class SimpleGoalCheckerParameters:
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = None
+
     xy_goal_tolerance: float = param(0.25, "distance to the goal (m)")
     yaw_goal_tolerance: float = param(0.25, "heading to the goal's (rad)")
     stateful: bool = param(True, "once within xy, only the heading is checked")
@@ -117,6 +124,8 @@ class StoppedGoalCheckerParameters(SimpleGoalCheckerParameters):
 
 @dataclass(frozen=True)
 class PositionGoalCheckerParameters:
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = None
+
     xy_goal_tolerance: float = param(0.25, "distance to the goal (m)")
     stateful: bool = param(True, "once within xy, the goal stays reached")
 
@@ -129,6 +138,8 @@ class PositionGoalCheckerParameters:
 
 @dataclass(frozen=True)
 class SimpleProgressCheckerParameters:
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = None
+
     required_movement_radius: float = param(0.5, "move this far (m) ...")
     movement_time_allowance: float = param(10.0, "... within this time (s)")
 
@@ -148,11 +159,6 @@ class PoseProgressCheckerParameters(SimpleProgressCheckerParameters):
                                    self.required_movement_angle)
 
 
-GOAL_CHECKER_TYPES: dict[str, type] = {SIMPLE_GOAL: SimpleGoalCheckerParameters,
-                                       STOPPED_GOAL: StoppedGoalCheckerParameters,
-                                       POSITION_GOAL: PositionGoalCheckerParameters}
-PROGRESS_CHECKER_TYPES: dict[str, type] = {SIMPLE_PROGRESS: SimpleProgressCheckerParameters,
-                                           POSE_PROGRESS: PoseProgressCheckerParameters}
 #: Nav2's default checker names (and ppp_bot's) and their types when no ``plugin`` is given.
 DEFAULT_CHECKER_TYPES = {"goal_checker": SIMPLE_GOAL, "general_goal_checker": SIMPLE_GOAL,
                          "precise_goal_checker": SIMPLE_GOAL, "progress_checker": SIMPLE_PROGRESS}

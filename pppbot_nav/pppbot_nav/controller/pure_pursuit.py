@@ -57,12 +57,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from enum import Enum
-from typing import Protocol
 
 import numpy as np
 
 from pppbot_common.se2 import PoseLike, wrap_angle
+from pppbot_nav.controller.interface import Command, Controller, ControlMode  # noqa: F401 (their old home)
 from pppbot_nav.costmap.costs import (
     FREE_SPACE,
     INSCRIBED_INFLATED_OBSTACLE,
@@ -150,37 +149,6 @@ class PurePursuitSettings:
         if not 0.0 <= self.rotate_to_heading_min_angle <= math.pi:
             raise ControllerError(f"rotate_to_heading_min_angle must be in [0, π] rad, not "
                                   f"{self.rotate_to_heading_min_angle}", "rotate_to_heading_min_angle")
-
-
-class ControlMode(Enum):
-    """What a command does."""
-
-    TRACKING = "tracking"  # following the arc to the carrot
-    ROTATE_TO_PATH = "rotate_to_path"  # turning in place towards the carrot
-    ROTATE_TO_GOAL = "rotate_to_goal"  # turning in place to the goal's yaw, within goal_dist_tol
-
-
-@dataclass(frozen=True)
-class Command:
-    """One control period's output. Points are in the frame of the pose and the path (Nav2
-    publishes its carrot and local plan in the robot's base frame instead)."""
-
-    linear_mps: float
-    angular_radps: float
-    lookahead: tuple[float, float]  # the carrot (x, y), m
-    curvature: float  # 1/m of the arc to the carrot (positive: left)
-    local_plan: np.ndarray  # (M, 2) x, y of the pruned path portion used, for /local_plan
-    mode: ControlMode
-    lookahead_dist_m: float
-
-
-class Controller(Protocol):
-    """What the controller server asks of a controller plugin (RPP, DWB)."""
-
-    def set_path(self, path: np.ndarray) -> None: ...
-
-    def compute(self, pose: PoseLike, speed: PoseLike, path: np.ndarray, costmap: Costmap | None,
-                dt_s: float, costmap_pose: PoseLike | None = None) -> Command: ...
 
 
 class PurePursuit:

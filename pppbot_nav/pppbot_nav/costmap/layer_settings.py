@@ -1,8 +1,10 @@
 """The costmap plugins' parameters, by Nav2's plugin type, and the layers they make.
 
-A costmap's ``plugins`` names its layers; each layer's ``<name>.plugin`` is a Nav2 type
-(``nav2_costmap_2d::StaticLayer``, ``ObstacleLayer``, ``VoxelLayer``, ``InflationLayer``) and
-its parameters sit under ``<name>.``, Nav2's names and defaults. An obstacle or voxel layer's
+A costmap's ``plugins`` names its layers; each layer's ``<name>.plugin`` is a type of the
+``pppbot_nav.costmap_layers`` entry-point group (Nav2's ``nav2_costmap_2d::StaticLayer``,
+``ObstacleLayer``, ``VoxelLayer``, ``InflationLayer``, registered in ``pppbot_nav/setup.py``, or a
+user's: :mod:`pppbot_nav.costmap.interface`) and its parameters sit under ``<name>.``, Nav2's
+names and defaults. An obstacle or voxel layer's
 ``observation_sources`` (space-separated) names its sources, each with its parameters under
 ``<name>.<source>.`` (:class:`SourceParameters`).
 
@@ -11,9 +13,12 @@ its start-up warning with :data:`NO_EFFECT`'s reasons.
 """
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
+from typing import ClassVar
 
 from pppbot_common.params import ParameterError, check_finite_range, param
+from pppbot_nav.costmap.interface import LayerContext
 from pppbot_nav.costmap.layers import COMBINATION_METHODS, InflationLayer, ObservationSource, ObstacleLayer, StaticLayer
 from pppbot_nav.errors import CostmapError
 
@@ -57,6 +62,9 @@ NO_EFFECT = {
 
 @dataclass(frozen=True)
 class StaticLayerParameters:
+    #: What may change while the costmap runs (the rest is refused), as Nav2's dynamic parameters.
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = frozenset({"enabled"})
+
     enabled: bool = param(True, "a disabled layer leaves the master as it is")
     map_topic: str = param("", "the map topic (transient local); empty: the costmap's map_topic")
     map_subscribe_transient_local: bool = param(True, "subscribe to the map latched (transient local)")
@@ -64,12 +72,16 @@ class StaticLayerParameters:
     def validate(self) -> None:
         pass
 
-    def make(self, track_unknown_space: bool, lethal_cost_threshold: int) -> StaticLayer:
-        return StaticLayer(track_unknown_space, lethal_cost_threshold, enabled=self.enabled)
+    def make(self, context: LayerContext) -> StaticLayer:
+        return StaticLayer(context.track_unknown_space, context.lethal_cost_threshold, enabled=self.enabled)
 
 
 @dataclass(frozen=True)
 class ObstacleLayerParameters:
+    #: What may change while the costmap runs (the rest is refused), as Nav2's dynamic parameters.
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = frozenset({
+        "enabled", "footprint_clearing_enabled", "combination_method"})
+
     enabled: bool = param(True, "a disabled layer leaves the master as it is")
     footprint_clearing_enabled: bool = param(True, "free the cells under the robot")
     combination_method: int = param(1, "0 overwrite, 1 maximum, 2 maximum without unknown overwriting")
@@ -83,8 +95,8 @@ class ObstacleLayerParameters:
     def sources(self) -> list[str]:
         return self.observation_sources.split()
 
-    def make(self, track_unknown_space: bool) -> ObstacleLayer:
-        return ObstacleLayer(track_unknown_space, combination_method=self.combination_method,
+    def make(self, context: LayerContext) -> ObstacleLayer:
+        return ObstacleLayer(context.track_unknown_space, combination_method=self.combination_method,
                              footprint_clearing_enabled=self.footprint_clearing_enabled, enabled=self.enabled)
 
 
@@ -97,8 +109,8 @@ class VoxelLayerParameters(ObstacleLayerParameters):
         if self.mark_threshold < 0:
             raise ParameterError("mark_threshold", self.mark_threshold, "must be ≥ 0")
 
-    def make(self, track_unknown_space: bool) -> ObstacleLayer:
-        return ObstacleLayer(track_unknown_space, combination_method=self.combination_method,
+    def make(self, context: LayerContext) -> ObstacleLayer:
+        return ObstacleLayer(context.track_unknown_space, combination_method=self.combination_method,
                              footprint_clearing_enabled=self.footprint_clearing_enabled,
                              mark_threshold=self.mark_threshold, enabled=self.enabled)
 
@@ -136,6 +148,10 @@ class SourceParameters:
 
 @dataclass(frozen=True)
 class InflationLayerParameters:
+    #: What may change while the costmap runs (the rest is refused), as Nav2's dynamic parameters.
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = frozenset({
+        "enabled", "inflation_radius", "cost_scaling_factor", "inflate_unknown", "inflate_around_unknown"})
+
     enabled: bool = param(True, "a disabled layer leaves the master as it is")
     inflation_radius: float = param(0.55, "radius (m)")
     cost_scaling_factor: float = param(10.0, "exponential decay (1/m)")
@@ -146,17 +162,7 @@ class InflationLayerParameters:
         check_finite_range("inflation_radius", self.inflation_radius, 0.0, 100.0)
         check_finite_range("cost_scaling_factor", self.cost_scaling_factor, 0.0, 1000.0)
 
-    def make(self, robot_radius: float) -> InflationLayer:
-        return InflationLayer(self.inflation_radius, self.cost_scaling_factor, robot_radius, self.inflate_unknown,
-                              enabled=self.enabled, inflate_around_unknown=self.inflate_around_unknown)
-
-
-#: Each plugin type's parameters, by Nav2's type name.
-LAYER_TYPES: dict[str, type] = {STATIC: StaticLayerParameters, OBSTACLE: ObstacleLayerParameters,
-                                VOXEL: VoxelLayerParameters, INFLATION: InflationLayerParameters}
-#: What each layer type may change while the costmap runs (the rest is refused), as Nav2's
-#: layers' dynamic parameter callbacks.
-LIVE = {STATIC: {"enabled"}, OBSTACLE: {"enabled", "footprint_clearing_enabled", "combination_method"},
-        VOXEL: {"enabled", "footprint_clearing_enabled", "combination_method"},
-        INFLATION: {"enabled", "inflation_radius", "cost_scaling_factor", "inflate_unknown",
-                    "inflate_around_unknown"}}
+    def make(self, context: LayerContext) -> InflationLayer:
+        return InflationLayer(self.inflation_radius, self.cost_scaling_factor, context.robot_radius,
+                              self.inflate_unknown, enabled=self.enabled,
+                              inflate_around_unknown=self.inflate_around_unknown)

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 from scipy import ndimage
@@ -34,15 +33,8 @@ from scipy import ndimage
 from pppbot_common.maps import OccupancyGrid
 from pppbot_nav.costmap.costs import FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION
 from pppbot_nav.costmap.grid import Costmap
+from pppbot_nav.costmap.interface import Layer  # noqa: F401 (its old home)
 from pppbot_nav.errors import CostmapError
-
-
-class Layer(Protocol):
-    plugin: str
-    enabled: bool
-
-    def update(self, master: Costmap) -> None:
-        """Apply this layer's costs onto ``master``."""
 
 
 class StaticLayer:

@@ -45,6 +45,7 @@ from pppbot_nav.planner.errors import (
     StartOccupied,
     StartOutsideMap,
 )
+from pppbot_nav.planner.interface import Plan
 from pppbot_nav.planner.smoother import SmootherSettings, shortcut, smooth
 
 #: How far (m) a start inside the inscribed zone may move to reach a traversable cell.
@@ -74,19 +75,6 @@ class PlannerSettings:
         self.smoother.validate()
 
 
-@dataclass(frozen=True, eq=False)
-class Plan:
-    """``points_xy`` (K, 2) in the costmap's frame, start first and goal last; ``cost`` the search's
-    path cost (cell weights); ``goal_xy`` the goal planned to (moved within tolerance if it had to be)."""
-
-    points_xy: np.ndarray
-    cost: float
-    goal_xy: tuple[float, float]
-    planning_time_s: float
-
-    @property
-    def length_m(self) -> float:
-        return float(np.linalg.norm(np.diff(self.points_xy, axis=0), axis=1).sum())
 
 
 def travel_weights(costs: np.ndarray, cost_travel_multiplier: float, allow_unknown: bool,

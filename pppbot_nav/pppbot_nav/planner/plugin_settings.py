@@ -8,16 +8,18 @@ under the plugin's name) and the planners they make.
 * ``pppbot_nav::GridAStar`` (:mod:`pppbot_nav.planner.grid_astar`): pppbot's A* with its
   near-obstacle band.
 
-What may change while the server runs follows each Nav2 plugin's dynamic parameters
-(:data:`LIVE_PLANNER`); a planner keeps nothing between plans, so a change takes effect at the
-next plan.
+Each is registered in the ``pppbot_nav.planners`` entry-point group (``pppbot_nav/setup.py``), as
+a user's planner is (:mod:`pppbot_nav.planner.interface`). What may change while the server runs
+follows each Nav2 plugin's dynamic parameters (``LIVE_PARAMETERS``); a planner keeps nothing
+between plans, so a change takes effect at the next plan.
 """
 from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Collection
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -38,6 +40,9 @@ GRID_ASTAR = "pppbot_nav::GridAStar"
 
 @dataclass(frozen=True)
 class NavfnParameters:
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = frozenset({
+        "tolerance", "use_astar", "allow_unknown", "use_final_approach_orientation"})
+
     tolerance: float = param(0.5, "how far (m) round an unreachable goal a reachable point is looked for")
     use_astar: bool = param(False, "propagate the potential in A* order (false: Dijkstra's)")
     allow_unknown: bool = param(True, "plan through unknown space")
@@ -57,6 +62,11 @@ class NavfnParameters:
 
 @dataclass(frozen=True)
 class Smac2DParameters:
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = frozenset({
+        "tolerance", "cost_travel_multiplier", "use_final_approach_orientation", "allow_unknown", "max_iterations",
+        "max_on_approach_iterations", "terminal_checking_interval", "max_planning_time", "downsample_costmap",
+        "downsampling_factor"})
+
     tolerance: float = param(0.125, "how far (m) from the goal the search may end when it cannot reach it")
     downsample_costmap: bool = param(False, "plan on a coarser grid")
     downsampling_factor: int = param(1, "cells of the costmap per cell of that grid (per side)")
@@ -132,6 +142,8 @@ class SmoothedSmac2D:
 class GridAStarParameters:
     """pppbot's A* with its near-obstacle band (:mod:`pppbot_nav.planner.grid_astar`)."""
 
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = None
+
     tolerance: float = param(0.5, "how far the goal may move to a reachable cell (m)")
     allow_unknown: bool = param(True, "plan through unknown space")
     cost_travel_multiplier: float = param(2.0, "travel cost of a cell: 1 + this · cost / 252")
@@ -155,14 +167,5 @@ class GridAStarParameters:
         return GridPlanner(self.settings())
 
 
-#: The planner types pppbot implements, by Nav2's type name.
-PLANNER_TYPES: dict[str, type] = {NAVFN: NavfnParameters, SMAC_2D: Smac2DParameters, GRID_ASTAR: GridAStarParameters}
-#: What of each may change at run time (None: everything), as each Nav2 plugin's dynamic parameters.
-LIVE_PLANNER: dict[str, frozenset[str] | None] = {
-    NAVFN: frozenset({"tolerance", "use_astar", "allow_unknown", "use_final_approach_orientation"}),
-    SMAC_2D: frozenset({"tolerance", "cost_travel_multiplier", "use_final_approach_orientation", "allow_unknown",
-                        "max_iterations", "max_on_approach_iterations", "terminal_checking_interval",
-                        "max_planning_time", "downsample_costmap", "downsampling_factor"}),
-    GRID_ASTAR: None}
 #: Nav2's default planner, for ``GridBased`` without a ``plugin``.
 DEFAULT_PLANNER_TYPES = {"GridBased": NAVFN}

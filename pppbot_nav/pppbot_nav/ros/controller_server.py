@@ -43,28 +43,17 @@ from pppbot_common.transforms import TransformError, compose
 from pppbot_lockstep.ros.goals import GoalEnd, GoalServer, Stopped, check_running, send_feedback, stopped_end
 from pppbot_lockstep.ros.lifecycle import ManagedNode
 from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
+from pppbot_nav.controller.dwb_critics import critic_class, plugin_critic_type
 from pppbot_nav.controller.follow import FollowEnd, Follower
-from pppbot_nav.controller.plugin_settings import (
-    CONTROLLER_TYPES,
-    DEFAULT_CHECKER_TYPES,
-    DEFAULT_CONTROLLER_TYPES,
-    DWB,
-    DWB_LIVE,
-    GOAL_CHECKER_TYPES,
-    PROGRESS_CHECKER_TYPES,
-    RPP,
-)
+from pppbot_nav.controller.plugin_settings import DEFAULT_CHECKER_TYPES, DEFAULT_CONTROLLER_TYPES
 from pppbot_nav.errors import ControllerError
+from pppbot_nav.plugins import PluginGroup, plugins
 from pppbot_nav.ros.costmap_node import CostmapNode
 from pppbot_nav.ros.planner_server import path_message
-from pppbot_nav.ros.plugins import Plugin, live_plugin_parameters, load_plugin
+from pppbot_nav.ros.plugins import Plugin, live_plugin_parameters, load_plugin, plugin_class
 
 Result = FollowPath.Result
 
-#: What of each plugin type may change at run time (None: everything, as RPP's and the checkers'
-#: dynamic parameters; DWB's kinematic limits).
-LIVE_PLUGINS: dict[str, frozenset[str] | None] = {RPP: None, DWB: DWB_LIVE, **dict.fromkeys(GOAL_CHECKER_TYPES),
-                                                  **dict.fromkeys(PROGRESS_CHECKER_TYPES)}
 #: Nav2 keys that mean nothing here, with the reason (named in the start-up warning when given).
 NO_EFFECT = {
     "*.debug_trajectory_details": "pppbot's DWB publishes no trajectory evaluation",
@@ -146,9 +135,9 @@ class ControllerServer(ManagedNode):
         self.costmap_node = CostmapNode("local_costmap", port=self.port)
         self.composed_nodes = [self.costmap_node]
         self.plugins: dict[str, Plugin] = {}
-        self.controllers = self._load(p.controller_plugins, CONTROLLER_TYPES, DEFAULT_CONTROLLER_TYPES)
-        self.goal_checkers = self._load(p.goal_checker_plugins, GOAL_CHECKER_TYPES, DEFAULT_CHECKER_TYPES)
-        self.progress_checkers = self._load(p.progress_checkers(), PROGRESS_CHECKER_TYPES, DEFAULT_CHECKER_TYPES)
+        self.controllers = self._load(p.controller_plugins, plugins("controller"), DEFAULT_CONTROLLER_TYPES)
+        self.goal_checkers = self._load(p.goal_checker_plugins, plugins("goal checker"), DEFAULT_CHECKER_TYPES)
+        self.progress_checkers = self._load(p.progress_checkers(), plugins("progress checker"), DEFAULT_CHECKER_TYPES)
         self.costmap_node.footprint_listeners.append(self._on_footprint)
         self._warn = Warnings(self)
         self._speed = (0.0, 0.0)
@@ -162,30 +151,46 @@ class ControllerServer(ManagedNode):
         self.timer = self.step_timer(1.0 / p.controller_frequency, self._control)
         self.timer.cancel()
         serve_live_parameters(self, [LiveParameters("", lambda: self.params, self._set_params, LIVE_SERVER),
-                                     *live_plugin_parameters(self.plugins, self._set_plugin_params, LIVE_PLUGINS)])
+                                     *live_plugin_parameters(self.plugins, self._set_plugin_params)])
         kinds = ", ".join(f"'{name}' ({self.plugins[name].type_name})" for name in self.controllers)
         self.get_logger().info(f"controllers {kinds} at {p.controller_frequency} Hz on local_costmap")
 
-    def _load(self, names: list[str], types: dict[str, type], defaults: dict[str, str]) -> dict[str, Any]:
+    def _load(self, names: list[str], types: PluginGroup, defaults: dict[str, str]) -> dict[str, Any]:
         """Each named plugin, made from its type's parameters (kept in ``plugins`` for live sets)."""
         made = {}
         for name in names:
             plugin = self.plugins[name] = load_plugin(self, name, types, defaults.get(name))
-            made[name] = plugin.params.make(**self._from_costmap(plugin.type_name))
+            given = self._from_costmap(plugin.params)
+            critics = self._plugin_critics(name, plugin.params)
+            made[name] = plugin.params.make(**given, **({"critics": critics} if critics else {}))
         return made
 
-    def _from_costmap(self, type_name: str) -> dict[str, float]:
-        """What a plugin of ``type_name`` takes from the local costmap: DWB its footprint."""
-        if type_name != DWB:
-            return {}
+    def _from_costmap(self, params: Any) -> dict[str, float]:
+        """What a plugin takes from the local costmap (its class's ``FROM_COSTMAP``): DWB its footprint."""
         cm = self.costmap_node.params
-        return {"robot_radius": cm.robot_radius, "footprint_padding": cm.footprint_padding}
+        costmap = {"robot_radius": cm.robot_radius, "footprint_padding": cm.footprint_padding}
+        return {key: costmap[key] for key in getattr(type(params), "FROM_COSTMAP", ())}
+
+    def _plugin_critics(self, name: str, params: Any) -> dict[str, Any]:
+        """A DWB-like controller's critics that are installed plugins (not DWB's own), each made from its
+        parameters under ``<name>.<critic>.`` (Nav2's)."""
+        made = {}
+        group = plugins("DWB critic")
+        for critic in getattr(params, "critics", ()):
+            type_name = plugin_critic_type(critic)
+            if critic_class(critic) is not None or type_name is None:
+                continue
+            prefix = f"{name}.{critic}"
+            settings: Any = declare_parameters(self, plugin_class(prefix, group, type_name), prefix=f"{prefix}.")
+            made[critic] = settings.make(critic)
+        return made
 
     def _on_footprint(self) -> None:
         """The local costmap's footprint changed: DWB's controllers take it (their critics rebuilt)."""
         for name, controller in self.controllers.items():
-            if self.plugins[name].type_name == DWB:
-                controller.set_footprint(**self._from_costmap(DWB))
+            given = self._from_costmap(self.plugins[name].params)
+            if given and hasattr(controller, "set_footprint"):
+                controller.set_footprint(**given)
 
     # ----------------------------------------------------------- parameters
     def _set_params(self, new: ControllerServerParameters) -> None:
@@ -205,7 +210,7 @@ class ControllerServer(ManagedNode):
         old = self.plugins[name]
         self.plugins[name] = Plugin(name, old.type_name, new)
         if name in self.controllers:
-            self.controllers[name].settings = new.settings(**self._from_costmap(old.type_name))
+            self.controllers[name].settings = new.settings(**self._from_costmap(new))
             return
         fresh = new.make()
         running = self.goal_checkers.get(name) or self.progress_checkers[name]

@@ -31,6 +31,7 @@ costmap updating at 1 Hz marks one scan a second, not the lidar's ten.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import deque
 from dataclasses import dataclass, field
@@ -56,17 +57,11 @@ from pppbot_lockstep.ros.tf_listener import TfListener
 from pppbot_nav.costmap.costs import NO_INFORMATION
 from pppbot_nav.costmap.footprint import circle_footprint, placed
 from pppbot_nav.costmap.grid import Costmap
-from pppbot_nav.costmap.layer_settings import (
-    DEFAULT_TYPES,
-    INFLATION,
-    LAYER_TYPES,
-    LIVE,
-    NO_EFFECT,
-    STATIC,
-    SourceParameters,
-)
+from pppbot_nav.costmap.interface import LayerContext
+from pppbot_nav.costmap.layer_settings import DEFAULT_TYPES, NO_EFFECT, SourceParameters, StaticLayerParameters
 from pppbot_nav.costmap.layers import InflationLayer, Layer, LayeredCostmap, ObstacleLayer, StaticLayer
-from pppbot_nav.ros.plugins import Plugin, live_plugin_parameters, load_plugin
+from pppbot_nav.plugins import plugins
+from pppbot_nav.ros.plugins import Plugin, live_fields, live_plugin_parameters, load_plugin
 
 #: Scans that may wait for their transform: two seconds of a 10 Hz lidar (AMCL stamps map → odom
 #: ahead by its transform_tolerance, but a busy machine can still hold it back).
@@ -159,7 +154,8 @@ class CostmapNode(StepNode):
         self._warn = Warnings(self, settling=("robot pose", "scan transform"))
         self._applied: tuple[tuple[_Observation, ...], tuple[float, float]] | None = None  # and where
         self.tf = TfListener(self, self._warn, on_tf=self._drain, quiet=True).buffer  # the update timer reads it
-        self.plugins: dict[str, Plugin] = {layer: load_plugin(self, layer, LAYER_TYPES, DEFAULT_TYPES.get(layer))
+        layers = plugins("costmap layer")
+        self.plugins: dict[str, Plugin] = {layer: load_plugin(self, layer, layers, DEFAULT_TYPES.get(layer))
                                            for layer in p.plugins}
         self.sources: list[_Source] = []
         self.layer_by_name: dict[str, Layer] = {name: self._make_layer(pl) for name, pl in self.plugins.items()}
@@ -184,7 +180,7 @@ class CostmapNode(StepNode):
         self.footprint_pub = self.create_publisher(PolygonStamped, "published_footprint", DEFAULT)
         self._map_arrived: Any = None
         for plugin in self.plugins.values():
-            if plugin.type_name == STATIC:
+            if isinstance(plugin.params, StaticLayerParameters):
                 topic = plugin.params.map_topic or p.map_topic
                 self._map_arrived = self.port.require(f"a map on '{topic}'")
                 qos = LATCHED if plugin.params.map_subscribe_transient_local else MAP_VOLATILE
@@ -200,8 +196,8 @@ class CostmapNode(StepNode):
         self._publish_timer = self.step_timer(1.0 / p.publish_frequency, self.publish)
         sources = {source.name: Plugin(source.name, "source", source.params) for source in self.sources}
         serve_live_parameters(self, [LiveParameters("", lambda: self.params, self._set_params, LIVE_COSTMAP),
-                                     *live_plugin_parameters(self.plugins, self._set_layer_params, LIVE),
-                                     *live_plugin_parameters(sources, self._set_layer_params, {})])
+                                     *live_plugin_parameters(self.plugins, self._set_layer_params),
+                                     *live_plugin_parameters(sources, self._set_layer_params)])
         kinds = ", ".join(f"{pl.name} ({pl.type_name.split('::')[-1]})" for pl in self.plugins.values())
         self.get_logger().info(f"{name}: {kinds} in '{p.global_frame}'"
                                + (f", rolling {p.width} × {p.height} m" if p.rolling_window else ""))
@@ -209,11 +205,10 @@ class CostmapNode(StepNode):
     def _make_layer(self, plugin: Plugin) -> Layer:
         """The layer of a loaded plugin; an obstacle or voxel layer's sources are declared too."""
         p = self.params
-        if plugin.type_name == STATIC:
-            return plugin.params.make(p.track_unknown_space, p.lethal_cost_threshold)
-        if plugin.type_name == INFLATION:
-            return plugin.params.make(p.robot_radius)
-        layer = plugin.params.make(p.track_unknown_space)
+        layer: Layer = plugin.params.make(LayerContext(plugin.name, p.global_frame, p.track_unknown_space,
+                                                       p.lethal_cost_threshold, p.robot_radius))
+        if not isinstance(layer, ObstacleLayer):
+            return layer
         for source_name in plugin.params.sources():
             prefix = f"{plugin.name}.{source_name}"
             settings = declare_parameters(self, SourceParameters, prefix=f"{prefix}.")
@@ -246,7 +241,8 @@ class CostmapNode(StepNode):
         plugin = self.plugins[name]
         self.plugins[name] = Plugin(plugin.name, plugin.type_name, new)
         layer = self.layer_by_name[name]
-        for key in LIVE[plugin.type_name]:
+        live = live_fields(new)
+        for key in [f.name for f in dataclasses.fields(new)] if live is None else live:
             setattr(layer, key, getattr(new, key))
         if isinstance(layer, InflationLayer):
             layer.forget()

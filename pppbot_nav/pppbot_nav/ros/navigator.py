@@ -30,6 +30,7 @@ from __future__ import annotations
 import importlib
 import math
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -58,6 +59,7 @@ from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
 from pppbot_lockstep.ros.tf_listener import TfListener
 from pppbot_nav.bt.tree import Status, Tree, TreeNode
 from pppbot_nav.errors import BehaviorTreeError
+from pppbot_nav.plugins import PluginError, plugins
 from pppbot_nav.ros.bt.nav2_actions import RECOVERIES_KEY, ActionNode, ServiceNode
 from pppbot_nav.ros.bt.navigation import NavigatorTrees, TreeSettings, error_of
 from pppbot_nav.ros.bt_ports import RosPorts
@@ -72,7 +74,8 @@ class NavigatorParameters:
     default_nav_through_poses_bt_xml: str = param("", "tree file of navigate_through_poses goals (empty: "
                                                       "pppbot's default)")
     always_reload_bt_xml: bool = param(False, "load a goal's tree file again for each goal")
-    plugin_lib_names: list = param([], "Python modules whose BT_NODES (XML name → class) the trees may use; "
+    plugin_lib_names: list = param([], "BT node libraries the trees may use: entry points of pppbot_nav.bt_plugins "
+                                       "or Python modules with BT_NODES (XML name → class); "
                                        "Nav2's own library names are known already")
     error_code_names: list = param(["follow_path_error_code", "compute_path_error_code"],
                                    "blackboard entries whose smallest non-zero value is a failed goal's code")
@@ -114,26 +117,35 @@ class NavigatorParameters:
                      "number_of_retries": self.number_of_retries, "initial_pose_received": False})
 
 
-def plugin_nodes(modules: list[str]) -> dict[str, type[TreeNode]]:
-    """The BT nodes of ``plugin_lib_names``: each a Python module with ``BT_NODES`` (XML name →
-    class); Nav2's own library names (``nav2_*``) are skipped, their nodes being built in.
+def plugin_nodes(libraries: list[str]) -> dict[str, type[TreeNode]]:
+    """The BT nodes of ``plugin_lib_names``. Each name is a library of the ``pppbot_nav.bt_plugins``
+    entry-point group (its value a mapping of XML names to node classes, as a package exports its
+    nodes: :mod:`pppbot_nav.plugins`), or else a Python module with ``BT_NODES``, that mapping.
+    Nav2's own library names (``nav2_*``) are skipped, their nodes being built in.
 
     Raises:
-        BehaviorTreeError: a module that cannot be imported or has no ``BT_NODES``.
+        BehaviorTreeError: a name that is neither, or a library that does not load.
     """
+    group = plugins("behavior tree node library")
     found: dict[str, type[TreeNode]] = {}
-    for name in modules:
-        if str(name).startswith("nav2_"):
+    for name in map(str, libraries):
+        if name.startswith("nav2_"):
             continue
-        try:
-            module = importlib.import_module(str(name))
-        except ImportError as exc:
-            raise BehaviorTreeError(f"plugin_lib_names: '{name}' cannot be imported ({exc}); it is a Python "
-                                    "module with BT_NODES, a mapping of XML names to node classes") from exc
-        nodes = getattr(module, "BT_NODES", None)
-        if not isinstance(nodes, dict):
-            raise BehaviorTreeError(f"plugin_lib_names: module '{name}' has no BT_NODES (a mapping of XML names "
-                                    "to pppbot_nav.bt.tree.TreeNode classes)")
+        if name in group:
+            try:
+                nodes = group[name]
+            except PluginError as exc:
+                raise BehaviorTreeError(f"plugin_lib_names: {exc}") from exc
+        else:
+            try:
+                module = importlib.import_module(name)
+            except ImportError as exc:
+                raise BehaviorTreeError(f"plugin_lib_names: '{name}' is neither an installed library ("
+                                        f"{group.unknown(name)}) nor an importable Python module ({exc})") from exc
+            nodes = getattr(module, "BT_NODES", None)
+        if not isinstance(nodes, Mapping):
+            raise BehaviorTreeError(f"plugin_lib_names: '{name}' gives no mapping of XML names to "
+                                    "pppbot_nav.bt.tree.TreeNode classes (a module's BT_NODES)")
         found.update(nodes)
     return found
 

@@ -7,8 +7,10 @@ pose, or ``start`` with ``use_start``) and ``compute_path_through_poses`` (throu
 the costmap's frame; each pose faces along the path, the last one the goal's heading, or the
 last step's with the plugin's ``use_final_approach_orientation``).
 
-Planners are Nav2's plugins by type (:mod:`pppbot_nav.planner.plugin_settings`): each name of
-``planner_plugins`` is loaded as its ``<name>.plugin`` says (``GridBased`` without one: NavFn,
+Planners are Nav2's plugins by type, found in the ``pppbot_nav.planners`` entry-point group
+(pppbot's own in :mod:`pppbot_nav.planner.plugin_settings`, a user's from their package:
+:mod:`pppbot_nav.planner.interface`): each name of ``planner_plugins`` is loaded as its
+``<name>.plugin`` says (``GridBased`` without one: NavFn,
 Nav2's default), its parameters under ``<name>.``; a request's ``planner_id`` picks one (empty:
 the only one), an unknown id fails with INVALID_PLANNER. Failures come back as the action's
 error codes (START_OCCUPIED, GOAL_OCCUPIED, NO_VALID_PATH, TIMEOUT, START/GOAL_OUTSIDE_MAP,
@@ -42,7 +44,8 @@ from pppbot_lockstep.ros.node import StepActionServer
 from pppbot_lockstep.ros.runner import run_nodes
 from pppbot_nav.costmap.costs import INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION
 from pppbot_nav.planner import errors
-from pppbot_nav.planner.plugin_settings import DEFAULT_PLANNER_TYPES, LIVE_PLANNER, PLANNER_TYPES
+from pppbot_nav.planner.plugin_settings import DEFAULT_PLANNER_TYPES
+from pppbot_nav.plugins import plugins
 from pppbot_nav.ros.costmap_node import CostmapNode
 from pppbot_nav.ros.plugins import Plugin, live_plugin_parameters, load_plugin
 
@@ -107,7 +110,7 @@ class PlannerServer(ManagedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("planner_server", **kwargs)
         self.params = p = declare_parameters(self, PlannerServerParameters)
-        self.plugins = {name: load_plugin(self, name, PLANNER_TYPES, DEFAULT_PLANNER_TYPES.get(name))
+        self.plugins = {name: load_plugin(self, name, plugins("planner"), DEFAULT_PLANNER_TYPES.get(name))
                         for name in p.planner_plugins}
         self.planners = {name: plugin.params.make() for name, plugin in self.plugins.items()}
         self.costmap_node = CostmapNode("global_costmap", port=self.port)
@@ -123,7 +126,7 @@ class PlannerServer(ManagedNode):
         self.create_service(IsPathValid, "is_path_valid", self._is_path_valid)
         serve_live_parameters(self, [LiveParameters("", lambda: self.params, self._set_params,
                                                     {"expected_planner_frequency"}),
-                                     *live_plugin_parameters(self.plugins, self._set_planner_params, LIVE_PLANNER)])
+                                     *live_plugin_parameters(self.plugins, self._set_planner_params)])
         kinds = ", ".join(f"'{name}' ({plugin.type_name})" for name, plugin in self.plugins.items())
         self.get_logger().info(f"planners {kinds} ready on global_costmap")
 
