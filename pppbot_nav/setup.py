@@ -34,6 +34,8 @@ setup(
             'navigation = pppbot_nav.ros.navigation:main',
             'localization = pppbot_nav.ros.localization:main',
             'lifecycle_manager = pppbot_nav.ros.lifecycle_manager:main',
+            'costmap_filter_info_server = pppbot_nav.ros.costmap_filter_info_server:main',
+            'costmap_filters = pppbot_nav.ros.costmap_filters:main',
         ],
         # Nav2's plugins by type name (pluginlib's role: pppbot_nav.plugins); a user's package
         # registers its own in the same groups.
@@ -64,6 +66,20 @@ setup(
             'nav2_costmap_2d::ObstacleLayer = pppbot_nav.costmap.layer_settings:ObstacleLayerParameters',
             'nav2_costmap_2d::VoxelLayer = pppbot_nav.costmap.layer_settings:VoxelLayerParameters',
             'nav2_costmap_2d::InflationLayer = pppbot_nav.costmap.layer_settings:InflationLayerParameters',
+        ],
+        'pppbot_nav.costmap_filters': [
+            'nav2_costmap_2d::KeepoutFilter = pppbot_nav.costmap.filters:KeepoutFilterParameters',
+            'nav2_costmap_2d::SpeedFilter = pppbot_nav.costmap.filters:SpeedFilterParameters',
+        ],
+        'pppbot_nav.smoothers': [
+            'nav2_smoother::SimpleSmoother = pppbot_nav.planner.simple_smoother:SimpleSmootherParameters',
+        ],
+        'pppbot_nav.behaviors': [
+            'nav2_behaviors::Spin = pppbot_nav.ros.behavior_plugins:SpinPlugin',
+            'nav2_behaviors::BackUp = pppbot_nav.ros.behavior_plugins:BackUpPlugin',
+            'nav2_behaviors::DriveOnHeading = pppbot_nav.ros.behavior_plugins:DriveOnHeadingPlugin',
+            'nav2_behaviors::Wait = pppbot_nav.ros.behavior_plugins:WaitPlugin',
+            'nav2_behaviors::AssistedTeleop = pppbot_nav.ros.behavior_plugins:AssistedTeleopPlugin',
         ],
         # `pppbot <verb>`: found by pppbot_bringup.cli (a module with add_arguments and main).
         'pppbot.verbs': [

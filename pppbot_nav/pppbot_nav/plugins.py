@@ -29,7 +29,10 @@ GROUPS: dict[str, tuple[str, str]] = {
     "progress checker": ("pppbot_nav.progress_checkers", "pppbot_nav.controller.interface.ProgressCheckerPlugin"),
     "DWB critic": ("pppbot_nav.dwb_critics", "pppbot_nav.controller.interface.CriticPlugin"),
     "costmap layer": ("pppbot_nav.costmap_layers", "pppbot_nav.costmap.interface.LayerPlugin"),
-    "behavior tree node library": ("pppbot_nav.bt_plugins", "pppbot_nav.bt.ports.NodeLibrary"),
+    "costmap filter": ("pppbot_nav.costmap_filters", "pppbot_nav.costmap.interface.FilterPlugin"),
+    "smoother": ("pppbot_nav.smoothers", "pppbot_nav.planner.smoother_interface.SmootherPlugin"),
+    "behavior": ("pppbot_nav.behaviors", "pppbot_nav.ros.behavior_interface.BehaviorPlugin"),
+    "behavior tree node library": ("pppbot_nav.bt_plugins", "pppbot_nav.bt.tree.NodeLibrary"),
 }
 
 
@@ -94,6 +97,32 @@ class PluginGroup(Mapping[str, Any]):
 
     def __len__(self) -> int:
         return len(self.entries())
+
+
+class AnyOf(Mapping[str, Any]):
+    """Several groups looked up as one, the first holding a name winning (a costmap's ``filters``
+    take filters and layers, as Nav2's: an inflation layer after a keepout filter)."""
+
+    def __init__(self, *groups: PluginGroup) -> None:
+        self.groups = groups
+
+    def unknown(self, type_name: str) -> str:
+        return "; ".join(group.unknown(type_name) for group in self.groups)
+
+    def __getitem__(self, type_name: str) -> Any:
+        for group in self.groups:
+            if type_name in group:
+                return group[type_name]
+        raise PluginError(self.unknown(type_name))
+
+    def __contains__(self, type_name: object) -> bool:
+        return any(type_name in group for group in self.groups)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter([name for group in self.groups for name in group])
+
+    def __len__(self) -> int:
+        return sum(len(group) for group in self.groups)
 
 
 _groups: dict[str, PluginGroup] = {}

@@ -16,8 +16,10 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Empty
+from user_plugins import install_user_plugins
 
 from pppbot_common.maps import OccupancyGrid
+from pppbot_common.params import ParameterError
 from pppbot_common.ros.maps import grid_message
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.wait import send_goal, wait_until
@@ -74,13 +76,14 @@ def wall_costmap(stamp: Any) -> OccupancyGridMsg:
 
 @pytest.fixture
 def stack(ros_node: Node, spin_in_background: Callable[..., Any]) -> Callable[..., tuple[BehaviorServer, Robot]]:
-    """``stack(pose=(0, 0, 0), active=True)``: a behavior_server and its robot at ``pose``; the
-    wall's costmap published."""
+    """``stack(pose=(0, 0, 0), active=True, parameters={})``: a behavior_server with the parameters
+    and its robot at ``pose``; the wall's costmap published."""
     costmap_pub = ros_node.create_publisher(OccupancyGridMsg, "local_costmap/costmap", LATCHED)
     costmap_pub.publish(wall_costmap(ros_node.get_clock().now().to_msg()))
 
-    def start(pose: tuple[float, float, float] = (0.0, 0.0, 0.0), active: bool = True) -> tuple[BehaviorServer, Robot]:
-        server = BehaviorServer()
+    def start(pose: tuple[float, float, float] = (0.0, 0.0, 0.0), active: bool = True,
+              parameters: dict[str, Any] | None = None) -> tuple[BehaviorServer, Robot]:
+        server = BehaviorServer(parameter_overrides=[Parameter(k, value=v) for k, v in (parameters or {}).items()])
         robot = Robot(server, pose)
         spin_in_background(server, robot)
         if active:
@@ -243,3 +246,40 @@ def test_bad_settings_are_refused_naming_the_parameter(ros_node):
         BehaviorServer(parameter_overrides=[Parameter("behavior_plugins", value=["spin", "dance"])])
     with pytest.raises(Exception, match="cycle_frequency"):
         BehaviorServer(parameter_overrides=[Parameter("cycle_frequency", value=0.0)])
+
+
+def test_a_users_behaviour_is_found_by_its_type_name_and_runs(ros_node, stack, tmp_path, monkeypatch):
+    install_user_plugins(tmp_path / "site", monkeypatch)
+    with pytest.raises(ParameterError, match=r"'turn.yaw_rate' = 5.0"):  # its parameters, under its name
+        BehaviorServer(parameter_overrides=[Parameter("behavior_plugins", value=["turn"]),
+                                            Parameter("turn.plugin", value="pppbot_test_plugins::Turn"),
+                                            Parameter("turn.yaw_rate", value=5.0)])
+    _, robot = stack(parameters={"behavior_plugins": ["spin", "turn"],
+                                 "turn.plugin": "pppbot_test_plugins/Turn",  # pluginlib's other spelling
+                                 "turn.yaw_rate": 0.5})
+    # Its own meaning of a Wait goal: turn at yaw_rate for the time, counting down.
+    status, result, feedback = run(ros_node, Wait, "turn", Wait.Goal(time=allowance(1.0)))
+    assert status == SUCCEEDED
+    assert robot.pose[2] == pytest.approx(0.5, abs=0.1) and robot.pose[:2] == (0.0, 0.0)
+    assert robot.commands[-1] == (0.0, 0.0)  # stopped by the server at the end
+    left = [f.time_left.sec + f.time_left.nanosec * 1e-9 for f in feedback]
+    assert left and left == sorted(left, reverse=True) and left[0] <= 1.0
+    # What it refuses ends the goal with its reason (Wait has no INVALID_INPUT code: 0).
+    status, result, _ = run(ros_node, Wait, "turn", Wait.Goal(time=allowance(0.0)))
+    assert status == ABORTED and result.error_code == 0 and "the time must be positive" in result.error_msg
+    # pppbot's own behaviours serve beside it.
+    status, _, _ = run(ros_node, Spin, "spin", Spin.Goal(target_yaw=-0.5, time_allowance=allowance(10)))
+    assert status == SUCCEEDED and robot.pose[2] == pytest.approx(0.0, abs=0.15)
+
+
+def test_an_unknown_behaviour_type_names_the_group_and_what_is_installed(ros_node, tmp_path, monkeypatch):
+    install_user_plugins(tmp_path / "site", monkeypatch)
+    with pytest.raises(ParameterError) as refused:
+        BehaviorServer(parameter_overrides=[Parameter("behavior_plugins", value=["dock"]),
+                                            Parameter("dock.plugin", value="opennav_docking::Dock")])
+    message = str(refused.value)
+    assert "'dock.plugin' = 'opennav_docking::Dock'" in message and "'pppbot_nav.behaviors'" in message
+    installed = message.split("installed: ")[1]
+    for type_name in ("nav2_behaviors::Spin", "nav2_behaviors::BackUp", "nav2_behaviors::DriveOnHeading",
+                      "nav2_behaviors::Wait", "nav2_behaviors::AssistedTeleop", "pppbot_test_plugins::Turn"):
+        assert type_name in installed

@@ -284,11 +284,13 @@ def test_behaviours_are_nav2s_plugin_types_under_any_name(context: None) -> None
         Parameter("behavior_plugins", value=["turn", "backup"]),
         Parameter("turn.plugin", value="nav2_behaviors/Spin")])  # Humble's spelling, a name of one's own
     try:
-        assert server.kinds == {"turn": "spin", "backup": "backup"}
+        assert {name: plugin.type_name for name, plugin in server.plugins.items()} == {
+            "turn": "nav2_behaviors::Spin", "backup": "nav2_behaviors::BackUp"}
         assert set(server.servers) == {"turn", "backup"}  # the actions are named as the behaviours
     finally:
         server.destroy_node()
-    with pytest.raises(ParameterError, match=r"'spin.plugin' = 'nav2_behaviors::Dock'.*known: nav2_behaviors::Spin"):
+    with pytest.raises(ParameterError, match=r"'spin.plugin' = 'nav2_behaviors::Dock'.*group 'pppbot_nav.behaviors'"
+                                             r".*installed: .*nav2_behaviors::Spin"):
         BehaviorServer(parameter_overrides=[Parameter("spin.plugin", value="nav2_behaviors::Dock")])
 
 

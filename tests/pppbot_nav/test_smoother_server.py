@@ -14,10 +14,12 @@ from nav2_msgs.action import SmoothPath
 from nav_msgs.msg import Path
 from rclpy.action import ActionClient
 from rclpy.parameter import Parameter
+from user_plugins import install_user_plugins
 
 from pppbot_common.maps import OccupancyGrid
 from pppbot_common.params import ParameterError
 from pppbot_common.ros.wait import change_state, send_goal, wait_until
+from pppbot_nav.planner.simple_smoother import SimpleSmootherSettings, blocked_cells, smooth_path
 from pppbot_nav.ros.smoother_server import SmootherServer
 
 pytestmark = pytest.mark.ros
@@ -155,8 +157,71 @@ def test_bad_parameters_and_plugin_types_are_refused_naming_them(smoother):
     with pytest.raises(ParameterError, match="simple_smoother.w_smooth"):
         SmootherServer(parameter_overrides=[Parameter("simple_smoother.w_smooth", value=0.9)])
     with pytest.raises(ParameterError, match="smoother_plugins"):
-        SmootherServer(parameter_overrides=[Parameter("smoother_plugins", value=["sg"])])
+        SmootherServer(parameter_overrides=[Parameter("smoother_plugins", value=["a", "a"])])
     s = smoother(**{"simple_smoother.plugin": "nav2_smoother::SavitzkyGolaySmoother"})
+    assert not s.change(Transition.TRANSITION_CONFIGURE)  # as pluginlib fails Nav2's configure
+    failure = s.server.configure_failure
+    assert "'simple_smoother.plugin' = 'nav2_smoother::SavitzkyGolaySmoother'" in failure
+    assert "'pppbot_nav.smoothers'" in failure and "installed: nav2_smoother::SimpleSmoother" in failure
+
+
+def test_a_smoother_named_without_a_type_fails_the_configure(smoother):
+    s = smoother(smoother_plugins=["sg"])  # only simple_smoother has a default type
     assert not s.change(Transition.TRANSITION_CONFIGURE)
-    assert "'nav2_smoother::SavitzkyGolaySmoother'" in s.server.configure_failure
-    assert "'nav2_smoother::SimpleSmoother'" in s.server.configure_failure
+    assert "'sg.plugin'" in s.server.configure_failure and "must name the plugin's type" in s.server.configure_failure
+
+
+def test_two_smoothers_by_name_each_with_its_parameters_chosen_by_smoother_id(smoother, publish_map):
+    grid = free_costmap()
+    publish_map(COSTMAP, grid=grid)
+    s = smoother(**{"smoother_plugins": ["light", "strong"],
+                    "light.plugin": "nav2_smoother/SimpleSmoother",  # pluginlib's other spelling
+                    "light.w_data": 0.5, "light.w_smooth": 0.02,
+                    "strong.plugin": "nav2_smoother::SimpleSmoother"})
+    s.activate()
+    s.has_costmap()
+    stairs = staircase()
+    light = s.result(s.send(stairs, smoother_id="light"))
+    strong = s.result(s.send(stairs, smoother_id="strong"))
+    assert light.result.error_code == strong.result.error_code == Result.NONE
+    # Each is the SimpleSmoother with its own parameters (strong's are Nav2's defaults).
+    for end, settings in ((light, SimpleSmootherSettings(w_data=0.5, w_smooth=0.02)),
+                          (strong, SimpleSmootherSettings())):
+        expected = smooth_path(stairs, np.zeros(len(stairs)), settings, clock_s=lambda: 0.0, max_duration_s=1.0,
+                               blocked=blocked_cells(grid))
+        np.testing.assert_allclose(points_of(end.result.path), expected.points_xy, atol=1e-9)
+    assert roughness(points_of(strong.result.path)) < roughness(points_of(light.result.path)) < roughness(stairs)
+    # Nav2's rule: with several smoothers an empty id names none; an unknown one is refused alike.
+    for smoother_id, said in (("", "no smoother_id"), ("simple_smoother", "unknown smoother_id 'simple_smoother'")):
+        refused = s.result(s.send(stairs, smoother_id=smoother_id))
+        assert refused.status == GoalStatus.STATUS_ABORTED
+        assert refused.result.error_code == Result.INVALID_SMOOTHER
+        assert said in refused.result.error_msg and "'light', 'strong'" in refused.result.error_msg
+
+
+def test_a_smoothers_parameters_and_type_cannot_change_while_it_runs(smoother):
+    s = smoother()
+    for name, value in (("simple_smoother.w_smooth", 0.1), ("simple_smoother.plugin", "x::Y")):
+        result = s.server.set_parameters([Parameter(name, value=value)])[0]
+        assert not result.successful and f"'{name}' cannot change while the node runs" in result.reason
+    assert s.server.get_parameter("simple_smoother.w_smooth").value == 0.3
+
+
+def test_a_users_smoother_is_found_by_its_type_name_and_smooths(smoother, publish_map, tmp_path, monkeypatch):
+    install_user_plugins(tmp_path / "site", monkeypatch)
+    publish_map(COSTMAP, grid=free_costmap())
+    s = smoother(**{"smoother_plugins": ["simple_smoother", "straight"],
+                    "straight.plugin": "pppbot_test_plugins::Straighten", "straight.max_poses": 50})
+    s.activate()
+    s.has_costmap()
+    stairs = staircase()
+    end = s.result(s.send(stairs, smoother_id="straight"))
+    assert end.status == GoalStatus.STATUS_SUCCEEDED and end.result.was_completed
+    out = points_of(end.result.path)
+    np.testing.assert_allclose(out, np.linspace(stairs[0], stairs[-1], len(stairs)), atol=1e-9)
+    simple = s.result(s.send(stairs, smoother_id="simple_smoother"))  # pppbot's own, beside it
+    assert not np.allclose(points_of(simple.result.path), out, atol=1e-3)
+    # The user's smoother's failure is the action's INVALID_PATH, with its message.
+    too_long = s.result(s.send(staircase(n=61), smoother_id="straight"))
+    assert too_long.result.error_code == Result.INVALID_PATH
+    assert "61 poses: more than the 50" in too_long.result.error_msg

@@ -294,3 +294,8 @@ class Tree:
             found.append(node)
             stack.extend(reversed(node.children))
         return found
+
+
+#: A library of BT nodes, by the XML name a tree gives each: what ``plugin_lib_names`` loads (an
+#: entry point of ``pppbot_nav.bt_plugins``, or a module's ``BT_NODES``).
+NodeLibrary = Mapping[str, type[TreeNode]]

@@ -16,6 +16,10 @@ Nav2 sweeps point after point): the fixed point, the path both converge to, is t
 
 Unlike :func:`pppbot_nav.planner.smoother.smooth` (the planner's own smoothing of its cell path)
 this neither resamples nor reverts single points: it smooths the poses it is given.
+
+:class:`SimpleSmootherParameters` is the smoother server's ``nav2_smoother::SimpleSmoother``
+plugin (the ``pppbot_nav.smoothers`` entry point, :mod:`pppbot_nav.planner.smoother_interface`):
+Nav2's parameter names and defaults under the smoother's name.
 """
 from __future__ import annotations
 
@@ -26,10 +30,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from pppbot_common.maps import OccupancyGrid
-from pppbot_common.params import ParameterError, check_finite_range
+from pppbot_common.params import ParameterError, check_finite_range, param
 from pppbot_common.se2 import wrap_angle
 from pppbot_nav.behaviors import INSCRIBED_OCCUPANCY
 from pppbot_nav.errors import SmootherError, SmootherTimedOut
+from pppbot_nav.planner.smoother_interface import SmoothedPath
 
 #: Segments of this many poses or fewer are not smoothed (Nav2: ``end - start > 9``).
 MIN_SEGMENT_POSES = 10
@@ -47,21 +52,15 @@ class SimpleSmootherSettings:
     refinement_num: int = 2  # smoothings of the smoothed path, with do_refinement
 
     def validate(self, prefix: str = "simple_smoother") -> None:
-        """Raises: ParameterError naming ``<prefix>.<setting>``."""
-        check_finite_range(f"{prefix}.tolerance", self.tolerance, 0.0, 1.0)
-        check_finite_range(f"{prefix}.w_data", self.w_data, 0.0, 1.0)
-        check_finite_range(f"{prefix}.w_smooth", self.w_smooth, 0.0, 0.5)
+        """Raises: ParameterError naming ``<prefix>.<setting>`` (``<setting>`` with an empty prefix)."""
+        at = f"{prefix}." if prefix else ""
+        check_finite_range(f"{at}tolerance", self.tolerance, 0.0, 1.0)
+        check_finite_range(f"{at}w_data", self.w_data, 0.0, 1.0)
+        check_finite_range(f"{at}w_smooth", self.w_smooth, 0.0, 0.5)
         if self.max_its < 1:
-            raise ParameterError(f"{prefix}.max_its", self.max_its, "must be ≥ 1")
+            raise ParameterError(f"{at}max_its", self.max_its, "must be ≥ 1")
         if self.refinement_num < 0:
-            raise ParameterError(f"{prefix}.refinement_num", self.refinement_num, "must be ≥ 0")
-
-
-@dataclass(frozen=True)
-class SmoothedPath:
-    points_xy: np.ndarray  # (N, 2) m
-    yaws_rad: np.ndarray  # (N,)
-    completed: bool  # False: a collision or max_its stopped a segment before it converged
+            raise ParameterError(f"{at}refinement_num", self.refinement_num, "must be ≥ 0")
 
 
 def directional_segments(points_xy: np.ndarray, yaws_rad: np.ndarray) -> list[tuple[int, int]]:
@@ -201,3 +200,39 @@ def first_collision(grid: OccupancyGrid, points_xy: np.ndarray) -> int | None:
     values, inside = _occupancy(grid, np.asarray(points_xy, dtype=float).reshape(-1, 2))
     hits = np.flatnonzero(~inside | (values >= INSCRIBED_OCCUPANCY))
     return int(hits[0]) if len(hits) else None
+
+
+class SimpleSmoother:
+    """Nav2's SimpleSmoother on the server's costmap: points kept off its inscribed and lethal cells."""
+
+    def __init__(self, settings: SimpleSmootherSettings) -> None:
+        self.settings = settings
+
+    def smooth(self, points_xy: np.ndarray, yaws_rad: np.ndarray, costmap: OccupancyGrid, *,
+               clock_s: Callable[[], float], max_duration_s: float) -> SmoothedPath:
+        """:func:`smooth_path` kept off :func:`blocked_cells` of ``costmap`` (raises as it does)."""
+        return smooth_path(points_xy, yaws_rad, self.settings, clock_s=clock_s, max_duration_s=max_duration_s,
+                           blocked=blocked_cells(costmap))
+
+
+@dataclass(frozen=True)
+class SimpleSmootherParameters:
+    """``nav2_smoother::SimpleSmoother``'s parameters (Nav2's names and defaults), under its name."""
+
+    tolerance: float = param(1e-10, "a sweep moving the points less than this in sum ends the smoothing (m)")
+    max_its: int = param(1000, "sweeps before a segment is given up")
+    w_data: float = param(0.2, "pull toward the original path")
+    w_smooth: float = param(0.3, "pull toward the neighbours")
+    do_refinement: bool = param(True, "smooth the smoothed path again")
+    refinement_num: int = param(2, "refinements with do_refinement")
+
+    def validate(self) -> None:
+        """Raises: ParameterError naming the parameter (the server adds the smoother's name)."""
+        self.settings().validate(prefix="")
+
+    def settings(self) -> SimpleSmootherSettings:
+        return SimpleSmootherSettings(self.tolerance, self.max_its, self.w_data, self.w_smooth, self.do_refinement,
+                                      self.refinement_num)
+
+    def make(self) -> SimpleSmoother:
+        return SimpleSmoother(self.settings())

@@ -17,7 +17,7 @@ from rclpy.node import Node
 
 from pppbot_common.params import ParameterError
 from pppbot_common.ros.params import LiveParameters, declare_parameters
-from pppbot_nav.plugins import PluginError, PluginGroup, canonical
+from pppbot_nav.plugins import AnyOf, PluginError, PluginGroup, canonical
 
 
 @dataclass(frozen=True)
@@ -41,7 +41,7 @@ def plugin_type(node: Node, name: str, types: Mapping[str, Any], default_type: s
         raise ParameterError(f"{name}.plugin", given, "must name the plugin's type, one of: " + ", ".join(types))
     found = known.get(canonical(given))
     if found is None:
-        if isinstance(types, PluginGroup):
+        if isinstance(types, (PluginGroup, AnyOf)):
             raise ParameterError(f"{name}.plugin", given, "names no installed plugin: " + types.unknown(given))
         raise ParameterError(f"{name}.plugin", given, "is not a plugin pppbot implements; known: " + ", ".join(types))
     return found

@@ -1,11 +1,15 @@
 """``smoother_server``: smooths given paths, in Nav2's ``smoother_server`` place.
 
 Serves ``smooth_path`` (nav2_msgs/action/SmoothPath) while active and publishes each smoothed
-path on ``plan_smoothed`` (nav_msgs/Path), as Nav2's server does. Smoothers are chosen by name:
-``smoother_plugins`` names them, ``<name>.plugin`` gives each one's Nav2 plugin type, looked up
-in :data:`SMOOTHERS` at configure (an unknown type fails the configure, naming the known ones).
-pppbot has ``nav2_smoother::SimpleSmoother`` (:mod:`pppbot_nav.planner.simple_smoother`) under
-the name ``simple_smoother``; a goal's empty ``smoother_id`` picks it.
+path on ``plan_smoothed`` (nav_msgs/Path), as Nav2's server does. Smoothers are Nav2's plugins
+by type, found in the ``pppbot_nav.smoothers`` entry-point group (pppbot's
+``nav2_smoother::SimpleSmoother``, :mod:`pppbot_nav.planner.simple_smoother`; a user's from
+their package: :mod:`pppbot_nav.planner.smoother_interface`): each name of ``smoother_plugins``
+is loaded as its ``<name>.plugin`` says (``simple_smoother`` without one: the SimpleSmoother,
+Nav2's default), its parameters under ``<name>.``. A type no installed package exports fails the
+configure, naming the group and what is installed in it, as pluginlib fails Nav2's. A goal's
+``smoother_id`` picks one; an empty id picks the only one (Nav2's rule: with several, an empty
+id is no smoother).
 
 The costmap is the latched ``costmap_topic`` (nav_msgs/OccupancyGrid, 0-100): the smoother keeps
 points off its inscribed and lethal cells, and a goal with ``check_for_collisions`` fails with
@@ -19,14 +23,15 @@ back unchanged. ``was_completed`` is False when a collision or ``max_its`` stopp
 early: the goal still succeeds, with the path smoothed that far.
 
 ``robot_base_frame`` is declared for Nav2's configurations; pppbot's collision check needs no
-footprint (an inscribed cell is where the robot's circle touches an obstacle).
+footprint (an inscribed cell is where the robot's circle touches an obstacle). Nav2's smoother
+server has no dynamic parameters: a set is refused with the reason.
 """
 from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -40,78 +45,37 @@ from rclpy.duration import Duration
 from pppbot_common.maps import OccupancyGrid
 from pppbot_common.params import ParameterError, param
 from pppbot_common.ros.maps import grid_from_message
-from pppbot_common.ros.params import declare_parameters, fixed_parameters
+from pppbot_common.ros.params import LiveParameters, declare_parameters, refuse_sets, serve_live_parameters
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.se2 import quaternion_from_yaw, yaw_from_quaternion
 from pppbot_lockstep.ros.lifecycle import ManagedNode
 from pppbot_lockstep.ros.node import StepActionServer
 from pppbot_lockstep.ros.runner import guarded, run_nodes
 from pppbot_nav.errors import SmootherError, SmootherTimedOut
-from pppbot_nav.planner.simple_smoother import (
-    SimpleSmootherSettings,
-    SmoothedPath,
-    blocked_cells,
-    first_collision,
-    smooth_path,
-)
+from pppbot_nav.planner.simple_smoother import first_collision
+from pppbot_nav.planner.smoother_interface import Smoother
+from pppbot_nav.plugins import plugins
+from pppbot_nav.ros.plugins import Plugin, plugin_class, plugin_type
 
 SIMPLE_SMOOTHER = "simple_smoother"
-SIMPLE_SMOOTHER_TYPE = "nav2_smoother::SimpleSmoother"
-
-#: A smoother: (x, y) points (N, 2), headings (N,), the costmap, the time allowed (s) → the smoothed path.
-Smoother = Callable[[np.ndarray, np.ndarray, OccupancyGrid, float], SmoothedPath]
-
-
-def _simple_smoother(settings: SimpleSmootherSettings) -> Smoother:
-    def smooth(points_xy: np.ndarray, yaws_rad: np.ndarray, costmap: OccupancyGrid, max_s: float) -> SmoothedPath:
-        return smooth_path(points_xy, yaws_rad, settings, clock_s=time.monotonic, max_duration_s=max_s,
-                           blocked=blocked_cells(costmap))
-    return smooth
-
-
-#: Smoothers by Nav2 plugin type, each made from its settings.
-SMOOTHERS: dict[str, Callable[[SimpleSmootherSettings], Smoother]] = {
-    SIMPLE_SMOOTHER_TYPE: _simple_smoother,
-}
+#: Nav2's default smoother type, for ``simple_smoother`` without a ``plugin``.
+DEFAULT_SMOOTHER_TYPES = {SIMPLE_SMOOTHER: "nav2_smoother::SimpleSmoother"}
 
 
 @dataclass(frozen=True)
 class SmootherServerParameters:
-    smoother_plugins: list = param([SIMPLE_SMOOTHER], f"smoother names (pppbot has one: {SIMPLE_SMOOTHER})")
-    plugin: str = param(SIMPLE_SMOOTHER_TYPE, "the smoother's Nav2 plugin type", f"{SIMPLE_SMOOTHER}.plugin")
-    tolerance: float = param(1e-10, "a sweep moving the points less than this in sum ends the smoothing (m)",
-                             f"{SIMPLE_SMOOTHER}.tolerance")
-    max_its: int = param(1000, "sweeps before a segment is given up", f"{SIMPLE_SMOOTHER}.max_its")
-    w_data: float = param(0.2, "pull toward the original path", f"{SIMPLE_SMOOTHER}.w_data")
-    w_smooth: float = param(0.3, "pull toward the neighbours", f"{SIMPLE_SMOOTHER}.w_smooth")
-    do_refinement: bool = param(True, "smooth the smoothed path again", f"{SIMPLE_SMOOTHER}.do_refinement")
-    refinement_num: int = param(2, "refinements with do_refinement", f"{SIMPLE_SMOOTHER}.refinement_num")
+    smoother_plugins: list = param([SIMPLE_SMOOTHER], "smoother names; each's type is its <name>.plugin")
     costmap_topic: str = param("global_costmap/costmap", "the costmap (nav_msgs/OccupancyGrid, latched)")
     robot_base_frame: str = param("base_link", "the robot's frame (Nav2's footprint frame; unused here)")
 
     def validate(self) -> None:
-        if list(self.smoother_plugins) != [SIMPLE_SMOOTHER]:
-            raise ParameterError("smoother_plugins", self.smoother_plugins, f"must be ['{SIMPLE_SMOOTHER}']")
+        if not self.smoother_plugins or len(set(self.smoother_plugins)) != len(self.smoother_plugins):
+            raise ParameterError("smoother_plugins", self.smoother_plugins,
+                                 "must name at least one smoother, each once")
+        if not all(isinstance(name, str) and name for name in self.smoother_plugins):
+            raise ParameterError("smoother_plugins", self.smoother_plugins, "must be names (strings)")
         if not self.costmap_topic:
             raise ParameterError("costmap_topic", self.costmap_topic, "must name a topic")
-        self.settings().validate(SIMPLE_SMOOTHER)
-
-    def settings(self) -> SimpleSmootherSettings:
-        return SimpleSmootherSettings(self.tolerance, self.max_its, self.w_data, self.w_smooth,
-                                      self.do_refinement, self.refinement_num)
-
-
-def load_smoother(plugin_type: str, settings: SimpleSmootherSettings) -> Smoother:
-    """The smoother of Nav2 plugin type ``plugin_type``.
-
-    Raises:
-        SmootherError: an unknown type; the message lists the known ones.
-    """
-    factory = SMOOTHERS.get(plugin_type)
-    if factory is None:
-        raise SmootherError(f"{SIMPLE_SMOOTHER}.plugin '{plugin_type}' is not a smoother pppbot has: "
-                            + ", ".join(f"'{name}'" for name in SMOOTHERS))
-    return factory(settings)
 
 
 class _Failure(Exception):  # noqa: N818 (a result code carrier, not an error record)
@@ -142,30 +106,65 @@ def with_poses(path: Path, points_xy: np.ndarray, yaws_rad: np.ndarray) -> Path:
     return out
 
 
+def _params_of(plugin: Plugin) -> Any:
+    return plugin.params
+
+
+def _keep(_: Any) -> None:
+    """Nothing to apply: every parameter of the server and its smoothers is fixed while it runs."""
+
+
 class SmootherServer(ManagedNode):
     """Nav2's ``smoother_server``: a lifecycle node that smooths only while active."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("smoother_server", **kwargs)
         self.params = declare_parameters(self, SmootherServerParameters)
-        fixed_parameters(self, lambda: self.params)  # Nav2's has no dynamic parameters
-        self.smoother: Smoother | None = None
+        #: Each smoother's type and parameters, by name; a name whose type is not installed is in
+        #: ``type_failures`` instead and fails the configure, as pluginlib fails Nav2's.
+        self.plugins: dict[str, Plugin] = {}
+        self.type_failures: dict[str, ParameterError] = {}
+        group = plugins("smoother")
+        for name in self.params.smoother_plugins:
+            try:
+                type_name = plugin_type(self, name, group, DEFAULT_SMOOTHER_TYPES.get(name))
+                cls = plugin_class(name, group, type_name)
+            except ParameterError as exc:
+                self.type_failures[name] = exc
+                continue
+            self.plugins[name] = Plugin(name, type_name, declare_parameters(self, cls, prefix=f"{name}."))
+        # Nav2's has no dynamic parameters: each group is refused whole.
+        serve_live_parameters(self, [LiveParameters("", lambda: self.params, _keep, ()),
+                                     *(LiveParameters(f"{name}.", partial(_params_of, plugin), _keep, ())
+                                       for name, plugin in self.plugins.items())])
+        types = {f"{name}.plugin" for name in self.params.smoother_plugins}
+        refuse_sets(self, "a smoother's type is read once, at start-up (as in Nav2); restart the node to change it",
+                    allowed=lambda key: key not in types)
+        self.smoothers: dict[str, Smoother] = {}
         self.costmap: OccupancyGrid | None = None
         self.plan_pub = self.create_publisher(Path, "plan_smoothed", 1)
         self.create_subscription(OccupancyGridMsg, self.params.costmap_topic,
                                  guarded(self, self._on_costmap, "OccupancyGrid"), LATCHED)
         self.server = StepActionServer(self, SmoothPath, "smooth_path", self._execute, goal_callback=self.gated())
-        self.get_logger().info(f"smoother '{SIMPLE_SMOOTHER}' on {self.params.costmap_topic} once active")
+        kinds = ", ".join(f"'{name}' ({plugin.type_name})" for name, plugin in self.plugins.items())
+        self.get_logger().info(f"smoothers {kinds} on {self.params.costmap_topic} once active")
 
     def destroy_node(self) -> None:
         self.server.destroy()
         super().destroy_node()
 
     def configure(self) -> None:
-        self.smoother = load_smoother(self.params.plugin, self.params.settings())
+        """Make each smoother.
+
+        Raises:
+            ParameterError: a smoother whose ``<name>.plugin`` names no installed type.
+        """
+        if self.type_failures:
+            raise next(iter(self.type_failures.values()))
+        self.smoothers = {name: plugin.params.make() for name, plugin in self.plugins.items()}
 
     def cleanup(self) -> None:
-        self.smoother = None
+        self.smoothers = {}
 
     def _on_costmap(self, msg: OccupancyGridMsg) -> None:
         self.costmap = grid_from_message(msg)
@@ -196,10 +195,15 @@ class SmootherServer(ManagedNode):
             _Failure: with the result's error code and a message.
         """
         r = SmoothPath.Result
-        if request.smoother_id not in ("", SIMPLE_SMOOTHER):
-            raise _Failure(r.INVALID_SMOOTHER, f"unknown smoother_id '{request.smoother_id}': "
-                                               f"this server has '{SIMPLE_SMOOTHER}'")
-        if self.smoother is None:
+        names = self.params.smoother_plugins
+        name = request.smoother_id
+        if not name and len(names) == 1:
+            name = names[0]
+        if name not in names:
+            given = f"unknown smoother_id '{name}'" if name else "no smoother_id"
+            raise _Failure(r.INVALID_SMOOTHER, f"{given}: this server has " + ", ".join(f"'{n}'" for n in names))
+        smoother = self.smoothers.get(name)
+        if smoother is None:
             raise _Failure(r.UNKNOWN, "the smoother is not configured")
         if not request.path.poses:
             raise _Failure(r.INVALID_PATH, "the path to smooth is empty")
@@ -209,7 +213,7 @@ class SmootherServer(ManagedNode):
         points, yaws = path_arrays(request.path)
         max_s = Duration.from_msg(request.max_smoothing_duration).nanoseconds * 1e-9
         try:
-            smoothed = self.smoother(points, yaws, costmap, max_s)
+            smoothed = smoother.smooth(points, yaws, costmap, clock_s=time.monotonic, max_duration_s=max_s)
         except SmootherTimedOut as exc:
             raise _Failure(r.TIMEOUT, str(exc)) from exc
         except SmootherError as exc:
