@@ -26,6 +26,7 @@ from typing import Any
 import yaml
 from pppbot_viz.viewer import ViewerKind
 
+from pppbot_bringup.filter_masks import with_filters
 from pppbot_bringup.node_specs import (
     NAVIGATION_ENDPOINTS,
     Beside,
@@ -108,6 +109,11 @@ class LaunchArgs:
     slam_params_file: str = _arg("", "the slam node's parameters; default config/mapper_params_online_async.yaml")
     params_file: str = _arg("", "Nav2's parameters for localization and navigation (Nav2's bringup argument); "
                                 "default config/nav2_params.yaml")
+    keepout_mask: str = _arg("", "a keepout zones mask (a Nav2 map YAML): served with its filter info, and the "
+                                 "costmaps' KeepoutFilter keeps the robot out (Nav2's use_keepout_zones)")
+    speed_mask: str = _arg("", "a speed zones mask (a Nav2 map YAML; limit = 100 - value %): served with its "
+                               "filter info, and the global costmap's SpeedFilter limits the controller "
+                               "(Nav2's use_speed_zones)")
     twist_mux_params: str = _arg("", "twist_mux's parameters; default config/twist_mux.yaml")
     controllers_file: str = _arg("", "the ros2_control controllers the robot's gz_ros2_control plugin loads (its "
                                      "xacro's controllers_file argument); default config/my_controllers.yaml")
@@ -294,6 +300,38 @@ def adapted_file(path: Path, robot: RobotFacts, directory: Path, files: dict[Pat
     return target
 
 
+def costmap_filters(masks: dict[str, str], params: Path, directory: Path, files: dict[Path, str], level: str,
+                    resolve: Resolver, info: list[str]) -> tuple[Path, NodeSpec]:
+    """The navigation parameters with the masks' filters (:mod:`pppbot_bringup.filter_masks`, a copy in
+    ``directory`` added to ``files``) and the ``costmap_filters`` process serving the masks.
+
+    Raises:
+        ArgumentError: a mask that is not a readable map YAML, or costmaps reading two info topics.
+    """
+    for kind, mask in masks.items():
+        try:
+            check_map_file(Path(mask))
+        except MapFileError as exc:
+            raise ArgumentError(f"{kind}_mask:={exc}") from exc
+    text = files.get(params) or params.read_text()
+    try:
+        setup = with_filters(yaml.safe_load(text) or {}, list(masks))
+    except ValueError as exc:
+        raise ArgumentError(f"params_file:={params}: {exc}") from exc
+    target = directory / f"{params.stem}_filters.yaml"
+    files[target] = yaml.safe_dump(setup.document, sort_keys=False)
+    scoped: dict[str, Any] = {}
+    for kind, mask in masks.items():
+        scoped[f"{kind}_filter_mask_server:yaml_filename"] = Path(mask).resolve()
+        scoped[f"{kind}_costmap_filter_info_server:filter_info_topic"] = setup.info_topics[kind]
+    info.append("costmap filters: " + ", ".join(f"{kind} zones from {mask}" for kind, mask in masks.items())
+                + (f" ({'; '.join(setup.changes)})" if setup.changes else ""))
+    flags = [f"--{kind}" for kind in masks]
+    return target, NodeSpec("costmap_filters", [resolve("pppbot_nav", "costmap_filters"), *flags,
+                                                *ros_args(level, scoped, params_file=target)],
+                            required=True, pppbot_node=True)
+
+
 def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver, probes: Probes,  # noqa: C901, PLR0912, PLR0915
          terminal: bool, rviz: str | None, extra_participants: Sequence[str] = (),
          viz: VizPlan | None = None, view_recording: Path | None = None, robot: RobotFacts = PPP_BOT) -> Plan:
@@ -432,6 +470,9 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
             after=(base,), required=True, pppbot_node=True, ready=slam_ready))
     localizer = (("localization" if args.use_composition else "lifecycle_manager_localization") if args.localization
                  else "slam_toolbox" if args.use_slam else None)
+    if (args.keepout_mask or args.speed_mask) and not args.navigation.enabled(args.localization):
+        raise ArgumentError("keepout_mask:= and speed_mask:= filter the navigation's costmaps: they need navigation "
+                            "(localization:=true, or navigation:=true)")
     if args.navigation.enabled(args.localization):
         given = parameter_file(args.params_file, config / "nav2_params.yaml", "params_file")
         if localizer is None:  # Nav2 without a map: it navigates in odom, its global costmap rolling
@@ -440,6 +481,11 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
                 raise ArgumentError(f"navigation:=true without localization or SLAM navigates in odom, but "
                                     f"params_file:={given} does not: {problem}")
         nav2_params = adapted_file(given, robot, urdf_file.parent, files, start_info)
+        masks = {kind: mask for kind, mask in (("keepout", args.keepout_mask), ("speed", args.speed_mask)) if mask}
+        if masks:
+            nav2_params, filters_spec = costmap_filters(masks, nav2_params, urdf_file.parent, files, level,
+                                                          resolve, start_info)
+            nodes.append(replace(filters_spec, after=(localizer or base,)))
         missing += sections_missing(given, NAVIGATION_NODES)
         left_out = [name for name in missing if name in NOT_IN_PPP_BOTS_BRINGUP]
         without = tuple(name for name, use in (("velocity_smoother", args.use_velocity_smoother),

@@ -45,3 +45,14 @@ class LayerPlugin(Protocol):
     def validate(self) -> None: ...
 
     def make(self, context: LayerContext) -> Layer: ...
+
+
+class FilterPlugin(Protocol):
+    """An entry point of ``pppbot_nav.costmap_filters``: a costmap filter named in ``filters``
+    (Nav2's KeepoutFilter, SpeedFilter: :mod:`pppbot_nav.costmap.filters`), applied after the layers."""
+
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None]
+
+    def validate(self) -> None: ...
+
+    def make(self, context: LayerContext) -> object: ...

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 from geometry_msgs.msg import Twist
 from nav2_msgs.action import FollowPath
+from nav2_msgs.msg import SpeedLimit as SpeedLimitMsg
 from nav_msgs.msg import Odometry, Path
 from rclpy.action.server import ServerGoalHandle
 
@@ -46,6 +47,7 @@ from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
 from pppbot_nav.controller.dwb_critics import critic_class, plugin_critic_type
 from pppbot_nav.controller.follow import FollowEnd, Follower
 from pppbot_nav.controller.plugin_settings import DEFAULT_CHECKER_TYPES, DEFAULT_CONTROLLER_TYPES
+from pppbot_nav.costmap.filters import NO_SPEED_LIMIT, SpeedLimit, limited
 from pppbot_nav.errors import ControllerError
 from pppbot_nav.plugins import PluginGroup, plugins
 from pppbot_nav.ros.costmap_node import CostmapNode
@@ -53,6 +55,19 @@ from pppbot_nav.ros.planner_server import path_message
 from pppbot_nav.ros.plugins import Plugin, live_plugin_parameters, load_plugin, plugin_class
 
 Result = FollowPath.Result
+
+
+def top_speed(controller: Any) -> float:
+    """A controller's top forward speed (m/s), what a speed limit in % is of: RPP's
+    ``desired_linear_vel``, DWB's ``max_vel_x``, or a plugin's ``top_speed_mps``."""
+    own = getattr(controller, "top_speed_mps", None)
+    if own is not None:
+        return float(own)
+    settings = getattr(controller, "settings", None)
+    for name in ("desired_linear_vel", "max_vel_x"):
+        if hasattr(settings, name):
+            return float(getattr(settings, name))
+    return math.inf
 
 #: Nav2 keys that mean nothing here, with the reason (named in the start-up warning when given).
 NO_EFFECT = {
@@ -65,7 +80,6 @@ NO_EFFECT = {
     "*.publish_local_plan": "the local plan is always published (local_plan)",
     "*.publish_global_plan": "the global plan is the planner's (plan)",
     "*.publish_transformed_plan": "the transformed plan is not published",
-    "speed_limit_topic": "no speed limits: Nav2's speed filter is not implemented",
     "use_realtime_priority": "pppbot's nodes run at normal priority",
     "costmap_update_timeout": "the controller uses the local costmap as it is",
     "enable_stamped_cmd_vel": "the controller's commands are geometry_msgs/Twist (ppp_bot's, Nav2's default)",
@@ -84,6 +98,8 @@ class ControllerServerParameters:
     progress_checker_plugins: list = param(["progress_checker"], "progress checker names (Jazzy)")
     progress_checker_plugin: str = param("", "one progress checker's name (Humble's key; wins when given)")
     odom_topic: str = param("odom", "odometry: the robot's current speed")
+    speed_limit_topic: str = param("speed_limit", "speed limits (nav2_msgs/SpeedLimit, a costmap's SpeedFilter's): "
+                                                  "each command is capped by the newest")
     failure_tolerance: float = param(0.3, "how long the controller may fail before the goal does (s; "
                                           "ppp_bot's 0.3, Nav2's default 0)")
     min_x_velocity_threshold: float = param(0.0001, "odometry speeds below this count as 0 (m/s)")
@@ -146,6 +162,9 @@ class ControllerServer(ManagedNode):
         self.port.require_match(self, self.cmd_pub)
         self.local_plan_pub = self.create_publisher(Path, "local_plan", 1)
         self.create_subscription(Odometry, p.odom_topic, guarded(self, self._on_odom, "Odometry"), 10, data_path=True)
+        self.speed_limit = SpeedLimit(NO_SPEED_LIMIT, True)
+        self.create_subscription(SpeedLimitMsg, p.speed_limit_topic, guarded(self, self._on_speed_limit, "SpeedLimit"),
+                                 10, data_path=True, quiet=True, needs_publisher=False)
         self.server = GoalServer(self, FollowPath, "follow_path", self._on_goal, accept=self.taking_goals)
         # The control loop runs while a path is followed (an idle controller makes no sync times).
         self.timer = self.step_timer(1.0 / p.controller_frequency, self._control)
@@ -221,6 +240,15 @@ class ControllerServer(ManagedNode):
         self.server.destroy()
         self.costmap_node.destroy_node()
         super().destroy_node()
+
+    def _on_speed_limit(self, msg: SpeedLimitMsg) -> None:
+        """Nav2's ``speedLimitCallback``: 0 lifts the limit; a percentage in (0, 100] or m/s ≥ 0."""
+        limit = float(msg.speed_limit)
+        if not math.isfinite(limit) or limit < 0.0 or (msg.percentage and limit > 100.0):
+            self._warn("speed limit", f"a speed limit of {limit}{' %' if msg.percentage else ' m/s'} ignored: it must "
+                                      "be 0 (none), a percentage in (0, 100] or m/s ≥ 0")
+            return
+        self.speed_limit = SpeedLimit(limit, bool(msg.percentage))
 
     def _on_odom(self, msg: Odometry) -> None:
         """The robot's speed, each below its threshold taken as 0 (Nav2's min_*_velocity_threshold)."""
@@ -345,7 +373,8 @@ class ControllerServer(ManagedNode):
             return None
         command = step.command
         twist = Twist()
-        twist.linear.x, twist.angular.z = command.linear_mps, command.angular_radps
+        twist.linear.x, twist.angular.z = limited((command.linear_mps, command.angular_radps), self.speed_limit,
+                                                  top_speed(following.follower.controller))
         self.cmd_pub.publish(twist)
         if self.local_plan_pub.get_subscription_count():
             self.local_plan_pub.publish(path_message(command.local_plan, 0.0, following.path_frame,

@@ -41,6 +41,8 @@ from typing import Any
 import numpy as np
 from geometry_msgs.msg import Point32, PolygonStamped
 from nav2_msgs.msg import Costmap as Nav2Costmap
+from nav2_msgs.msg import CostmapFilterInfo
+from nav2_msgs.msg import SpeedLimit as SpeedLimitMsg
 from nav2_msgs.srv import ClearCostmapAroundRobot, ClearCostmapExceptRegion, ClearEntireCostmap, GetCostmap
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from sensor_msgs.msg import LaserScan
@@ -55,12 +57,13 @@ from pppbot_lockstep.ros.node import StepNode
 from pppbot_lockstep.ros.runner import Warnings, guarded
 from pppbot_lockstep.ros.tf_listener import TfListener
 from pppbot_nav.costmap.costs import NO_INFORMATION
+from pppbot_nav.costmap.filters import CostmapFilter, FilterInfo, FilterMask, KeepoutFilter, SpeedFilter
 from pppbot_nav.costmap.footprint import circle_footprint, placed
 from pppbot_nav.costmap.grid import Costmap
 from pppbot_nav.costmap.interface import LayerContext
 from pppbot_nav.costmap.layer_settings import DEFAULT_TYPES, NO_EFFECT, SourceParameters, StaticLayerParameters
 from pppbot_nav.costmap.layers import InflationLayer, Layer, LayeredCostmap, ObstacleLayer, StaticLayer
-from pppbot_nav.plugins import plugins
+from pppbot_nav.plugins import AnyOf, plugins
 from pppbot_nav.ros.plugins import Plugin, live_fields, live_plugin_parameters, load_plugin
 
 #: Scans that may wait for their transform: two seconds of a 10 Hz lidar (AMCL stamps map → odom
@@ -106,6 +109,8 @@ class CostmapParameters:
                                            "ObstacleFootprint), as Nav2 pads its footprint")
     plugins: list = param(["static_layer", "obstacle_layer", "inflation_layer"],
                           "layers in order; each's type is its <name>.plugin")
+    filters: list = param([], "costmap filters applied after the layers, in order (Nav2's KeepoutFilter, "
+                              "SpeedFilter); each's type is its <name>.plugin")
 
     def validate(self) -> None:
         for name in ("update_frequency", "publish_frequency", "resolution"):
@@ -117,6 +122,8 @@ class CostmapParameters:
             raise ParameterError("lethal_cost_threshold", self.lethal_cost_threshold, "must be in [1, 100]")
         if not self.plugins or len(set(self.plugins)) != len(self.plugins):
             raise ParameterError("plugins", self.plugins, "must name at least one layer, each once")
+        if len(set(self.filters)) != len(self.filters) or set(self.filters) & set(self.plugins):
+            raise ParameterError("filters", self.filters, "must name each filter once, none of them a layer")
         for name in ("global_frame", "robot_base_frame"):
             if not getattr(self, name):
                 raise ParameterError(name, getattr(self, name), "must not be empty")
@@ -148,7 +155,7 @@ class CostmapNode(StepNode):
         self.costmap_name = name
         self.params = p = declare_parameters(self, CostmapParameters)
         overrides = getattr(self, "_parameter_overrides", {}) or {}
-        elsewhere = {name.split(".")[0] for name in overrides if "." in name} - set(p.plugins)
+        elsewhere = {name.split(".")[0] for name in overrides if "." in name} - set(p.plugins) - set(p.filters)
         self.parameter_notes = {**NO_EFFECT, **{f"{layer}.*": f"'{layer}' is not one of this costmap's plugins"
                                                 for layer in sorted(elsewhere)}}
         self._warn = Warnings(self, settling=("robot pose", "scan transform"))
@@ -160,6 +167,14 @@ class CostmapNode(StepNode):
         self.sources: list[_Source] = []
         self.layer_by_name: dict[str, Layer] = {name: self._make_layer(pl) for name, pl in self.plugins.items()}
         self.layers: list[Layer] = list(self.layer_by_name.values())
+        filter_types = AnyOf(plugins("costmap filter"), plugins("costmap layer"))
+        for filter_name in p.filters:
+            self.plugins[filter_name] = load_plugin(self, filter_name, filter_types, None)
+        #: The filters in order: Nav2's costmap filters, and layers applied after them (an inflation
+        #: layer round a keepout zone, as Nav2 suggests).
+        self.filter_chain: dict[str, CostmapFilter | Layer] = {
+            f: self.plugins[f].params.make(self._layer_context(f)) for f in p.filters}
+        self.filters = {f: chained for f, chained in self.filter_chain.items() if isinstance(chained, CostmapFilter)}
         if p.rolling_window is False and not any(isinstance(la, StaticLayer) for la in self.layers):
             raise ParameterError("plugins", p.plugins, "a costmap that does not roll needs a static layer "
                                                        "(it takes the map's size)")
@@ -185,6 +200,15 @@ class CostmapNode(StepNode):
                 self._map_arrived = self.port.require(f"a map on '{topic}'")
                 qos = LATCHED if plugin.params.map_subscribe_transient_local else MAP_VOLATILE
                 self.create_subscription(OccupancyGridMsg, topic, guarded(self, self._on_map, "OccupancyGrid"), qos)
+        self._speed_pubs: dict[str, Any] = {}
+        self._mask_subscriptions: dict[str, Any] = {}
+        for filter_name, costmap_filter in self.filters.items():
+            self.create_subscription(CostmapFilterInfo, self._in_parent(costmap_filter.filter_info_topic),
+                                     guarded(self, partial(self._on_filter_info, filter_name), "CostmapFilterInfo"),
+                                     LATCHED)
+            if isinstance(costmap_filter, SpeedFilter):
+                topic = self._in_parent(costmap_filter.speed_limit_topic)
+                self._speed_pubs[filter_name] = self.create_publisher(SpeedLimitMsg, topic, 10)
         for source in self.sources:
             on_scan = guarded(self, partial(self._on_scan, source), "LaserScan")
             self.create_subscription(LaserScan, source.topic, on_scan, SENSOR, data_path=True, at_step=True)
@@ -202,11 +226,13 @@ class CostmapNode(StepNode):
         self.get_logger().info(f"{name}: {kinds} in '{p.global_frame}'"
                                + (f", rolling {p.width} × {p.height} m" if p.rolling_window else ""))
 
+    def _layer_context(self, name: str) -> LayerContext:
+        p = self.params
+        return LayerContext(name, p.global_frame, p.track_unknown_space, p.lethal_cost_threshold, p.robot_radius)
+
     def _make_layer(self, plugin: Plugin) -> Layer:
         """The layer of a loaded plugin; an obstacle or voxel layer's sources are declared too."""
-        p = self.params
-        layer: Layer = plugin.params.make(LayerContext(plugin.name, p.global_frame, p.track_unknown_space,
-                                                       p.lethal_cost_threshold, p.robot_radius))
+        layer: Layer = plugin.params.make(self._layer_context(plugin.name))
         if not isinstance(layer, ObstacleLayer):
             return layer
         for source_name in plugin.params.sources():
@@ -240,7 +266,7 @@ class CostmapNode(StepNode):
         """A layer's live parameters, set on the running layer (what it has seen stays)."""
         plugin = self.plugins[name]
         self.plugins[name] = Plugin(plugin.name, plugin.type_name, new)
-        layer = self.layer_by_name[name]
+        layer: Any = self.layer_by_name[name] if name in self.layer_by_name else self.filter_chain[name]
         live = live_fields(new)
         for key in [f.name for f in dataclasses.fields(new)] if live is None else live:
             setattr(layer, key, getattr(new, key))
@@ -263,6 +289,72 @@ class CostmapNode(StepNode):
         if self._map_arrived is not None:
             self._map_arrived()
             self._map_arrived = None
+
+    # --------------------------------------------------------------- filters
+    def _on_filter_info(self, name: str, msg: CostmapFilterInfo) -> None:
+        """A filter's info: its mask topic subscribed (again, when it changed)."""
+        costmap_filter = self.filters[name]
+        old = costmap_filter.info
+        try:
+            costmap_filter.set_info(FilterInfo(int(msg.type), msg.filter_mask_topic, float(msg.base),
+                                               float(msg.multiplier)))
+        except ValueError as exc:
+            self._warn(f"filter {name}", str(exc))
+            return
+        if old is not None and old.mask_topic == msg.filter_mask_topic:
+            return
+        if name in self._mask_subscriptions:
+            self.destroy_subscription(self._mask_subscriptions.pop(name))
+        on_mask = guarded(self, partial(self._on_mask, name), "OccupancyGrid")
+        self._mask_subscriptions[name] = self.create_subscription(
+            OccupancyGridMsg, self._in_parent(msg.filter_mask_topic), on_mask, LATCHED)
+        self.get_logger().info(f"{name}: {type(costmap_filter).__name__} on mask '{msg.filter_mask_topic}'")
+
+    def _in_parent(self, topic: str) -> str:
+        """A filter's relative topic in the costmap's parent namespace (the robot's), as Nav2's
+        ``joinWithParentNamespace``: ``/global_costmap`` costmap's ``speed_limit`` is ``/speed_limit``."""
+        if topic.startswith("/"):
+            return topic
+        parent = self.get_namespace().rstrip("/").rsplit("/", 1)[0]
+        return f"{parent}/{topic}"
+
+    def _on_mask(self, name: str, msg: OccupancyGridMsg) -> None:
+        grid = grid_from_message(msg)
+        self.filters[name].mask = FilterMask(grid.data, grid.resolution, grid.origin, msg.header.frame_id or "map")
+        self.update()
+
+    def _filter(self, master: Costmap, robot_xy: tuple[float, float] | None) -> None:
+        """Apply the filters to the freshly built master (keepout) and give the speed limit at the robot."""
+        for name, costmap_filter in self.filter_chain.items():
+            if not isinstance(costmap_filter, CostmapFilter):
+                if costmap_filter.enabled:
+                    costmap_filter.update(master)
+                continue
+            if not costmap_filter.ready:
+                continue
+            assert costmap_filter.mask is not None
+            try:
+                to_mask = self.tf.lookup(costmap_filter.mask.frame_id, self.params.global_frame)
+            except TransformError as exc:
+                self._warn(f"filter {name}", f"{name}: no transform from '{self.params.global_frame}' to the "
+                                             f"mask's '{costmap_filter.mask.frame_id}': {exc}")
+                continue
+            if isinstance(costmap_filter, KeepoutFilter):
+                costmap_filter.apply(master, to_mask, robot_xy)
+            elif isinstance(costmap_filter, SpeedFilter):
+                pose = self.robot_pose() if robot_xy is None else robot_xy
+                if pose is None:
+                    continue
+                x, y = pose[0], pose[1]
+                c, s = math.cos(to_mask[2]), math.sin(to_mask[2])
+                limit = costmap_filter.update((to_mask[0] + c * x - s * y, to_mask[1] + s * x + c * y))
+                if costmap_filter.problem is not None:
+                    self._warn(f"filter {name}", f"{name}: {costmap_filter.problem}")
+                if limit is not None:
+                    msg = SpeedLimitMsg(percentage=limit.percentage, speed_limit=limit.speed_limit)
+                    msg.header.frame_id = self.params.global_frame
+                    msg.header.stamp = self.get_clock().now().to_msg()
+                    self._speed_pubs[name].publish(msg)
 
     def robot_pose(self) -> tuple[float, float, float] | None:
         """The robot's newest (x, y, yaw) in the costmap's frame, or None without TF."""
@@ -362,6 +454,7 @@ class CostmapNode(StepNode):
             self.layered.master.recentre(robot[0], robot[1], self.layered.default_value)
         self._mark(self.layered, robot)
         master = self.layered.update(robot if self.params.rolling_window else None)
+        self._filter(master, robot)
         last = self.costmap
         if (last is None or last.origin != master.origin or last.resolution != master.resolution
                 or not np.array_equal(last.costs, master.costs)):

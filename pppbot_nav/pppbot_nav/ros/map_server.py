@@ -101,8 +101,9 @@ def load_map_file(name: str) -> tuple[Path, Any]:
 
 
 class MapServer(ManagedNode):
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__("map_server", **kwargs)
+    def __init__(self, name: str = "map_server", **kwargs: Any) -> None:
+        """``name``: the node's (a filter mask's server has its own, as Nav2's bringup names it)."""
+        super().__init__(name, **kwargs)
         self.params = p = declare_parameters(self, MapServerParameters)
         fixed_parameters(self, lambda: self.params)  # Nav2's has no dynamic parameters
         self.map_pub = self.create_publisher(OccupancyGridMsg, p.topic_name, LATCHED)
