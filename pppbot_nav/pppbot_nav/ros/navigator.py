@@ -200,6 +200,12 @@ class _Run:
         self.poses: list[tuple[float, float, float]] = []  # (t, x, y) for the speed
         self.path_msg: Any = None  # the path the feedback measures along, and its points (K, 2)
         self.path_xy = np.zeros((0, 2))
+        self.requested = ""  # the goal's behavior_tree field
+
+
+#: Nav2's answer to a goal that would preempt the running one with another tree.
+OTHER_TREE = ("preemption with another behavior_tree is refused, as Nav2's: it would need the running goal "
+              "canceled, not preempted; cancel it and send this goal again")
 
 
 class Navigator(ManagedNode):
@@ -302,6 +308,13 @@ class Navigator(ManagedNode):
                                + (f" through {len(goals) - 1} poses" if through else ""))
         entries: dict[str, Any] = {"goals": goals} if through else {"goal": goals[0]}
         run = _Run(handle, tree, through, now, now + self.params.server_timeout, goals[-1])
+        run.requested = handle.request.behavior_tree
+        if previous is not None and (previous.through != through or (
+                previous.tree is not tree and previous.requested != run.requested)):
+            # Nav2's onPreempt: the new goal ends, the running one goes on.
+            self.get_logger().warning(f"goal refused: {OTHER_TREE}")
+            self._finish(run, GoalEnd.ABORTED, 0, OTHER_TREE)
+            return
         run.seen_path = tree.blackboard.get(self.params.path_blackboard_id)  # an earlier goal's: no news
         if previous is not None and previous.tree is tree and previous.ticking:
             # Nav2's preemption: the new goal takes the running tree's blackboard; the old one aborts
@@ -310,7 +323,7 @@ class Navigator(ManagedNode):
             self._active = run
             self._end_preempted(previous)
         else:
-            if previous is not None:
+            if previous is not None:  # the same tree, not yet ticking: started again for the new goal
                 self._halt(previous)
                 self._end_preempted(previous)
             self._active = run
