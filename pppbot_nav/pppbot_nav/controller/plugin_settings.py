@@ -15,9 +15,9 @@ attributes), so a goal checker keeps its latch and a progress checker its baseli
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Protocol, TypeVar
 
 from pppbot_common.params import ParameterError, param
 from pppbot_nav.controller.checkers import (
@@ -48,14 +48,36 @@ def _checked(make: Any) -> Any:
         raise ParameterError(exc.parameter or "", "", str(exc)) from exc
 
 
-def settings_parameters(settings: type, name: str, description: str, make: Any,
-                        exclude: frozenset[str] = frozenset(), live: frozenset[str] | None = None) -> type:
+SettingsT_co = TypeVar("SettingsT_co", covariant=True)
+PluginT_co = TypeVar("PluginT_co", covariant=True)
+S = TypeVar("S")
+P = TypeVar("P")
+
+
+class SettingsParameters(Protocol[SettingsT_co, PluginT_co]):
+    """What a parameters class made from a settings dataclass gives (:func:`settings_parameters`): its
+    fields are the settings' (declared as ROS parameters), the rest is typed here."""
+
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None]
+    FROM_COSTMAP: ClassVar[frozenset[str]]
+
+    def validate(self) -> None: ...
+
+    def settings(self, **given: Any) -> SettingsT_co: ...
+
+    def make(self, critics: Any = None, **given: Any) -> PluginT_co: ...
+
+
+def settings_parameters(settings_class: type[S], name: str, description: str,
+                        make: Callable[..., P], exclude: frozenset[str] = frozenset(),
+                        live: frozenset[str] | None = None) -> type[SettingsParameters[S, P]]:
     """A parameter dataclass with the fields of the frozen ``settings`` dataclass but ``exclude`` (same
     names and defaults; ROS names relative to the plugin: a field's ``ros`` metadata, else its
     name), whose ``validate()`` builds the settings (``settings()``) and the plugin (``make()``, as
     ``make(settings)``). ``settings(**given)`` and ``make(**given)`` take the excluded fields
     (what the plugin reads from elsewhere, the costmap's robot radius: ``FROM_COSTMAP``), and
     ``make(critics=...)`` a DWB's plugin critics. ``live``: its ``LIVE_PARAMETERS``."""
+    settings: Any = settings_class  # a frozen dataclass
     fields = []
     for f in dataclasses.fields(settings):
         if f.name in exclude:
@@ -77,9 +99,10 @@ def settings_parameters(settings: type, name: str, description: str, make: Any,
     def make_plugin(self: Any, critics: Any = None, **given: Any) -> Any:
         return make(to_settings(self, **given)) if critics is None else make(to_settings(self, **given), critics)
 
-    return dataclasses.make_dataclass(name, fields, frozen=True, namespace={
+    made: Any = dataclasses.make_dataclass(name, fields, frozen=True, namespace={
         "validate": validate, "settings": to_settings, "make": make_plugin, "LIVE_PARAMETERS": live,
         "FROM_COSTMAP": exclude})
+    return made  # the fields are made at run time; what is used of the class is typed by the Protocol
 
 
 #: RPP's every parameter may change at run time.
