@@ -59,6 +59,7 @@ class EvalConfig:
     min_success_rate: float = 0.98
     goal: Triple | None = None
     no_map: bool = False
+    through_poses: bool = False
     view: bool = False
     json: bool = False
     log_level: str = "info"
@@ -119,6 +120,8 @@ class EvalConfig:
             raise ArgumentError(f"--goal-distance {self.goal_distance}: must be a non-negative number of metres")
         if not (0.0 <= self.min_success_rate <= 1.0):
             raise ArgumentError(f"--min-success-rate {self.min_success_rate}: must be in [0, 1]")
+        if self.scenario is not Scenario.NAVIGATION and self.through_poses:
+            raise ArgumentError("--through-poses: only the navigation scenario takes it")
         if self.scenario is not Scenario.NAVIGATION and (self.no_map or self.goal is not None):
             raise ArgumentError(f"{'--no-map' if self.no_map else '--goal'}: only the navigation scenario takes it, "
                                 f"not {self.scenario.value}")

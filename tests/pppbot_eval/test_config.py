@@ -63,6 +63,7 @@ def test_flags_become_typed_values():
     (["slam", "--timeout", "0"], "--timeout 0.0: must be a positive number of sim seconds"),
     (["localization", "--no-map"], "--no-map: only the navigation scenario takes it, not localization"),
     (["slam", "--goal", "1", "2", "0"], "--goal: only the navigation scenario takes it, not slam"),
+    (["slam", "--through-poses"], "--through-poses: only the navigation scenario takes it"),
     (["navigation", "--goal", "1", "nan", "0"], "--goal 1.0 nan 0.0: must be three finite numbers"),
     (["navigation", "--no-map", "--map", "m.yaml"], "--map and --no-map: a run navigates on a map or without one"),
 ])

@@ -204,7 +204,7 @@ class Run:
                         wants_map=self.scenario is Scenario.SLAM,
                         localizes=self.scenario in (Scenario.LOCALIZATION, Scenario.NAVIGATION) and not self.map_free,
                         navigates=self.scenario is Scenario.NAVIGATION, lockstep=self.config.lockstep,
-                        goal_frame="odom" if self.map_free else "map")
+                        goal_frame="odom" if self.map_free else "map", through_poses=self.config.through_poses)
         behavior = node.behavior = self._behavior()
         if self.config.lockstep:
             # Time starts only once every participant (this node among them) has joined: the
@@ -388,6 +388,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="navigation: no map_server or AMCL; Nav2 navigates in odom, its global costmap "
                              "rolling with the robot from the lidar, and a goal counts when the robot comes within "
                              "1 m of it without touching anything (BARN's rule; scored with BARN's metric)")
+    parser.add_argument("--through-poses", action="store_true",
+                        help="navigation: send each goal as a one-pose navigate_through_poses goal (bt_navigator's "
+                             "through-poses tree) instead of navigate_to_pose")
     parser.add_argument("--min-success-rate", type=float, default=0.98,
                         help="navigation: the report is ok from this success rate on (default 0.98)")
     parser.add_argument("--view", action=argparse.BooleanOptionalAction, default=False,

@@ -12,11 +12,12 @@ from __future__ import annotations
 import signal
 import time
 from collections.abc import Callable
+from typing import Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped, Twist, Vector3
-from nav2_msgs.action import NavigateToPose
+from nav2_msgs.action import NavigateThroughPoses, NavigateToPose
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry
 from rclpy.experimental import EventsExecutor
@@ -50,7 +51,7 @@ class EvalNode:
 
     def __init__(self, estimate: Estimate, recording: Recording, wants_map: bool = False,
                  localizes: bool = False, navigates: bool = False, lockstep: bool = False,
-                 goal_frame: str = "map") -> None:
+                 goal_frame: str = "map", through_poses: bool = False) -> None:
         self.context = rclpy.Context()
         rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
         self.participant = Participant(PARTICIPANT, rclpy.create_node(
@@ -113,15 +114,22 @@ class EvalNode:
         self.servers: dict[str, Callable[[], bool]] = {}
         if localizes:
             self.servers["the reinitialize_global_localization service"] = self.global_client.service_is_ready
+        #: Goals go to navigate_through_poses as one-pose goals (the through-poses tree), not navigate_to_pose.
+        self.through_poses = through_poses
         if navigates:
-            self.navigator = ActionClient(node, NavigateToPose, "navigate_to_pose")
-            self.servers["the navigate_to_pose server"] = self.navigator.server_is_ready
+            self._navigation_client(node)
         if wants_map:
             self.serialize_client = node.create_client(SerializePoseGraph, "/slam_toolbox/serialize_map")
             self.servers["the serialize_map service"] = self.serialize_client.service_is_ready
         for what, ready in self.servers.items():
             port.require_when(what, ready)
         node.step_timer(TICK_S, self._tick)
+
+    def _navigation_client(self, node: Any) -> None:
+        action, name = ((NavigateThroughPoses, "navigate_through_poses") if self.through_poses
+                        else (NavigateToPose, "navigate_to_pose"))
+        self.navigator = ActionClient(node, action, name)
+        self.servers[f"the {name} server"] = self.navigator.server_is_ready
 
     @property
     def port(self) -> StepPort:
@@ -163,21 +171,23 @@ class EvalNode:
         self.cmd_pub.publish(Twist(linear=_vector(linear_mps), angular=_vector(0.0, 0.0, angular_radps)))
 
     def send_goal(self, x: float, y: float, yaw: float) -> Future:
-        """A NavigateToPose goal at (x, y, yaw) in ``goal_frame``; the future's result is its goal handle."""
-        goal = NavigateToPose.Goal()
-        goal.pose = PoseStamped()
-        goal.pose.header.frame_id = self.goal_frame
-        goal.pose.header.stamp = self.node.get_clock().now().to_msg()
-        goal.pose.pose.position.x, goal.pose.pose.position.y = float(x), float(y)
-        o = goal.pose.pose.orientation
+        """A NavigateToPose goal at (x, y, yaw) in ``goal_frame`` (a one-pose NavigateThroughPoses goal with
+        ``through_poses``); the future's result is its goal handle."""
+        pose = PoseStamped()
+        pose.header.frame_id = self.goal_frame
+        pose.header.stamp = self.node.get_clock().now().to_msg()
+        pose.pose.position.x, pose.pose.position.y = float(x), float(y)
+        o = pose.pose.orientation
         o.x, o.y, o.z, o.w = quaternion_from_yaw(yaw)
+        goal: Any = (NavigateThroughPoses.Goal(poses=[pose]) if self.through_poses
+                     else NavigateToPose.Goal(pose=pose))
         self._recoveries = 0
         return self.navigator.send_goal_async(goal, feedback_callback=self._on_feedback)
 
     def recoveries(self) -> int:
         return self._recoveries
 
-    def _on_feedback(self, msg: NavigateToPose.Impl.FeedbackMessage) -> None:
+    def _on_feedback(self, msg: Any) -> None:
         self._recoveries = int(msg.feedback.number_of_recoveries)
 
     def _on_amcl_pose(self, msg: PoseWithCovarianceStamped) -> None:
