@@ -352,3 +352,20 @@ def test_a_file_without_btcpp_format_is_read_as_4_with_a_warning_naming_it():
 def test_a_tree_written_wrong_is_refused_at_load_naming_file_line_and_what_is_known(xml, message):
     with pytest.raises(BehaviorTreeError, match=message):
         TreeFactory({"Step": Step}).load(xml, name="bad.xml")
+
+
+def test_a_failed_tree_says_which_leaves_failed_where_and_why():
+    class Refused(TreeNode):
+        def tick(self) -> Status:
+            self.why = "the server refused the goal"
+            return Status.FAILURE
+
+    xml = ('<root BTCPP_format="4">\n<BehaviorTree ID="M">\n<Fallback>\n<AlwaysFailure/>\n'
+           '<Refused name="Follow"/>\n</Fallback>\n</BehaviorTree></root>')
+    t = TreeFactory({"Refused": Refused}).load(xml, name="why.xml")
+    assert t.tick_once() is F
+    assert t.failures() == ["AlwaysFailure (why.xml:4)", "Follow (why.xml:5): the server refused the goal"]
+    t.halt()
+    assert len(t.failures()) == 2  # kept for the goal's message after the halt
+    t.forget_failures()
+    assert t.failures() == []

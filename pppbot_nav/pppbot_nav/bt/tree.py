@@ -95,6 +95,8 @@ class Blackboard:
     def __init__(self, parent: Blackboard | None = None, remap: Mapping[str, str] | None = None,
                  autoremap: bool = False) -> None:
         self._values: dict[str, Any] = {}
+        #: the leaves that answered FAILURE, newest last (kept on a tree's top-level board)
+        self.failures: list[str] = []
         self._parent = parent
         self._remap: dict[str, str] = {}
         self._autoremap = autoremap and parent is not None
@@ -124,6 +126,19 @@ class Blackboard:
         board, name = self._owner(key)
         board._values[name] = value
 
+    def root(self) -> Blackboard:
+        """The tree's top-level blackboard (a subtree's parents' parent ...)."""
+        return self if self._parent is None else self._parent.root()
+
+    #: How many leaf failures a tree keeps (the newest), for a failed goal's message.
+    FAILURES_KEPT = 8
+
+    def note_failure(self, where: str) -> None:
+        """A leaf answered FAILURE (kept on the top-level board, newest last)."""
+        failures = self.root().failures
+        failures.append(where)
+        del failures[:-self.FAILURES_KEPT]
+
 
 @dataclass
 class NodeConfig:
@@ -148,6 +163,8 @@ class TreeNode:
         self.name = name
         self.config = config or NodeConfig()
         self.status = Status.IDLE
+        #: why the node fails, when it can say (set with its FAILURE; part of a failed goal's message)
+        self.why = ""
         self.children: list[TreeNode] = []
         self._ports = {port.name: port for port in type(self).PORTS}
 
@@ -213,6 +230,10 @@ class TreeNode:
         status = self.tick()
         if status is Status.IDLE:
             raise BehaviorTreeError(f"{self._where()}'{self.name}' returned IDLE from a tick")
+        if status is Status.FAILURE and not self.children:
+            where = f"{self.name} ({self.config.where})" if self.config.where else self.name
+            self.config.blackboard.note_failure(f"{where}: {self.why}" if self.why else where)
+        self.why = ""
         self.status = status
         return status
 
@@ -284,6 +305,14 @@ class Tree:
         for node in reversed(self.nodes()):  # leaves first
             node.halt()
             node.status = Status.IDLE
+
+    def failures(self) -> list[str]:
+        """The leaves that answered FAILURE since :meth:`forget_failures`, newest last (at most
+        ``Blackboard.FAILURES_KEPT``), each ``name (file:line)``: where a failed tree failed."""
+        return list(self.blackboard.failures)
+
+    def forget_failures(self) -> None:
+        self.blackboard.failures.clear()
 
     def nodes(self) -> list[TreeNode]:
         """Every node, depth first."""

@@ -41,12 +41,19 @@ class RosGoalCall:
         feedback = None if on_feedback is None else (lambda msg: on_feedback(msg.feedback))
         self._sent: Future = port.client.send_goal_async(goal, feedback_callback=feedback)
         self._handle: ClientGoalHandle | None = None
+        self._taken = False  # the server's answer to the goal has been read
         self._result: Future | Arrival | None = None
         self._canceled = False
         port.live.append(self)
         port.ports.waited(self._sent, self._on_sent)
 
     def _on_sent(self, sent: Future) -> None:
+        """The server answered the goal: read once, from the done callback or from the first look
+        after the future is done, whichever comes first (rclpy runs done callbacks later, on the
+        executor: a tick in between sees the future done before the callback ran)."""
+        if self._taken:
+            return
+        self._taken = True
         handle = None if sent.cancelled() or sent.exception() is not None else sent.result()
         if not isinstance(handle, ClientGoalHandle) or not handle.accepted:
             return
@@ -61,8 +68,13 @@ class RosGoalCall:
         else:  # seen from the first tick after it came, the same tick on every machine
             self._result = Arrival(future, self._port.ports.clock_s, self._port.ports.step_port)
 
+    def _answered(self) -> bool:
+        if self._sent.done():
+            self._on_sent(self._sent)
+        return self._taken
+
     def accepted(self) -> bool | None:
-        if not self._sent.done():
+        if not self._answered():
             return None
         return self._handle is not None
 
@@ -77,7 +89,7 @@ class RosGoalCall:
         return None if status is None else Outcome(status, wrapped.result)
 
     def ended(self) -> bool:
-        return (self._sent.done() and self._handle is None) or (self._result is not None and self._result.done())
+        return (self._answered() and self._handle is None) or (self._result is not None and self._result.done())
 
     def cancel(self) -> None:
         if self._canceled:

@@ -327,6 +327,7 @@ class Navigator(ManagedNode):
                 self._halt(previous)
                 self._end_preempted(previous)
             self._active = run
+            tree.forget_failures()
             try:
                 self.trees.start(tree, self.ports, **entries)
             except Exception as exc:  # noqa: BLE001 - a tree that cannot start ends its goal, not the node
@@ -419,6 +420,7 @@ class Navigator(ManagedNode):
             if feedback:
                 self._feedback(run)
             return
+        failed = run.tree.failures()
         self._halt(run)
         if status is Status.SUCCESS:
             self.get_logger().info(f"goal reached in {self._now_s() - run.start_s:.1f} s "
@@ -426,7 +428,8 @@ class Navigator(ManagedNode):
             self._finish(run, GoalEnd.SUCCEEDED, 0, run.moved_note or "")
             return
         code, message = error_of(run.tree.blackboard, [str(n) for n in self.params.error_code_names])
-        message = f"{message or 'the behaviour tree failed'} (after {self._recoveries(run)} recoveries)"
+        where = f" (its last failures: {'; '.join(failed)})" if failed else ""
+        message = f"{message or 'the behaviour tree failed' + where} (after {self._recoveries(run)} recoveries)"
         self.get_logger().warning(f"navigation failed: {message}")
         self._finish(run, GoalEnd.ABORTED, code, message)
 

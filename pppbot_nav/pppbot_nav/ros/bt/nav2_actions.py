@@ -105,6 +105,8 @@ class ActionNode(TreeNode):
 
     def on_aborted(self, result: Any) -> Status:
         self.write_error(result)
+        self.why = (f"aborted with error code {getattr(result, 'error_code', 0)}"
+                    + (f": {result.error_msg}" if getattr(result, "error_msg", "") else ""))
         return Status.FAILURE
 
     def on_cancelled(self, result: Any) -> Status:
@@ -173,9 +175,11 @@ class ActionNode(TreeNode):
                 return Status.RUNNING
             self.call.cancel()  # should the server take it late, it does not run on unwatched
             self.call = None
+            self.why = f"the server did not take the goal within {self.timeout_s():g} s"
             return Status.FAILURE  # timed out waiting for the server to acknowledge the goal
         if not accepted:
             self.call = None
+            self.why = "the server refused the goal (or is not there)"
             return Status.FAILURE  # refused: the node fails, not the tree
         self.acknowledged = True
         return None
