@@ -58,9 +58,9 @@ def write_variant(sections: dict[str, Any], path: Path) -> Path:
     return path
 
 
-def run(world: str, params_file: Path, goals: int, out: Path) -> dict[str, Any]:
+def run(world: str, params_file: Path, goals: int, out: Path, extra: tuple[str, ...] = ()) -> dict[str, Any]:
     cmd = [PPPBOT, "eval", "navigation", "--world", world, "--goals", str(goals), "--params-file", str(params_file),
-           "--out", str(out), "--no-view", "--json", "--min-success-rate", "0"]
+           "--out", str(out), "--no-view", "--json", "--min-success-rate", "0", *extra]
     t0 = time.monotonic()
     done = subprocess.run(cmd, capture_output=True, text=True, stdin=subprocess.DEVNULL, check=False)
     lines = done.stdout.strip().splitlines()
