@@ -37,7 +37,7 @@ from pppbot_eval.map_quality import compare_maps
 from pppbot_eval.scenarios import world_truth
 from pppbot_slam.serialization import load_posegraph
 
-from .test_navigation import PPPBOT, goal_pose, truth_pose
+from .test_navigation import LAUNCH_STOP, PPPBOT, goal_pose, truth_pose
 
 pytestmark = [pytest.mark.ros, pytest.mark.heavy]
 SEED = 55
@@ -132,7 +132,8 @@ def test_respawn_starts_a_killed_node_again_and_the_stack_carries_on(ros_node: A
 
 def test_a_restarted_slam_maps_on_from_its_autosave(ros_node: Any, spawn: Any) -> None:
     launch = spawn([PPPBOT, "launch_sim", f"world:={BOX_ROOM}", "localization:=false", "respawn:=true",
-                    "respawn_delay:=0.5", "use_teleop:=false", "use_rviz:=false", "use_viz:=false"], name="launch_sim")
+                    "respawn_delay:=0.5", "use_teleop:=false", "use_rviz:=false", "use_viz:=false"], name="launch_sim",
+                   timeouts=LAUNCH_STOP)
     launch.wait_for_output(r"ppp_bot is up in 'box_room'", 120)
     said = re.search(r"slam saves its pose graph every [\d.]+ s to (\S+\.posegraph)", launch.output)
     assert said is not None

@@ -24,12 +24,16 @@ from nav_msgs.msg import Path as PathMsg
 from rclpy.action import ActionClient
 from std_srvs.srv import Trigger
 
+from pppbot_common.process import StopTimeouts
 from pppbot_common.ros.qos import LATCHED
 from pppbot_common.ros.wait import call, send_goal, wait_until
 from pppbot_common.se2 import quaternion_from_yaw, wrap_angle, yaw_from_quaternion
 
 ROOT = Path(__file__).resolve().parents[2]
 PPPBOT = str(ROOT / "pppbot")
+#: How long a test that asserts launch_sim's clean stop gives it before escalating: the launch's own
+#: ladder (sigterm_timeout, a hung node's stacks, sigkill_timeout: 5 + 1 + 5 s) and then its own exit.
+LAUNCH_STOP = StopTimeouts(sigint_s=20.0, sigterm_s=5.0)
 
 
 def goal_pose(x: float, y: float, yaw: float) -> PoseStamped:

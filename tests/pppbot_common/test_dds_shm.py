@@ -19,6 +19,7 @@ def segment(root: Path, name: str, age_s: float = 10.0, semaphore: bool = False)
 
 
 def test_only_segments_nobody_holds_are_stale_and_removed(tmp_path: Path) -> None:
+    ours = segments_of(os.getpid())  # a ROS test before this one in this worker may hold some
     segment(tmp_path, "fastrtps_dead", semaphore=True)
     held = segment(tmp_path, "fastrtps_port7001", semaphore=True)
     segment(tmp_path, "fastrtps_young", age_s=SETTLING_S / 4)
@@ -34,7 +35,7 @@ def test_only_segments_nobody_holds_are_stale_and_removed(tmp_path: Path) -> Non
             "sem.fastrtps_port7001_mutex"]
     finally:
         os.close(fd)
-    assert segments_of(os.getpid()) == set()  # this process opened no /dev/shm lock
+    assert segments_of(os.getpid()) == ours  # looking opened no /dev/shm lock
 
 
 def test_a_segment_never_sized_is_stale_whoever_holds_it_but_a_lock_file_is_no_segment(tmp_path: Path) -> None:
