@@ -30,7 +30,18 @@ def ros_name(field: dataclasses.Field[Any]) -> str:
 
 
 def parameter_fields(cls: type) -> Iterator[dataclasses.Field[Any]]:
-    return (f for f in dataclasses.fields(cls) if "description" in f.metadata)
+    """The fields of ``cls`` that are ROS parameters: those made by :func:`param`; in a class that
+    sets ``PARAMETERS_OF`` (a plugin's parameters that are its settings dataclass's fields, typed
+    where they are declared), every field but the names in ``NOT_PARAMETERS``."""
+    whole = getattr(cls, "PARAMETERS_OF", None) is not None
+    skip: frozenset[str] = getattr(cls, "NOT_PARAMETERS", frozenset())
+    return (f for f in dataclasses.fields(cls)
+            if "description" in f.metadata or (whole and f.init and f.name not in skip))
+
+
+def description(cls: type, field: dataclasses.Field[Any]) -> str:
+    """A parameter's description: its own, else ``"<PARAMETERS_OF>: <name>"``."""
+    return field.metadata.get("description") or f"{cls.PARAMETERS_OF}: {field.name}"  # type: ignore[attr-defined]
 
 
 def _field_by_ros_name(cls: type, name: str) -> dataclasses.Field[Any] | None:
@@ -69,9 +80,9 @@ def coerce(field: dataclasses.Field[Any], value: Any) -> Any:
         if isinstance(value, str):
             return value
         raise ParameterError(name, value, "must be a string")
-    if isinstance(default, list):
+    if isinstance(default, (list, tuple)):
         if isinstance(value, (list, tuple)):
-            return list(value)
+            return type(default)(value)
         raise ParameterError(name, value, "must be a list")
     return value
 

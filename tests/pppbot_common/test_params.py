@@ -1,11 +1,21 @@
 """Parameter dataclasses: ROS names, type coercion, validation messages."""
 from __future__ import annotations
 
-from dataclasses import FrozenInstanceError, dataclass
+from dataclasses import FrozenInstanceError, dataclass, field
+from typing import ClassVar
 
 import pytest
 
-from pppbot_common.params import ParameterError, check_finite_range, from_values, param, updated
+from pppbot_common.params import (
+    ParameterError,
+    check_finite_range,
+    description,
+    from_values,
+    param,
+    parameter_fields,
+    ros_name,
+    updated,
+)
 
 
 @dataclass(frozen=True)
@@ -57,6 +67,35 @@ def test_updated_keeps_other_values_and_validates():
     assert updated(e, {"rate_hz": 5.0}) == Example(rate_hz=5.0, beams=360)
     with pytest.raises(ParameterError):
         updated(e, {"beams": -1})
+
+
+@dataclass(frozen=True)
+class Settings:
+    """A plugin's settings, with no ROS in sight."""
+
+    speed: float = 0.5
+    critics: tuple[str, ...] = ("a", "b")
+    scale: float = field(default=1.0, metadata={"ros_name": "Critic.scale"})
+    radius: float = 0.3  # from elsewhere (the costmap)
+
+
+@dataclass(frozen=True)
+class SettingsParameters(Settings):
+    PARAMETERS_OF: ClassVar[str] = "a plugin"
+    NOT_PARAMETERS: ClassVar[frozenset[str]] = frozenset({"radius"})
+
+
+def test_a_settings_dataclass_s_fields_are_parameters_typed_where_declared():
+    fields = list(parameter_fields(SettingsParameters))
+    assert [ros_name(f) for f in fields] == ["speed", "critics", "Critic.scale"]
+    assert description(SettingsParameters, fields[0]) == "a plugin: speed"
+    p = from_values(SettingsParameters, {"critics": ["c"], "Critic.scale": 2})
+    assert (p.critics, p.scale, p.radius) == (("c",), 2.0, 0.3)  # a list from ROS, a tuple as declared
+    with pytest.raises(ParameterError, match="'radius'.*unknown parameter"):
+        from_values(SettingsParameters, {"radius": 1.0})
+    with pytest.raises(ParameterError, match="'critics' = 'c': must be a list"):
+        updated(p, {"critics": "c"})
+    assert list(parameter_fields(Settings)) == []  # without PARAMETERS_OF, only param() fields count
 
 
 def test_throttle_is_per_key():

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from pppbot_common.params import ParameterError, from_values, parameter_fields, ros_name
 from pppbot_nav.controller.dwb import (
     LIMITED_ACCEL_GENERATOR,
     DWBLocalPlanner,
@@ -33,6 +34,7 @@ from pppbot_nav.controller.dwb_critics import (
     _outline_cells,
     adjust_plan_resolution,
 )
+from pppbot_nav.controller.plugin_settings import DWBParameters
 from pppbot_nav.controller.pure_pursuit import ControlMode
 from pppbot_nav.costmap.costs import INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION
 from pppbot_nav.costmap.grid import Costmap
@@ -139,6 +141,23 @@ def test_ros_parameter_names():
     assert names["rotate_to_goal_lookahead_time"] == "RotateToGoal.lookahead_time"
     assert names["max_vel_theta"] == "max_vel_theta"
     assert names["critics"] == "critics"
+
+
+def test_dwb_parameters_are_its_settings_but_the_costmap_s_footprint():
+    """The plugin's parameters are DWBSettings' fields (typed there), the footprint excepted: the
+    local costmap gives it, and a YAML value for it is refused."""
+    declared = {ros_name(f) for f in parameter_fields(DWBParameters)}
+    assert declared == set(ros_parameter_names().values()) - {"robot_radius", "footprint_padding"}
+    params = from_values(DWBParameters, {"max_vel_x": 0.4, "BaseObstacle.scale": 0.02,
+                                         "critics": ["BaseObstacle", "PathDist"]})
+    assert params.settings(robot_radius=0.25, footprint_padding=0.0) == DWBSettings(
+        max_vel_x=0.4, base_obstacle_scale=0.02, critics=("BaseObstacle", "PathDist"), robot_radius=0.25,
+        footprint_padding=0.0)
+    assert params.make(robot_radius=0.25).settings.robot_radius == 0.25
+    with pytest.raises(ParameterError, match="robot_radius"):
+        from_values(DWBParameters, {"robot_radius": 0.2})
+    with pytest.raises(ParameterError, match="max_vel_x"):
+        from_values(DWBParameters, {"max_vel_x": math.nan})
 
 
 # ------------------------------------------------------------------------------ dynamic window

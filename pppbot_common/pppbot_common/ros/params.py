@@ -11,6 +11,7 @@ from rclpy.parameter import Parameter
 
 from pppbot_common.params import (
     ParameterError,
+    description,
     field_default,
     from_values,
     parameter_fields,
@@ -34,8 +35,9 @@ def declare_parameters(node: Node, cls: type[T], prefix: str = "") -> T:
     for field in parameter_fields(cls):
         default = field_default(field)
         name = ros_name(field)
-        descriptor = ParameterDescriptor(description=field.metadata["description"], dynamic_typing=True)
-        values[name] = node.declare_parameter(prefix + name, default, descriptor).value
+        descriptor = ParameterDescriptor(description=description(cls, field), dynamic_typing=True)
+        values[name] = node.declare_parameter(prefix + name, list(default) if isinstance(default, tuple) else default,
+                                              descriptor).value
     try:
         return from_values(cls, values)
     except ParameterError as exc:

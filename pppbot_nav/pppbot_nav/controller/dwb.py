@@ -85,7 +85,7 @@ _EPSILON = 1e-5
 
 def _ros(default: Any, name: str) -> Any:
     """A settings field whose ROS parameter (under the plugin's name) is ``name``."""
-    return field(default=default, metadata={"ros": name})
+    return field(default=default, metadata={"ros_name": name})
 
 
 @dataclass(frozen=True)
@@ -228,7 +228,7 @@ def _check_type(name: str, kind: str, value: object) -> None:
 
 def ros_parameter_names() -> dict[str, str]:
     """Settings field → its ROS parameter name relative to the plugin (``FollowPath.`` + this)."""
-    return {f.name: f.metadata.get("ros", f.name) for f in fields(DWBSettings)}
+    return {f.name: f.metadata.get("ros_name", f.name) for f in fields(DWBSettings)}
 
 
 def _project(v0: np.ndarray | float, acc: float, decel: float, dt: np.ndarray | float,

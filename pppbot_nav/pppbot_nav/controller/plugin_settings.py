@@ -15,9 +15,9 @@ attributes), so a goal checker keeps its latch and a progress checker its baseli
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Collection
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 from pppbot_common.params import ParameterError, param
 from pppbot_nav.controller.checkers import (
@@ -28,6 +28,7 @@ from pppbot_nav.controller.checkers import (
     StoppedGoalChecker,
 )
 from pppbot_nav.controller.dwb import DWBLocalPlanner, DWBSettings
+from pppbot_nav.controller.dwb_critics import TrajectoryCritic
 from pppbot_nav.controller.pure_pursuit import PurePursuit, PurePursuitSettings
 from pppbot_nav.errors import ControllerError
 
@@ -48,74 +49,62 @@ def _checked(make: Any) -> Any:
         raise ParameterError(exc.parameter or "", "", str(exc)) from exc
 
 
-SettingsT_co = TypeVar("SettingsT_co", covariant=True)
-PluginT_co = TypeVar("PluginT_co", covariant=True)
 S = TypeVar("S")
-P = TypeVar("P")
 
 
-class SettingsParameters(Protocol[SettingsT_co, PluginT_co]):
-    """What a parameters class made from a settings dataclass gives (:func:`settings_parameters`): its
-    fields are the settings' (declared as ROS parameters), the rest is typed here."""
-
-    LIVE_PARAMETERS: ClassVar[Collection[str] | None]
-    FROM_COSTMAP: ClassVar[frozenset[str]]
-
-    def validate(self) -> None: ...
-
-    def settings(self, **given: Any) -> SettingsT_co: ...
-
-    def make(self, critics: Any = None, **given: Any) -> PluginT_co: ...
+def _settings_of(params: Any, settings_class: type[S], **given: Any) -> S:
+    """The ``settings_class`` (a dataclass whose fields ``params`` has) of ``params``, with ``given``."""
+    fields = dataclasses.fields(settings_class)  # type: ignore[arg-type]
+    return settings_class(**{f.name: getattr(params, f.name) for f in fields if f.name not in given}, **given)
 
 
-def settings_parameters(settings_class: type[S], name: str, description: str,
-                        make: Callable[..., P], exclude: frozenset[str] = frozenset(),
-                        live: frozenset[str] | None = None) -> type[SettingsParameters[S, P]]:
-    """A parameter dataclass with the fields of the frozen ``settings`` dataclass but ``exclude`` (same
-    names and defaults; ROS names relative to the plugin: a field's ``ros`` metadata, else its
-    name), whose ``validate()`` builds the settings (``settings()``) and the plugin (``make()``, as
-    ``make(settings)``). ``settings(**given)`` and ``make(**given)`` take the excluded fields
-    (what the plugin reads from elsewhere, the costmap's robot radius: ``FROM_COSTMAP``), and
-    ``make(critics=...)`` a DWB's plugin critics. ``live``: its ``LIVE_PARAMETERS``."""
-    settings: Any = settings_class  # a frozen dataclass
-    fields = []
-    for f in dataclasses.fields(settings):
-        if f.name in exclude:
-            continue
-        factory: Any = f.default_factory
-        default = f.default if f.default is not dataclasses.MISSING else factory()
-        if isinstance(default, tuple):
-            default = list(default)
-        fields.append((f.name, f.type, param(default, f"{description}: {f.name}", f.metadata.get("ros"))))
+@dataclass(frozen=True)
+class RegulatedPurePursuitParameters(PurePursuitSettings):
+    """RPP's parameters: the fields of its settings (Nav2's names and defaults), each declared under
+    the plugin's name. Every one may change while the server runs."""
 
-    def to_settings(self: Any, **given: Any) -> Any:
-        values = {f.name: getattr(self, f.name) for f in dataclasses.fields(settings) if f.name not in exclude}
-        values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
-        return settings(**values, **given)
+    PARAMETERS_OF: ClassVar[str] = "regulated pure pursuit"
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = None
+    FROM_COSTMAP: ClassVar[frozenset[str]] = frozenset()
 
-    def validate(self: Any) -> None:
-        _checked(lambda: to_settings(self).validate())
+    def validate(self) -> None:
+        _checked(self.settings().validate)
 
-    def make_plugin(self: Any, critics: Any = None, **given: Any) -> Any:
-        return make(to_settings(self, **given)) if critics is None else make(to_settings(self, **given), critics)
+    def settings(self) -> PurePursuitSettings:
+        return _settings_of(self, PurePursuitSettings)
 
-    made: Any = dataclasses.make_dataclass(name, fields, frozen=True, namespace={
-        "validate": validate, "settings": to_settings, "make": make_plugin, "LIVE_PARAMETERS": live,
-        "FROM_COSTMAP": exclude})
-    return made  # the fields are made at run time; what is used of the class is typed by the Protocol
+    def make(self) -> PurePursuit:
+        return PurePursuit(self.settings())
 
 
-#: RPP's every parameter may change at run time.
-RegulatedPurePursuitParameters = settings_parameters(PurePursuitSettings, "RegulatedPurePursuitParameters",
-                                                     "regulated pure pursuit", PurePursuit)
-#: DWB's footprint is the local costmap's (its robot_radius and footprint_padding), as in Nav2.
-DWB_FROM_COSTMAP = frozenset({"robot_radius", "footprint_padding"})
-#: DWB's kinematic limits may change at run time (Nav2's KinematicsHandler).
-DWB_LIVE = frozenset({"min_vel_x", "min_vel_y", "max_vel_x", "max_vel_y", "max_vel_theta", "min_speed_xy",
-                      "max_speed_xy", "min_speed_theta", "acc_lim_x", "acc_lim_y", "acc_lim_theta", "decel_lim_x",
-                      "decel_lim_y", "decel_lim_theta"})
-DWBParameters = settings_parameters(DWBSettings, "DWBParameters", "DWB", DWBLocalPlanner, DWB_FROM_COSTMAP,
-                                    live=DWB_LIVE)
+@dataclass(frozen=True)
+class DWBParameters(DWBSettings):
+    """DWB's parameters: the fields of its settings (Nav2's names and defaults, a critic's under its
+    name: ``BaseObstacle.scale``) but the footprint, which is the local costmap's (its robot_radius
+    and footprint_padding, as in Nav2). Its kinematic limits may change while the server runs
+    (Nav2's KinematicsHandler)."""
+
+    PARAMETERS_OF: ClassVar[str] = "DWB"
+    FROM_COSTMAP: ClassVar[frozenset[str]] = frozenset({"robot_radius", "footprint_padding"})
+    NOT_PARAMETERS: ClassVar[frozenset[str]] = FROM_COSTMAP
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = frozenset({
+        "min_vel_x", "min_vel_y", "max_vel_x", "max_vel_y", "max_vel_theta", "min_speed_xy", "max_speed_xy",
+        "min_speed_theta", "acc_lim_x", "acc_lim_y", "acc_lim_theta", "decel_lim_x", "decel_lim_y",
+        "decel_lim_theta"})
+
+    def validate(self) -> None:
+        _checked(self.settings().validate)
+
+    def settings(self, robot_radius: float = DWBSettings.robot_radius,
+                 footprint_padding: float = DWBSettings.footprint_padding) -> DWBSettings:
+        return _settings_of(self, DWBSettings, robot_radius=robot_radius, footprint_padding=footprint_padding)
+
+    def make(self, critics: Mapping[str, TrajectoryCritic] | None = None,
+             robot_radius: float = DWBSettings.robot_radius,
+             footprint_padding: float = DWBSettings.footprint_padding) -> DWBLocalPlanner:
+        return DWBLocalPlanner(self.settings(robot_radius, footprint_padding), critics)
+
+
 #: Nav2's default controller, for ``FollowPath`` without a ``plugin``.
 DEFAULT_CONTROLLER_TYPES = {"FollowPath": DWB}
 

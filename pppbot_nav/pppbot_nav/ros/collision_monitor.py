@@ -36,6 +36,7 @@ from sensor_msgs.msg import LaserScan
 from pppbot_common.params import (
     ParameterError,
     check_finite_range,
+    description,
     field_default,
     from_values,
     param,
@@ -186,7 +187,7 @@ def read_group(node: Node, cls: type[T], prefix: str = "", defaults: dict[str, A
             values[name] = node.get_parameter(prefix + name).value
         else:
             default = (defaults or {}).get(name, field_default(field))
-            descriptor = ParameterDescriptor(description=field.metadata["description"], dynamic_typing=True)
+            descriptor = ParameterDescriptor(description=description(cls, field), dynamic_typing=True)
             values[name] = node.declare_parameter(prefix + name, default, descriptor).value
     try:
         return from_values(cls, values)
