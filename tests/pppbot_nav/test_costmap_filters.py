@@ -29,6 +29,8 @@ from pppbot_nav.costmap.grid import Costmap
 from pppbot_nav.costmap.interface import LayerContext
 
 CONTEXT = LayerContext("f", "map", False, 100, 0.3)
+#: The costmap's frame is the mask's.
+HERE = (0.0, 0.0, 0.0)
 
 
 def mask(values: np.ndarray, origin=(0.0, 0.0, 0.0), resolution: float = 0.1) -> FilterMask:
@@ -117,21 +119,25 @@ def test_the_speed_mask_under_the_robot_gives_its_limit_once_per_change():
     values[:, 5:] = 70
     values[0, 0] = -1
     f = speed(values)
-    assert f.update((0.25, 0.5)) is None  # 0: no limit, as it was
-    assert f.update((0.75, 0.5)) == SpeedLimit(30.0, True)  # 100 - 70 %
-    assert f.update((0.85, 0.5)) is None  # the same limit is not given again
-    assert f.update((0.05, 0.05)) == SpeedLimit(NO_SPEED_LIMIT, True) and "unknown cell" in str(f.problem)
-    f.update((0.75, 0.5))
-    assert f.update((5.0, 5.0)) == SpeedLimit(NO_SPEED_LIMIT, True) and "off the speed mask" in str(f.problem)
+    assert f.update(HERE, (0.25, 0.5)) is None  # 0: no limit, as it was
+    assert f.update(HERE, (0.75, 0.5)) == SpeedLimit(30.0, True)  # 100 - 70 %
+    assert f.update(HERE, (0.85, 0.5)) is None  # the same limit is not given again
+    assert f.update(HERE, (0.05, 0.05)) == SpeedLimit(NO_SPEED_LIMIT, True) and "unknown cell" in str(f.problem)
+    f.update(HERE, (0.75, 0.5))
+    assert f.update(HERE, (5.0, 5.0)) == SpeedLimit(NO_SPEED_LIMIT, True) and "off the speed mask" in str(f.problem)
 
 
 def test_absolute_limits_and_limits_out_of_range():
     values = np.full((10, 10), 40, dtype=np.int8)
-    assert speed(values, SPEED_ABSOLUTE, 0.0, 0.01).update((0.5, 0.5)) == SpeedLimit(0.4, False)
+    assert speed(values, SPEED_ABSOLUTE, 0.0, 0.01).update(HERE, (0.5, 0.5)) == SpeedLimit(0.4, False)
+    values[:, 5:] = 80  # x ≥ 0.5 m in the mask: 0.8 m/s
+    turned = speed(values, SPEED_ABSOLUTE, 0.0, 0.01)  # the costmap's frame at (1, 0) in the mask's, turned by π/2:
+    assert turned.update((1.0, 0.0, math.pi / 2), (0.8, 0.3)) == SpeedLimit(0.8, False)  # (0.8, 0.3) is (0.7, 0.8)
+    assert turned.update((1.0, 0.0, math.pi / 2), (0.3, 0.8)) == SpeedLimit(0.4, False)  # … and (0.3, 0.8) (0.2, 0.3)
     f = speed(values, SPEED_PERCENT, 100.0, 1.0)  # 140 %: out of (0, 100]
-    assert f.update((0.5, 0.5)) is None and "out of (0, 100] %" in str(f.problem)
+    assert f.update(HERE, (0.5, 0.5)) is None and "out of (0, 100] %" in str(f.problem)
     f = speed(values, SPEED_ABSOLUTE, -1.0, 0.01)  # -0.6 m/s
-    assert f.update((0.5, 0.5)) is None and "out of ≥ 0 m/s" in str(f.problem)
+    assert f.update(HERE, (0.5, 0.5)) is None and "out of ≥ 0 m/s" in str(f.problem)
 
 
 def test_a_limit_caps_the_speed_and_keeps_the_curvature():

@@ -178,14 +178,15 @@ class SpeedFilter(CostmapFilter):
     def expected_types(self) -> Collection[int]:
         return (SPEED_PERCENT, SPEED_ABSOLUTE)
 
-    def update(self, robot_in_mask: tuple[float, float]) -> SpeedLimit | None:
-        """The limit at the robot (x, y in the mask's frame) when it differs from the last one given, else None."""
+    def update(self, to_mask: Transform, robot_xy: tuple[float, float]) -> SpeedLimit | None:
+        """The limit at the robot (x, y in the costmap's frame; ``to_mask``: that frame's pose in the
+        mask's) when it differs from the last one given, else None."""
         self.problem = None
         if not self.ready:
             return None
         assert self.mask is not None and self.info is not None
         percentage = self.info.type == SPEED_PERCENT
-        value = int(self.mask.value_at(np.array(robot_in_mask[0]), np.array(robot_in_mask[1])))
+        value = int(self.mask.value_at(*_to_mask(to_mask, np.array(robot_xy[0]), np.array(robot_xy[1]))))
         limit = NO_SPEED_LIMIT
         if value == OUTSIDE:
             self.problem = "the robot is off the speed mask: no speed limit"
@@ -204,26 +205,33 @@ class SpeedFilter(CostmapFilter):
         return new
 
 
-def _check_topic(name: str, value: str) -> None:
-    if not value:
-        raise ParameterError(name, value, "must name the CostmapFilterInfo topic (costmap_filter_info_server's "
-                                          "filter_info_topic, e.g. /costmap_filter_info)")
+@dataclass(frozen=True)
+class FilterParameters:
+    """What every costmap filter has (Nav2's CostmapFilter): its switch, its CostmapFilterInfo topic,
+    and how old a transform it uses may be. Only ``enabled`` may change while it runs."""
+
+    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = frozenset({"enabled"})
+
+    enabled: bool = param(True, "a disabled filter does nothing")
+    filter_info_topic: str = param("", "the CostmapFilterInfo topic (Nav2: no default, required)")
+    transform_tolerance: float = param(0.1, "how old the mask frame → costmap frame transform may be (s)")
+
+    def validate(self) -> None:
+        if not self.filter_info_topic:
+            raise ParameterError("filter_info_topic", self.filter_info_topic, "must name the CostmapFilterInfo "
+                                 "topic (costmap_filter_info_server's filter_info_topic, e.g. /costmap_filter_info)")
+        check_finite_range("transform_tolerance", self.transform_tolerance, 0.0, 60.0)
 
 
 @dataclass(frozen=True)
-class KeepoutFilterParameters:
-    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = frozenset({"enabled"})
-
+class KeepoutFilterParameters(FilterParameters):
     enabled: bool = param(True, "a disabled filter leaves the costmap as it is")
-    filter_info_topic: str = param("", "the CostmapFilterInfo topic (Nav2: no default, required)")
-    transform_tolerance: float = param(0.1, "how old the mask frame → costmap frame transform may be (s)")
     override_lethal_cost: bool = param(False, "while the robot is in a lethal keepout cell, the zone costs "
                                               "lethal_override_cost instead (so it can leave)")
     lethal_override_cost: int = param(MAX_NON_OBSTACLE, "the cost of the zone's lethal cells then (0..252)")
 
     def validate(self) -> None:
-        _check_topic("filter_info_topic", self.filter_info_topic)
-        check_finite_range("transform_tolerance", self.transform_tolerance, 0.0, 60.0)
+        super().validate()
         check_finite_range("lethal_override_cost", self.lethal_override_cost, 0, MAX_NON_OBSTACLE)
 
     def make(self, context: LayerContext) -> KeepoutFilter:
@@ -232,18 +240,13 @@ class KeepoutFilterParameters:
 
 
 @dataclass(frozen=True)
-class SpeedFilterParameters:
-    LIVE_PARAMETERS: ClassVar[Collection[str] | None] = frozenset({"enabled"})
-
+class SpeedFilterParameters(FilterParameters):
     enabled: bool = param(True, "a disabled filter sets no speed limit")
-    filter_info_topic: str = param("", "the CostmapFilterInfo topic (Nav2: no default, required)")
-    transform_tolerance: float = param(0.1, "how old the robot's pose in the mask's frame may be (s)")
     speed_limit_topic: str = param("speed_limit", "where speed limits go (nav2_msgs/SpeedLimit), for the "
                                                   "controller server")
 
     def validate(self) -> None:
-        _check_topic("filter_info_topic", self.filter_info_topic)
-        check_finite_range("transform_tolerance", self.transform_tolerance, 0.0, 60.0)
+        super().validate()
         if not self.speed_limit_topic:
             raise ParameterError("speed_limit_topic", self.speed_limit_topic, "must name a topic")
 

@@ -345,9 +345,7 @@ class CostmapNode(StepNode):
                 pose = self.robot_pose() if robot_xy is None else robot_xy
                 if pose is None:
                     continue
-                x, y = pose[0], pose[1]
-                c, s = math.cos(to_mask[2]), math.sin(to_mask[2])
-                limit = costmap_filter.update((to_mask[0] + c * x - s * y, to_mask[1] + s * x + c * y))
+                limit = costmap_filter.update(to_mask, (pose[0], pose[1]))
                 if costmap_filter.problem is not None:
                     self._warn(f"filter {name}", f"{name}: {costmap_filter.problem}")
                 if limit is not None:
