@@ -195,8 +195,13 @@ def test_a_round_robin_starts_after_the_child_that_last_ended():
     assert t.tick_once() is S and Step.LOG == ["spin", "wait"]
     assert t.tick_once() is S and Step.LOG[2:] == ["back_up"]
     assert t.tick_once() is S and Step.LOG[3:] == ["spin"]
-    t = tree(f"<RoundRobin>{steps('a', 'b')}</RoundRobin>", {"a": [F], "b": [F]})
-    assert t.tick_once() is F and Step.LOG == ["a", "b"]
+    t = tree(f"<RoundRobin>{steps('a', 'b', 'c')}</RoundRobin>", {"a": [S, F], "b": [F], "c": [F]})
+    assert t.tick_once() is S and Step.LOG == ["a"]
+    assert t.tick_once() is F and Step.LOG[1:] == ["b", "c", "a"]
+    assert t.tick_once() is F and Step.LOG[4:] == ["a", "b", "c"]  # after all failed: from the first again
+    t = tree(f"<RoundRobin>{steps('a', 'b')}</RoundRobin>", {"a": [K], "b": [K, F]})
+    assert t.tick_once() is K and Step.LOG == ["a", "b"]  # all skipped: skipped
+    assert t.tick_once() is F and Step.LOG[2:] == ["a", "b"]  # skips count in their tick only
 
 
 def test_a_round_robin_of_recoveries_that_run_for_ticks_fails_once_each_failed_and_restarts_after_a_halt():

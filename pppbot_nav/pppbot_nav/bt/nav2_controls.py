@@ -86,17 +86,20 @@ class RecoveryNode(TreeNode):
 
 class RoundRobin(TreeNode):
     """Ticks one child at a time, beginning after the one that last ended: SUCCESS with the first
-    that succeeds (the next tick starts after it), FAILURE when every child failed in turn."""
+    that succeeds (the next tick starts after it); FAILURE once every child failed in turn (over
+    ticks: a recovery runs for many), or SKIPPED when all of this tick's were skipped; then it
+    starts again at its first child, as after a halt (Nav2's)."""
 
     CHILDREN = None
 
     def __init__(self, name: str, config: NodeConfig | None = None) -> None:
         super().__init__(name, config)
         self.current = 0
-        self.failed = 0  # children failed in a row, over ticks (a recovery runs for many)
+        self.failed = 0  # children failed in a row, over ticks
 
     def tick(self) -> Status:
-        while self.failed < len(self.children):
+        skipped = 0  # in this tick only, as Nav2's
+        while self.failed + skipped < len(self.children):
             status = self.children[self.current].execute_tick()
             if status is Status.RUNNING:
                 return status
@@ -106,13 +109,16 @@ class RoundRobin(TreeNode):
                 self.failed = 0
                 reset_all(self.children)
                 return status
-            self.failed += 1  # FAILURE or SKIPPED: the next one
-        self.failed = 0
-        reset_all(self.children)
-        return Status.FAILURE
+            if status is Status.SKIPPED:
+                skipped += 1
+            else:
+                self.failed += 1
+        all_skipped = skipped == len(self.children)
+        self.halt()
+        return Status.SKIPPED if all_skipped else Status.FAILURE
 
     def halt(self) -> None:
-        self.current = 0  # as Nav2's: a halted round robin (a goal's end) starts again at its first child
+        self.current = 0  # a halted round robin (a goal's end) starts again at its first child
         self.failed = 0
         super().halt()
 

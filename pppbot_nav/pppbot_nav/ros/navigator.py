@@ -14,7 +14,8 @@ with the file and line: the default ones at configure, a goal's own by aborting 
 Nav2 Jazzy's takes it and ends it).
 
 A new goal for the tree that runs takes the place of the running one (which aborts) and the tree
-ticks on with it, as Nav2's; a goal for another tree halts the running one and starts its own.
+ticks on with it, as Nav2's; a goal for another tree, or for the other navigator, is refused
+while one runs (Nav2's onPreempt: cancel the running goal first).
 Cancel halts the tree, which cancels what its nodes started.
 
 Before the first tick the navigator waits (up to ``server_timeout`` s) for the clock, the planner
