@@ -1,6 +1,7 @@
 """pppbot's default navigate_to_pose and navigate_through_poses trees, ticked as bt_navigator ticks
 them, against fake planner, controller, costmaps and behaviours: replanning at its rate while the
-controller follows, the recoveries in Nav2's order, and the error codes a failure leaves."""
+controller follows, the recoveries in Nav2's order, and the error codes a failure leaves; and trees
+the tests write in the shapes of Nav2's other defaults (odometry calibration, goal patience)."""
 from __future__ import annotations
 
 import sys
@@ -160,3 +161,81 @@ def test_the_through_poses_tree_plans_through_the_poses_still_ahead_at_its_repla
     nav.run(until_s=6.25)  # the next plan at 6.2 s
     assert [g.pose.position.x for g in planner.last.goal.goals] == [3.0]
     assert [g.pose.position.x for g in nav.tree.blackboard.get("goals")] == [3.0]
+
+
+# ------------------------------------------------------------------ trees a user writes, shaped as Nav2's
+def written(tmp_path: FilePath, body: str) -> FilePath:
+    path = tmp_path / "tree.xml"
+    path.write_text(f'<root BTCPP_format="4" main_tree_to_execute="Main"><BehaviorTree ID="Main">{body}'
+                    "</BehaviorTree></root>")
+    return path
+
+
+#: A square driven three times, as Nav2's odometry calibration tree drives one: behaviours only.
+SQUARE = """<Repeat num_cycles="3"><Sequence>
+  <DriveOnHeading dist_to_travel="2.0" speed="0.2" time_allowance="12"/>
+  <Spin spin_dist="1.5708"/>
+</Sequence></Repeat>"""
+
+
+def test_a_repeat_of_behaviours_drives_its_square_three_times_in_order(tmp_path):
+    nav = Navigation(written(tmp_path, SQUARE), planning())
+    order: list[str] = []
+
+    def done(name: str) -> Any:
+        def answer(goal: Any) -> tuple[GoalStatus, None]:
+            order.append(name)
+            return GoalStatus.SUCCEEDED, None
+        return answer
+
+    for name in ("drive_on_heading", "spin"):
+        nav.ports.action(name, None).answer = done(name)
+    assert nav.run(until_s=10.0) is Status.SUCCESS
+    assert order == ["drive_on_heading", "spin"] * 3
+    drive = nav.ports.actions["drive_on_heading"].goals[0].goal
+    assert (drive.target.x, round(drive.speed, 3), drive.time_allowance.sec) == (2.0, 0.2, 12)
+    assert round(nav.ports.actions["spin"].goals[0].goal.target_yaw, 4) == 1.5708
+    assert not nav.ports.actions["compute_path_to_pose"].goals  # no planning in this tree
+
+
+#: Nav2's goal patience: close to the goal, a new path much longer than the one followed (the way
+#: blocked) stops the robot and waits for the way to clear before following the long way round.
+PATIENCE = """<PipelineSequence>
+  <RateController hz="1.0"><ComputePathToPose goal="{goal}" path="{path}" planner_id="GridBased"/></RateController>
+  <ReactiveSequence>
+    <PathLongerOnApproach path="{path}" prox_len="3.0" length_factor="2.0">
+      <RetryUntilSuccessful num_attempts="1"><SequenceWithMemory>
+        <CancelControl/>
+        <Wait wait_duration="5.0"/>
+      </SequenceWithMemory></RetryUntilSuccessful>
+    </PathLongerOnApproach>
+    <FollowPath path="{path}" controller_id="FollowPath"/>
+  </ReactiveSequence>
+</PipelineSequence>"""
+
+
+def path_through(*points: tuple[float, float]) -> Path:
+    path = Path()
+    path.header.frame_id = "map"
+    path.poses = [pose(x, y) for x, y in points]
+    return path
+
+
+def test_goal_patience_stops_and_waits_when_the_way_near_the_goal_becomes_much_longer(tmp_path):
+    straight, detour = path_through((0, 0), (1, 0)), path_through((0, 0), (0, 1.5), (1, 1.5), (1, 0))
+    plans = [straight, detour, detour]
+    planner = FakeAction(ComputePathToPose, answer=lambda goal: (GoalStatus.SUCCEEDED, ComputePathToPose.Result(
+        path=plans.pop(0) if len(plans) > 1 else plans[0])))
+    nav = Navigation(written(tmp_path, PATIENCE), planner, goal=pose(1.0))
+    waiting = nav.ports.action("wait", None)
+    assert nav.run(until_s=0.55) is Status.RUNNING
+    assert len(nav.controller.goals) == 1 and not waiting.goals  # following the straight path
+    assert nav.run(until_s=1.55) is Status.RUNNING  # the detour came at 1 s: 4 m for 1 m, within 3 m of the goal
+    assert nav.controller.cancel_all_calls == 1 and nav.controller.goals[0].canceled
+    assert [round(w.goal.time.sec) for w in waiting.goals] == [5]
+    assert len(nav.controller.goals) == 1  # not following while it waits
+    waiting.last.end(GoalStatus.SUCCEEDED, None)
+    assert nav.run(until_s=2.55) is Status.RUNNING
+    assert len(waiting.goals) == 1  # the same detour again is no news: no second wait
+    # the long way round, after the wait (the same path planned at 2 s is no update for the controller)
+    assert [len(g.goal.path.poses) for g in nav.controller.goals] == [2, 4]
