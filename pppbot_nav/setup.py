@@ -49,6 +49,19 @@ setup(
             'nav2_regulated_pure_pursuit_controller::RegulatedPurePursuitController = '
             'pppbot_nav.controller.plugin_settings:RegulatedPurePursuitParameters',
         ],
+        'pppbot_nav.dwb_critics': [
+            'dwb_critics::RotateToGoalCritic = pppbot_nav.controller.dwb_critic_plugins:RotateToGoalParameters',
+            'dwb_critics::OscillationCritic = pppbot_nav.controller.dwb_critic_plugins:OscillationParameters',
+            'dwb_critics::BaseObstacleCritic = pppbot_nav.controller.dwb_critic_plugins:BaseObstacleParameters',
+            'dwb_critics::ObstacleFootprintCritic = '
+            'pppbot_nav.controller.dwb_critic_plugins:ObstacleFootprintParameters',
+            'dwb_critics::GoalAlignCritic = pppbot_nav.controller.dwb_critic_plugins:GoalAlignParameters',
+            'dwb_critics::PathAlignCritic = pppbot_nav.controller.dwb_critic_plugins:PathAlignParameters',
+            'dwb_critics::PathDistCritic = pppbot_nav.controller.dwb_critic_plugins:PathDistParameters',
+            'dwb_critics::GoalDistCritic = pppbot_nav.controller.dwb_critic_plugins:GoalDistParameters',
+            'dwb_critics::PreferForwardCritic = pppbot_nav.controller.dwb_critic_plugins:PreferForwardParameters',
+            'dwb_critics::TwirlingCritic = pppbot_nav.controller.dwb_critic_plugins:TwirlingParameters',
+        ],
         'pppbot_nav.goal_checkers': [
             'nav2_controller::SimpleGoalChecker = pppbot_nav.controller.plugin_settings:SimpleGoalCheckerParameters',
             'nav2_controller::StoppedGoalChecker = pppbot_nav.controller.plugin_settings:StoppedGoalCheckerParameters',

@@ -122,7 +122,9 @@ try:
 except PluginError as exc:
     print(exc)
 """)
-    assert "'pppbot_nav.dwb_critics'" in out and "installed: pppbot_example_plugins::Clearance" in out
+    installed = out.partition("installed: ")[2].rstrip(")\n").split(", ")
+    assert "'pppbot_nav.dwb_critics'" in out and "pppbot_example_plugins::Clearance" in installed
+    assert "dwb_critics::PathDistCritic" in installed  # DWB's own are registered the same way
 
 
 def params_with_examples(folder: Path) -> Path:

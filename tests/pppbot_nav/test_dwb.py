@@ -15,9 +15,9 @@ from pppbot_nav.controller.dwb import (
     DWBSettings,
     axis_samples,
     generate_trajectories,
-    ros_parameter_names,
     sample_twists,
 )
+from pppbot_nav.controller.dwb_critic_plugins import critic_type, make_critics
 from pppbot_nav.controller.dwb_critics import (
     BaseObstacle,
     Context,
@@ -43,12 +43,22 @@ from pppbot_nav.errors import CollisionAhead, ControllerError
 
 DT = 0.05
 RES = 0.05
-#: ppp_bot's DWB configuration (Nav2 bringup's critics and scales, its speed limits and samples).
+#: ppp_bot's DWB configuration (Nav2 bringup's critics, its speed limits and samples) …
 PPP = DWBSettings(max_vel_x=1.5, max_speed_xy=1.5, max_vel_theta=2.0, vx_samples=20, vtheta_samples=40,
-                  linear_granularity=0.05, angular_granularity=0.025, base_obstacle_scale=0.02,
-                  path_align_scale=32.0, path_align_forward_point_distance=0.1, goal_align_scale=24.0,
-                  goal_align_forward_point_distance=0.1, path_dist_scale=32.0, goal_dist_scale=24.0,
-                  rotate_to_goal_scale=32.0)
+                  linear_granularity=0.05, angular_granularity=0.025)
+#: … and its critics' parameters (Nav2 bringup's scales).
+PPP_CRITICS = {"BaseObstacle": {"scale": 0.02}, "PathAlign": {"scale": 32.0, "forward_point_distance": 0.1},
+               "GoalAlign": {"scale": 24.0, "forward_point_distance": 0.1}, "PathDist": {"scale": 32.0},
+               "GoalDist": {"scale": 24.0}, "RotateToGoal": {"scale": 32.0}}
+
+
+#: The controller's settings a critic sees in :func:`context`: a 0.3 m footprint, unpadded.
+UNPADDED = DWBSettings(robot_radius=0.3, footprint_padding=0.0)
+
+
+def ppp(settings: DWBSettings = PPP) -> DWBLocalPlanner:
+    """DWB with ``settings`` and ppp_bot's critics."""
+    return DWBLocalPlanner(settings, make_critics(settings.critics, PPP_CRITICS))
 
 
 def straight(length_m: float = 5.0, yaw: float | None = None) -> np.ndarray:
@@ -83,9 +93,10 @@ def trajectories(poses: list[list[tuple[float, float, float]]], velocity: list[t
 
 def context(costmap: Costmap, plan: np.ndarray, pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
             goal: tuple[float, float, float] | None = None, velocity: tuple[float, float, float] = (0.0, 0.0, 0.0),
-            now_s: float = 0.0) -> Context:
+            now_s: float = 0.0, settings: DWBSettings = UNPADDED) -> Context:
     end = (float(plan[-1, 0]), float(plan[-1, 1]), 0.0) if goal is None else goal
-    return Context(np.array(pose, float), np.array(velocity, float), np.array(end, float), plan, costmap, now_s)
+    return Context(np.array(pose, float), np.array(velocity, float), np.array(end, float), plan, costmap, now_s,
+                   settings)
 
 
 # ------------------------------------------------------------------------------------ settings
@@ -104,9 +115,7 @@ def test_default_settings_are_valid_and_ppp_bot_settings_too():
     ({"linear_granularity": math.nan}, "linear_granularity"),
     ({"prune_plan": 1}, "prune_plan"),
     ({"max_vel_y": 0.2}, "max_vel_y"),
-    ({"path_dist_aggregation_type": "mean"}, "path_dist_aggregation_type"),
     ({"trajectory_generator_name": "dwb_plugins::Other"}, "trajectory_generator_name"),
-    ({"base_obstacle_scale": -0.02}, "base_obstacle_scale"),
     ({"critics": ()}, "critics"),
     ({"critics": ["PathDist"]}, "critics"),
 ])
@@ -133,31 +142,54 @@ def test_critic_names_resolve_as_nav2s():
     assert [c.name for c in planner.critics] == ["dwb_critics::PathDistCritic", "TwirlingCritic"]
 
 
-def test_ros_parameter_names():
-    names = ros_parameter_names()
-    assert names["base_obstacle_scale"] == "BaseObstacle.scale"
-    assert names["path_align_forward_point_distance"] == "PathAlign.forward_point_distance"
-    assert names["oscillation_x_only_threshold"] == "Oscillation.x_only_threshold"
-    assert names["rotate_to_goal_lookahead_time"] == "RotateToGoal.lookahead_time"
-    assert names["max_vel_theta"] == "max_vel_theta"
-    assert names["critics"] == "critics"
-
-
 def test_dwb_parameters_are_its_settings_but_the_costmap_s_footprint():
     """The plugin's parameters are DWBSettings' fields (typed there), the footprint excepted: the
     local costmap gives it, and a YAML value for it is refused."""
     declared = {ros_name(f) for f in parameter_fields(DWBParameters)}
-    assert declared == set(ros_parameter_names().values()) - {"robot_radius", "footprint_padding"}
-    params = from_values(DWBParameters, {"max_vel_x": 0.4, "BaseObstacle.scale": 0.02,
-                                         "critics": ["BaseObstacle", "PathDist"]})
+    assert declared == {f.name for f in dataclasses.fields(DWBSettings)} - {"robot_radius", "footprint_padding"}
+    params = from_values(DWBParameters, {"max_vel_x": 0.4, "critics": ["BaseObstacle", "PathDist"]})
     assert params.settings(robot_radius=0.25, footprint_padding=0.0) == DWBSettings(
-        max_vel_x=0.4, base_obstacle_scale=0.02, critics=("BaseObstacle", "PathDist"), robot_radius=0.25,
-        footprint_padding=0.0)
+        max_vel_x=0.4, critics=("BaseObstacle", "PathDist"), robot_radius=0.25, footprint_padding=0.0)
     assert params.make(robot_radius=0.25).settings.robot_radius == 0.25
     with pytest.raises(ParameterError, match="robot_radius"):
         from_values(DWBParameters, {"robot_radius": 0.2})
     with pytest.raises(ParameterError, match="max_vel_x"):
         from_values(DWBParameters, {"max_vel_x": math.nan})
+
+
+def test_dwbs_own_critics_are_plugins_made_from_their_parameters_under_their_name():
+    made = make_critics(("BaseObstacle", "dwb_critics::PathAlignCritic", "GoalDistCritic"),
+                        {"BaseObstacle": {"scale": 0.02, "sum_scores": True},
+                         "dwb_critics::PathAlignCritic": {"forward_point_distance": 0.1}})
+    base, align, goal = made.values()
+    assert isinstance(base, BaseObstacle) and (base.scale, base.sum_scores) == (0.02, True)
+    assert isinstance(align, PathAlign) and align.name == "dwb_critics::PathAlignCritic"
+    assert isinstance(goal, GoalDist) and goal.scale == 1.0  # Nav2's defaults
+    assert critic_type("Twirling") == "dwb_critics::TwirlingCritic"
+
+
+@pytest.mark.parametrize(("values", "parameter"), [
+    ({"PathDist": {"aggregation_type": "mean"}}, "PathDist.aggregation_type"),
+    ({"BaseObstacle": {"scale": -0.02}}, "BaseObstacle.scale"),
+    ({"RotateToGoal": {"slowing_factor": math.inf}}, "RotateToGoal.slowing_factor"),
+    ({"BaseObstacle": {"sum_scores": 1}}, "BaseObstacle.sum_scores"),
+    ({"BaseObstacle": {"scales": 1.0}}, "BaseObstacle.scales"),
+])
+def test_a_bad_critic_parameter_is_named_with_its_critic(values, parameter):
+    with pytest.raises(ControllerError) as err:
+        make_critics(("BaseObstacle", "PathDist", "RotateToGoal"), values)
+    assert err.value.parameter == parameter and f"'{parameter}'" in str(err.value)
+
+
+def test_the_footprint_and_goal_tolerance_critics_read_are_the_controllers_each_period():
+    planner = ppp(dataclasses.replace(PPP, critics=("ObstacleFootprint", "RotateToGoal"), xy_goal_tolerance=0.5))
+    footprint, rotate = planner.critics
+    planner.compute((0.7, 0.0, 0.0), (0.0, 0.0), straight(1.0, yaw=1.0), free_costmap(), DT)
+    assert isinstance(rotate, RotateToGoal) and rotate.in_window  # 0.3 m from the goal: the controller's 0.5 m
+    assert isinstance(footprint, ObstacleFootprint) and footprint.footprint[0] == pytest.approx([0.31, 0.0])
+    planner.set_footprint(0.2, 0.0)
+    planner.compute((0.7, 0.0, 0.0), (0.0, 0.0), straight(1.0, yaw=1.0), free_costmap(), DT)
+    assert footprint.footprint[0] == pytest.approx([0.2, 0.0]) and planner.critics == [footprint, rotate]
 
 
 # ------------------------------------------------------------------------------ dynamic window
@@ -302,7 +334,7 @@ def test_obstacle_footprint_rules_out_lethal_cells_under_the_outline_only():
     costs = np.zeros((40, 40), np.uint8)
     costs[20, 26] = LETHAL_OBSTACLE  # 0.3 m right of the centre cell (20, 20)
     costmap = Costmap(costs, 0.05, (0.0, 0.0))
-    critic = ObstacleFootprint("ObstacleFootprint", 1.0, False, 0.3, 0.0)
+    critic = ObstacleFootprint("ObstacleFootprint", 1.0, False)
     critic.prepare(context(costmap, np.array([[1.0, 1.0]])))
     traj = trajectories([[(1.025, 1.025, 0.0)], [(0.6, 1.025, 0.0)]], [(0.1, 0.0, 0.0)] * 2)
     _, illegal = critic.score(traj)
@@ -341,7 +373,7 @@ def test_obstacle_footprint_takes_the_highest_cost_under_nav2s_outline():
     costs[rng.integers(0, 40, 30), rng.integers(0, 40, 30)] = LETHAL_OBSTACLE
     costmap = Costmap(costs, 0.05, (0.0, 0.0))
     poses = np.c_[rng.uniform(0.4, 1.6, 300), rng.uniform(0.4, 1.6, 300), rng.uniform(-4.0, 4.0, 300)]
-    critic = ObstacleFootprint("ObstacleFootprint", 1.0, False, 0.3, 0.0)
+    critic = ObstacleFootprint("ObstacleFootprint", 1.0, False)
     critic.prepare(context(costmap, np.array([[1.0, 1.0]])))
     scores, illegal = critic.score(trajectories([[tuple(p)] for p in poses], [(0.1, 0.0, 0.0)] * len(poses)))
     angles = np.arange(16) * 2.0 * math.pi / 16
@@ -356,7 +388,10 @@ def test_obstacle_footprint_takes_the_highest_cost_under_nav2s_outline():
 
 
 def test_footprint_padding_moves_each_vertex_out_along_its_axes_as_nav2s_pad_footprint():
-    footprint = ObstacleFootprint("ObstacleFootprint", 1.0, False, 0.3, 0.01).footprint
+    critic = ObstacleFootprint("ObstacleFootprint", 1.0, False)
+    critic.prepare(context(free_costmap(), np.array([[1.0, 1.0]]),
+                           settings=DWBSettings(robot_radius=0.3, footprint_padding=0.01)))
+    footprint = critic.footprint
     assert footprint[0] == pytest.approx([0.31, 0.0])
     assert footprint[2] == pytest.approx([0.3 / math.sqrt(2) + 0.01, 0.3 / math.sqrt(2) + 0.01])
     assert footprint[4] == pytest.approx([0.01, 0.31])  # cos(π/2) is 6e-17 > 0 in doubles, as in Nav2
@@ -364,7 +399,7 @@ def test_footprint_padding_moves_each_vertex_out_along_its_axes_as_nav2s_pad_foo
 
 def test_rotate_to_goal_allows_only_turns_in_place_once_stopped_at_the_goal():
     costmap = free_costmap()
-    critic = RotateToGoal("RotateToGoal", 32.0, 0.25, 0.25, 5.0, -1.0)
+    critic = RotateToGoal("RotateToGoal", 32.0, 5.0, -1.0)
     plan = np.array([[0.0, 0.0], [1.0, 0.0]])
     critic.prepare(context(costmap, plan, pose=(1.1, 0.0, 0.0), goal=(1.0, 0.0, 1.0)))
     assert critic.in_window and critic.rotating
@@ -377,7 +412,7 @@ def test_rotate_to_goal_allows_only_turns_in_place_once_stopped_at_the_goal():
 
 
 def test_rotate_to_goal_makes_a_moving_robot_slow_down_first():
-    critic = RotateToGoal("RotateToGoal", 32.0, 0.25, 0.25, 5.0, -1.0)
+    critic = RotateToGoal("RotateToGoal", 32.0, 5.0, -1.0)
     critic.prepare(context(free_costmap(), np.array([[1.0, 0.0]]), pose=(0.9, 0.0, 0.0), goal=(1.0, 0.0, 0.0),
                            velocity=(0.5, 0.0, 0.0)))
     assert critic.in_window and not critic.rotating
@@ -387,7 +422,7 @@ def test_rotate_to_goal_makes_a_moving_robot_slow_down_first():
 
 
 def test_rotate_to_goal_lookahead_time_interpolates_the_yaw():
-    critic = RotateToGoal("RotateToGoal", 1.0, 0.25, 0.25, 5.0, 0.75)
+    critic = RotateToGoal("RotateToGoal", 1.0, 5.0, 0.75)
     critic.prepare(context(free_costmap(), np.array([[0.0, 0.0]]), goal=(0.0, 0.0, 0.0)))
     traj = trajectories([[(0.0, 0.0, 0.0), (0.0, 0.0, 0.4), (0.0, 0.0, 0.8), (0.0, 0.0, 0.8)]], [(0.0, 0.0, 0.8)])
     traj = dataclasses.replace(traj, steps=np.array([2]))  # two 0.5 s steps, the last pose repeated
@@ -443,7 +478,7 @@ def test_straight_path_from_rest_drives_straight_ahead():
 
 def test_limited_accel_generator_from_rest_is_limited_by_the_acceleration_in_one_period():
     s = dataclasses.replace(PPP, trajectory_generator_name=LIMITED_ACCEL_GENERATOR)
-    cmd = DWBLocalPlanner(s).compute((0.0, 0.0, 0.0), (0.0, 0.0), straight(), free_costmap(), DT)
+    cmd = ppp(s).compute((0.0, 0.0, 0.0), (0.0, 0.0), straight(), free_costmap(), DT)
     # Map-grid scores are whole cells: twists whose trajectories end in the same cells tie, and the
     # first sampled (lowest v, most negative ω) wins, so v is near the window's top and ω near 0.
     assert 0.8 * s.acc_lim_x * DT < cmd.linear_mps <= s.acc_lim_x * DT
@@ -453,7 +488,7 @@ def test_limited_accel_generator_from_rest_is_limited_by_the_acceleration_in_one
 
 def test_commands_stay_within_what_one_period_can_reach_at_speed():
     s = dataclasses.replace(PPP, trajectory_generator_name=LIMITED_ACCEL_GENERATOR, decel_lim_x=-1.0)
-    cmd = DWBLocalPlanner(s).compute((0.0, 0.0, 0.0), (1.0, 0.3), straight(), free_costmap(), DT)
+    cmd = ppp(s).compute((0.0, 0.0, 0.0), (1.0, 0.3), straight(), free_costmap(), DT)
     assert 1.0 - 1.0 * DT - 1e-9 <= cmd.linear_mps <= 1.0 + 2.5 * DT + 1e-9
     assert abs(cmd.angular_radps - 0.3) <= 3.2 * DT + 1e-9
 
@@ -461,20 +496,19 @@ def test_commands_stay_within_what_one_period_can_reach_at_speed():
 def test_no_twist_in_the_window_is_no_valid_trajectory():
     s = DWBSettings(max_vel_x=0.0, max_speed_xy=0.0, max_vel_theta=0.0)
     with pytest.raises(CollisionAhead, match="no twist in the dynamic window"):
-        DWBLocalPlanner(s).compute((0.0, 0.0, 0.0), (0.0, 0.0), straight(), free_costmap(), DT)
+        ppp(s).compute((0.0, 0.0, 0.0), (0.0, 0.0), straight(), free_costmap(), DT)
 
 
 def test_path_turning_left_turns_left():
     th = np.linspace(0.0, math.pi / 2, 60)
     left = np.c_[np.sin(th), 1.0 - np.cos(th)]  # radius 1 m, centre (0, 1)
-    cmd = DWBLocalPlanner(PPP).compute((0.0, 0.0, 0.0), (0.5, 0.0), left, free_costmap(), DT)
+    cmd = ppp().compute((0.0, 0.0, 0.0), (0.5, 0.0), left, free_costmap(), DT)
     assert cmd.angular_radps > 0.0 and cmd.curvature > 0.0
 
 
 def test_obstacle_on_the_line_is_avoided():
     costmap = with_obstacles(free_costmap(), [(0.6, 0.0)])
-    planner = DWBLocalPlanner(DWBSettings(critics=PPP.critics, base_obstacle_scale=0.02, path_dist_scale=32.0,
-                                          goal_dist_scale=24.0, path_align_scale=32.0, goal_align_scale=24.0))
+    planner = ppp(DWBSettings(critics=PPP.critics))
     cmd = planner.compute((0.0, 0.0, 0.0), (0.26, 0.0), straight(), costmap, DT)
     ahead = generate_trajectories(planner.settings, np.zeros(3), np.array([0.26, 0.0, 0.0]),
                                   np.array([[0.26, 0.0, 0.0]]))
@@ -489,32 +523,32 @@ def test_obstacle_on_the_line_is_avoided():
 def test_robot_in_the_inscribed_zone_has_no_valid_trajectory():
     costmap = with_obstacles(free_costmap(), [(0.2, 0.0)])
     with pytest.raises(CollisionAhead, match="BaseObstacle/Trajectory Hits Obstacle"):
-        DWBLocalPlanner(PPP).compute((0.0, 0.0, 0.0), (0.0, 0.0), straight(), costmap, DT)
+        ppp().compute((0.0, 0.0, 0.0), (0.0, 0.0), straight(), costmap, DT)
 
 
 def test_boxed_in_at_speed_with_one_period_to_brake_has_no_valid_trajectory():
     wall = [(0.45, y) for y in np.arange(-1.0, 1.0, RES)]
     s = dataclasses.replace(PPP, trajectory_generator_name=LIMITED_ACCEL_GENERATOR)
     with pytest.raises(CollisionAhead, match="no valid trajectory among"):
-        DWBLocalPlanner(s).compute((0.0, 0.0, 0.0), (1.0, 0.0), straight(), with_obstacles(free_costmap(), wall), DT)
+        ppp(s).compute((0.0, 0.0, 0.0), (1.0, 0.0), straight(), with_obstacles(free_costmap(), wall), DT)
 
 
 @pytest.mark.parametrize("goal_yaw", [math.pi / 2, -math.pi / 2])
 def test_at_the_goal_with_the_wrong_heading_it_turns_in_place_towards_the_goal_yaw(goal_yaw):
     path = straight(1.0, yaw=goal_yaw)
-    cmd = DWBLocalPlanner(PPP).compute((1.0, 0.0, 0.0), (0.0, 0.0), path, free_costmap(), DT)
+    cmd = ppp().compute((1.0, 0.0, 0.0), (0.0, 0.0), path, free_costmap(), DT)
     assert cmd.linear_mps == 0.0 and cmd.mode is ControlMode.ROTATE_TO_GOAL
     assert math.copysign(1.0, cmd.angular_radps) == math.copysign(1.0, goal_yaw)
 
 
 def test_ties_go_to_the_first_twist_in_sampling_order():
     s = DWBSettings(critics=("Twirling",), vx_samples=3)
-    cmd = DWBLocalPlanner(s).compute((0.0, 0.0, 0.0), (0.0, 0.0), straight(), free_costmap(), DT)
+    cmd = ppp(s).compute((0.0, 0.0, 0.0), (0.0, 0.0), straight(), free_costmap(), DT)
     assert (cmd.linear_mps, cmd.angular_radps) == (pytest.approx(0.13), 0.0)  # (0, 0) is never sampled
 
 
 def test_plan_is_pruned_behind_the_robot_and_shortened_ahead():
-    planner = DWBLocalPlanner(PPP)
+    planner = ppp()
     path = straight(10.0)
     cmd = planner.compute((3.0, 0.1, 0.0), (0.0, 0.0), path, free_costmap(10.0, (3.0, 0.0)), DT)
     assert planner.progress_index == 21  # (1.05, 0): the first point within 2 m
@@ -525,18 +559,18 @@ def test_plan_is_pruned_behind_the_robot_and_shortened_ahead():
 
 
 def test_the_half_costmap_bounds_the_transformed_plan():
-    cmd = DWBLocalPlanner(PPP).compute((0.0, 0.0, 0.0), (0.0, 0.0), straight(), free_costmap(2.0), DT)
+    cmd = ppp().compute((0.0, 0.0, 0.0), (0.0, 0.0), straight(), free_costmap(2.0), DT)
     assert cmd.local_plan[-1] == pytest.approx([1.0, 0.0])
 
 
 def test_robot_far_from_the_path_is_an_error():
     path = np.c_[np.arange(0.0, 1.0, RES), np.full(20, 4.0)]
     with pytest.raises(ControllerError, match="no path point within"):
-        DWBLocalPlanner(PPP).compute((0.0, 0.0, 0.0), (0.0, 0.0), path, free_costmap(10.0), DT)
+        ppp().compute((0.0, 0.0, 0.0), (0.0, 0.0), path, free_costmap(10.0), DT)
 
 
 def test_costmap_frame_differs_from_the_paths():
-    planner, shifted = DWBLocalPlanner(PPP), DWBLocalPlanner(PPP)
+    planner, shifted = ppp(), ppp()
     path = straight()
     same = planner.compute((0.5, 0.2, 0.1), (0.3, 0.0), path, free_costmap(5.0, (0.5, 0.2)), DT)
     other = shifted.compute((0.5, 0.2, 0.1), (0.3, 0.0), path, free_costmap(5.0, (-9.5, 20.2)), DT,
@@ -547,7 +581,7 @@ def test_costmap_frame_differs_from_the_paths():
 
 
 def test_new_path_resets_the_critics():
-    planner = DWBLocalPlanner(PPP)
+    planner = ppp()
     rotate = next(c for c in planner.critics if isinstance(c, RotateToGoal))
     planner.compute((1.0, 0.0, 0.0), (0.0, 0.0), straight(1.0, yaw=1.0), free_costmap(), DT)
     assert rotate.rotating
@@ -565,5 +599,5 @@ def test_new_path_resets_the_critics():
 def test_bad_input_is_a_controller_error(args, parameter):
     call = {"pose": (0.0, 0.0, 0.0), "speed": (0.0, 0.0), "path": straight(), "costmap": free_costmap(), "dt_s": DT}
     with pytest.raises(ControllerError) as err:
-        DWBLocalPlanner(PPP).compute(**{**call, **args})
+        ppp().compute(**{**call, **args})
     assert err.value.parameter == parameter

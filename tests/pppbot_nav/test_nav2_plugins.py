@@ -10,6 +10,7 @@ from typing import Any
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
+from user_plugins import install_user_plugins
 
 from pppbot_common.params import ParameterError
 from pppbot_common.ros.unread_parameters import declared_names, reasons, unread_parameters
@@ -72,8 +73,10 @@ def test_ppp_bots_controller_file_runs_dwb_with_its_critics_and_checkers(params_
             (1.5, 2.0, 2.5, 3.2, -2.5, 1.7)
         assert list(s.critics) == ["RotateToGoal", "Oscillation", "BaseObstacle", "GoalAlign", "PathAlign",
                                    "PathDist", "GoalDist"]
-        assert (s.base_obstacle_scale, s.path_align_scale, s.goal_align_scale, s.path_dist_scale) == \
-            (0.02, 32.0, 24.0, 32.0)
+        scales = {critic.name: critic.scale for critic in dwb.critics}  # each declared under FollowPath.<critic>.
+        assert scales == {"RotateToGoal": 32.0, "Oscillation": 1.0, "BaseObstacle": 0.02, "GoalAlign": 24.0,
+                          "PathAlign": 32.0, "PathDist": 32.0, "GoalDist": 24.0}
+        assert server.get_parameter("FollowPath.PathAlign.forward_point_distance").value == 0.1
         assert s.robot_radius == 0.3  # the local costmap's footprint, as Nav2's
         # Humble's progress_checker_plugin (one name) and ppp_bot's general_goal_checker.
         assert isinstance(server.progress_checkers["progress_checker"], SimpleProgressChecker)
@@ -320,3 +323,25 @@ def test_nodes_that_read_their_parameters_once_refuse_sets(context: None) -> Non
         assert not refused.successful and "read at configure" in refused.reason  # ...and not again until then
     finally:
         monitor.destroy_node()
+
+
+def test_a_users_critic_runs_beside_dwbs_own_and_takes_its_live_parameters(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    install_user_plugins(tmp_path / "site", monkeypatch)
+    rclpy.init(args=["--ros-args", "-p", "FollowPath.critics:=['BaseObstacle', 'Lean']",
+                     "-p", "FollowPath.Lean.scale:=2.0"])
+    try:
+        server = ControllerServer()
+        try:
+            dwb = server.controllers["FollowPath"]
+            base, lean = dwb.critics
+            assert (type(base).__name__, type(lean).__name__, lean.name, lean.scale) == \
+                ("BaseObstacle", "Lean", "Lean", 2.0)
+            assert set_one(server, "FollowPath.Lean.scale", 0.5).successful
+            assert dwb.critics[0] is base and dwb.critics[1].scale == 0.5  # made again in its place
+            assert not set_one(server, "FollowPath.Lean.scale", -1.0).successful
+            assert not set_one(server, "FollowPath.BaseObstacle.scale", 0.5).successful  # DWB's own: fixed
+        finally:
+            server.destroy_node()
+    finally:
+        rclpy.shutdown()

@@ -3,9 +3,9 @@
 folder put first on ``sys.path``, as a user's site is. The package's types are then found by
 name through the entry points as pppbot's own are (:mod:`pppbot_nav.plugins`).
 
-:data:`BEHAVIORS` and :data:`SMOOTHERS` are the modules of such a package: a behaviour that turns
-on the spot for a Wait goal's ``time``, and a smoother that lays a path's inner poses on the
-straight line between its ends.
+:data:`BEHAVIORS`, :data:`SMOOTHERS` and :data:`CRITICS` are the modules of such a package: a
+behaviour that turns on the spot for a Wait goal's ``time``, a smoother that lays a path's inner
+poses on the straight line between its ends, and a DWB critic whose scale may change live.
 """
 from __future__ import annotations
 
@@ -118,11 +118,44 @@ class StraightenParameters:
 '''
 
 #: The package's entry points, by group: type name → "module:attribute".
+#: ``pppbot_test_plugins::Lean`` (group ``pppbot_nav.dwb_critics``): scores |ω|; its ``scale`` may
+#: change while the controller runs (``LIVE_PARAMETERS`` None: all).
+CRITICS = '''
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from pppbot_common.params import check_finite_range, param
+from pppbot_nav.controller.dwb_critics import TrajectoryCritic
+
+
+class Lean(TrajectoryCritic):
+    def score(self, traj):
+        return np.abs(traj.velocity[:, 2]), np.zeros(len(traj), dtype=int)
+
+
+@dataclass(frozen=True)
+class LeanParameters:
+    LIVE_PARAMETERS: ClassVar[Any] = None
+
+    scale: float = param(1.0, "weight of |ω|")
+
+    def validate(self) -> None:
+        check_finite_range("scale", self.scale, 0.0)
+
+    def make(self, name: str) -> Lean:
+        return Lean(name, self.scale)
+'''
+
 ENTRY_POINTS = {
     "pppbot_nav.behaviors": {"pppbot_test_plugins::Turn": "pppbot_test_behaviors:TurnParameters"},
     "pppbot_nav.smoothers": {"pppbot_test_plugins::Straighten": "pppbot_test_smoothers:StraightenParameters"},
+    "pppbot_nav.dwb_critics": {"pppbot_test_plugins::Lean": "pppbot_test_critics:LeanParameters"},
 }
-MODULES = {"pppbot_test_behaviors": BEHAVIORS, "pppbot_test_smoothers": SMOOTHERS}
+MODULES = {"pppbot_test_behaviors": BEHAVIORS, "pppbot_test_smoothers": SMOOTHERS, "pppbot_test_critics": CRITICS}
 
 
 def install_user_plugins(site: Path, monkeypatch: pytest.MonkeyPatch) -> None:

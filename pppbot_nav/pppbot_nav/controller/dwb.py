@@ -52,22 +52,18 @@ from __future__ import annotations
 import math
 from collections import Counter
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
 
 from pppbot_common.se2 import PoseLike
+from pppbot_nav.controller.dwb_critic_plugins import critic_type, make_critics, unknown_critic
 from pppbot_nav.controller.dwb_critics import (
-    KNOWN_CRITICS,
     Context,
-    ObstacleFootprint,
     RotateToGoal,
     Trajectories,
     TrajectoryCritic,
-    build_critics,
-    critic_class,
-    plugin_critic_type,
 )
 from pppbot_nav.controller.pure_pursuit import Command, ControlMode
 from pppbot_nav.costmap.grid import Costmap
@@ -78,20 +74,14 @@ STANDARD_GENERATOR = "dwb_plugins::StandardTrajectoryGenerator"
 LIMITED_ACCEL_GENERATOR = "dwb_plugins::LimitedAccelGenerator"
 #: Nav2 bringup's critics (``nav2_params.yaml``); ppp_bot uses the same list.
 DEFAULT_CRITICS = ("RotateToGoal", "Oscillation", "BaseObstacle", "GoalAlign", "PathAlign", "PathDist", "GoalDist")
-AGGREGATION_TYPES = ("last", "sum", "product")
 #: Nav2's velocity iterator tolerance (``dwb_plugins::EPSILON``).
 _EPSILON = 1e-5
 
 
-def _ros(default: Any, name: str) -> Any:
-    """A settings field whose ROS parameter (under the plugin's name) is ``name``."""
-    return field(default=default, metadata={"ros_name": name})
-
-
 @dataclass(frozen=True)
 class DWBSettings:
-    """DWB's parameters under Nav2's names (the ROS name, relative to the plugin, is the field's name
-    or, for critic parameters, ``<Critic>.<param>``: see :func:`ros_parameter_names`)."""
+    """DWB's own parameters under Nav2's names (relative to the plugin: ``FollowPath.``); each critic's
+    are its plugin's (:mod:`pppbot_nav.controller.dwb_critic_plugins`)."""
 
     critics: tuple[str, ...] = DEFAULT_CRITICS
     prune_plan: bool = True
@@ -127,38 +117,9 @@ class DWBSettings:
     angular_granularity: float = 0.025  # rad
     include_last_point: bool = True
     limit_vel_cmd_in_traj: bool = False
-    # RotateToGoal (the first two are the plugin's own parameters, as in Nav2: not the goal checker's)
+    # Read by RotateToGoal (the plugin's own parameters, as in Nav2: not the goal checker's)
     xy_goal_tolerance: float = 0.25  # m
     trans_stopped_velocity: float = 0.25  # m/s
-    rotate_to_goal_scale: float = _ros(1.0, "RotateToGoal.scale")
-    rotate_to_goal_slowing_factor: float = _ros(5.0, "RotateToGoal.slowing_factor")
-    rotate_to_goal_lookahead_time: float = _ros(-1.0, "RotateToGoal.lookahead_time")  # s; negative: last pose
-    # Oscillation (negative thresholds: that reset is off)
-    oscillation_scale: float = _ros(1.0, "Oscillation.scale")
-    oscillation_reset_dist: float = _ros(0.05, "Oscillation.oscillation_reset_dist")  # m
-    oscillation_reset_angle: float = _ros(0.2, "Oscillation.oscillation_reset_angle")  # rad
-    oscillation_reset_time: float = _ros(-1.0, "Oscillation.oscillation_reset_time")  # s
-    oscillation_x_only_threshold: float = _ros(0.05, "Oscillation.x_only_threshold")  # m/s
-    base_obstacle_scale: float = _ros(1.0, "BaseObstacle.scale")
-    base_obstacle_sum_scores: bool = _ros(False, "BaseObstacle.sum_scores")
-    obstacle_footprint_scale: float = _ros(1.0, "ObstacleFootprint.scale")
-    obstacle_footprint_sum_scores: bool = _ros(False, "ObstacleFootprint.sum_scores")
-    goal_align_scale: float = _ros(1.0, "GoalAlign.scale")
-    goal_align_forward_point_distance: float = _ros(0.325, "GoalAlign.forward_point_distance")  # m
-    goal_align_aggregation_type: str = _ros("last", "GoalAlign.aggregation_type")
-    path_align_scale: float = _ros(1.0, "PathAlign.scale")
-    path_align_forward_point_distance: float = _ros(0.325, "PathAlign.forward_point_distance")  # m
-    path_align_aggregation_type: str = _ros("last", "PathAlign.aggregation_type")
-    path_dist_scale: float = _ros(1.0, "PathDist.scale")
-    path_dist_aggregation_type: str = _ros("last", "PathDist.aggregation_type")
-    goal_dist_scale: float = _ros(1.0, "GoalDist.scale")
-    goal_dist_aggregation_type: str = _ros("last", "GoalDist.aggregation_type")
-    prefer_forward_scale: float = _ros(1.0, "PreferForward.scale")
-    prefer_forward_penalty: float = _ros(1.0, "PreferForward.penalty")
-    prefer_forward_strafe_x: float = _ros(0.1, "PreferForward.strafe_x")  # m/s
-    prefer_forward_strafe_theta: float = _ros(0.2, "PreferForward.strafe_theta")  # rad/s
-    prefer_forward_theta_scale: float = _ros(10.0, "PreferForward.theta_scale")
-    twirling_scale: float = _ros(1.0, "Twirling.scale")
     #: The local costmap's footprint (its robot_radius and footprint_padding), for ObstacleFootprint.
     robot_radius: float = 0.3  # m
     footprint_padding: float = 0.01  # m
@@ -168,27 +129,21 @@ class DWBSettings:
         for f in fields(self):
             _check_type(f.name, str(f.type), getattr(self, f.name))
         if not self.critics:
-            raise ControllerError(f"critics must name at least one critic of {', '.join(KNOWN_CRITICS)}", "critics")
+            raise ControllerError("critics must name at least one critic (Nav2's: "
+                                  f"{', '.join(plugins('DWB critic'))})", "critics")
         for name in self.critics:
-            if critic_class(name) is None and plugin_critic_type(name) is None:
-                raise ControllerError(f"unknown critic {name!r} in critics; DWB's: {', '.join(KNOWN_CRITICS)}; "
-                                      + plugins("DWB critic").unknown(name), "critics")
+            if critic_type(name) is None:
+                raise ControllerError(unknown_critic(name), "critics")
         if self.trajectory_generator_name not in (STANDARD_GENERATOR, LIMITED_ACCEL_GENERATOR):
             raise ControllerError(f"trajectory_generator_name must be {STANDARD_GENERATOR!r} or "
                                   f"{LIMITED_ACCEL_GENERATOR!r}, not {self.trajectory_generator_name!r}",
                                   "trajectory_generator_name")
-        for f in fields(self):
-            if f.name.endswith("aggregation_type") and getattr(self, f.name).lower() not in AGGREGATION_TYPES:
-                raise ControllerError(f"{f.name} must be one of {', '.join(AGGREGATION_TYPES)}, not "
-                                      f"{getattr(self, f.name)!r}", f.name)
         self._check_ranges()
 
     def _check_ranges(self) -> None:
         positive = ("sim_time", "time_granularity", "linear_granularity", "angular_granularity", "robot_radius")
         at_least_zero = ("prune_distance", "max_vel_theta", "acc_lim_x", "acc_lim_y", "acc_lim_theta",
-                         "xy_goal_tolerance", "trans_stopped_velocity", "rotate_to_goal_slowing_factor",
-                         "goal_align_forward_point_distance", "path_align_forward_point_distance", "footprint_padding",
-                         *(f.name for f in fields(self) if f.name.endswith("_scale")))
+                         "xy_goal_tolerance", "trans_stopped_velocity", "footprint_padding")
         for name in positive:
             if getattr(self, name) <= 0.0:
                 raise ControllerError(f"{name} must be positive, not {getattr(self, name)}", name)
@@ -224,11 +179,6 @@ def _check_type(name: str, kind: str, value: object) -> None:
     what, ok = _KINDS[kind]
     if not ok(value):
         raise ControllerError(f"{name} must be {what}, not {value!r}", name)
-
-
-def ros_parameter_names() -> dict[str, str]:
-    """Settings field → its ROS parameter name relative to the plugin (``FollowPath.`` + this)."""
-    return {f.name: f.metadata.get("ros_name", f.name) for f in fields(DWBSettings)}
 
 
 def _project(v0: np.ndarray | float, acc: float, decel: float, dt: np.ndarray | float,
@@ -334,16 +284,21 @@ def _to_frame(points: np.ndarray, source: tuple[float, ...], target: tuple[float
 class DWBLocalPlanner:
     """Nav2's DWB local planner, one :meth:`compute` per control period (see the module doc)."""
 
-    def __init__(self, settings: DWBSettings, plugin_critics: Mapping[str, TrajectoryCritic] | None = None) -> None:
-        """``plugin_critics``: the critics of ``settings.critics`` that are installed plugins, not
-        DWB's own, by their name there (the controller server makes them with their parameters).
+    def __init__(self, settings: DWBSettings, critics: Mapping[str, TrajectoryCritic] | None = None) -> None:
+        """``critics``: the critics ``settings.critics`` names, by that name, made from their parameters
+        (the controller server makes them from its own, :func:`make_critics` from values given);
+        default: each with its defaults.
 
-        Raises ControllerError: bad settings (an unknown critic among them, or a plugin critic not given).
+        Raises ControllerError: bad settings (an unknown critic among them), or a critic not given.
         """
         settings.validate()
         self.settings = settings
-        self.plugin_critics = dict(plugin_critics or {})
-        self.critics = build_critics(settings, self.plugin_critics)
+        made = make_critics(settings.critics) if critics is None else critics
+        missing = [name for name in settings.critics if name not in made]
+        if missing:
+            raise ControllerError(f"critic {missing[0]!r} of critics was not made (the controller server makes "
+                                  "each from its parameters)", "critics")
+        self.critics = [made[name] for name in settings.critics]
         self._path: np.ndarray | None = None  # as given
         self._plan = np.empty((0, 2))  # what is left of the path (prune_plan drops passed points)
         self._goal_yaw: float | None = None
@@ -353,13 +308,11 @@ class DWBLocalPlanner:
         self._best = np.empty((0, 3))
 
     def set_footprint(self, robot_radius: float, footprint_padding: float) -> None:
-        """The local costmap's footprint changed: the footprint critics take it; every other critic
-        keeps its state (Oscillation's), and the path its progress."""
-        self.settings = replace(self.settings, robot_radius=robot_radius, footprint_padding=footprint_padding)
-        self.settings.validate()
-        fresh = build_critics(self.settings, self.plugin_critics)
-        self.critics = [new if isinstance(new, ObstacleFootprint) else old for old, new in zip(self.critics, fresh,
-                                                                                            strict=True)]
+        """The local costmap's footprint changed: the critics see it from the next period (every
+        critic keeps its state, Oscillation's, and the path its progress)."""
+        changed = replace(self.settings, robot_radius=robot_radius, footprint_padding=footprint_padding)
+        changed.validate()
+        self.settings = changed
 
     def set_path(self, path: np.ndarray) -> None:
         """Follow ``path`` ((N, 2) x, y or (N, 3) x, y, yaw; m, rad): critics are reset, as Nav2's
@@ -448,7 +401,7 @@ class DWBLocalPlanner:
         goal_xy = _to_frame(self._plan[-1:], robot, in_costmap)[0]
         velocity = np.array([v_now, 0.0, w_now])
         ctx = Context(np.array(in_costmap), velocity, np.array([*goal_xy, goal_yaw + in_costmap[2] - robot[2]]),
-                      _to_frame(local, robot, in_costmap), costmap, self._clock_s)
+                      _to_frame(local, robot, in_costmap), costmap, self._clock_s, s)
         for critic in self.critics:
             critic.prepare(ctx)
         window_s = s.sim_time if s.trajectory_generator_name == STANDARD_GENERATOR else dt_s

@@ -28,7 +28,6 @@ given out, and cells are unreachable only when no plan cell is on the costmap.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar
 
@@ -37,8 +36,6 @@ from scipy import ndimage
 
 from pppbot_nav.costmap.costs import INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION
 from pppbot_nav.costmap.grid import Costmap
-from pppbot_nav.errors import ControllerError
-from pppbot_nav.plugins import canonical, plugins
 
 if TYPE_CHECKING:
     from pppbot_nav.controller.dwb import DWBSettings
@@ -88,6 +85,9 @@ class Context:
     plan: np.ndarray  # (M, 2) the transformed (pruned, shortened) plan
     costmap: Costmap
     now_s: float  # the planner's clock: the sum of the control periods so far
+    #: the DWB controller's own parameters (a critic reads some, as Nav2's read them under the
+    #: controller's name: RotateToGoal's xy_goal_tolerance, the footprint)
+    settings: DWBSettings
     grids: dict[bytes, np.ndarray] = field(default_factory=dict)  # map grids by source cells, shared
 
 
@@ -139,11 +139,8 @@ class TrajectoryCritic:
 class RotateToGoal(TrajectoryCritic):
     reasons = ("Not slowing down near goal.", "Nonrotation command near goal.")
 
-    def __init__(self, name: str, scale: float, xy_goal_tolerance: float, trans_stopped_velocity: float,
-                 slowing_factor: float, lookahead_time: float) -> None:
+    def __init__(self, name: str, scale: float, slowing_factor: float, lookahead_time: float) -> None:
         super().__init__(name, scale)
-        self.tolerance_sq = xy_goal_tolerance ** 2
-        self.stopped_sq = trans_stopped_velocity ** 2
         self.slowing_factor = slowing_factor
         self.lookahead_time = lookahead_time
         self.reset()
@@ -156,9 +153,10 @@ class RotateToGoal(TrajectoryCritic):
 
     def prepare(self, ctx: Context) -> bool:
         dxy_sq = float(np.sum((ctx.pose[:2] - ctx.goal[:2]) ** 2))
-        self.in_window = self.in_window or dxy_sq <= self.tolerance_sq
+        self.in_window = self.in_window or dxy_sq <= ctx.settings.xy_goal_tolerance ** 2
         self._speed_sq = float(ctx.velocity[0] ** 2 + ctx.velocity[1] ** 2)
-        self.rotating = self.rotating or (self.in_window and self._speed_sq <= self.stopped_sq)
+        stopped = self._speed_sq <= ctx.settings.trans_stopped_velocity ** 2
+        self.rotating = self.rotating or (self.in_window and stopped)
         self._goal_yaw = float(ctx.goal[2])
         return True
 
@@ -301,13 +299,22 @@ class ObstacleFootprint(BaseObstacle):
     reasons = ("Trajectory Goes Off Grid.", "Footprint Goes Off Grid.", "Trajectory Hits Obstacle.",
                "Trajectory Hits Unknown Region.")
 
-    def __init__(self, name: str, scale: float, sum_scores: bool, robot_radius: float, padding: float) -> None:
+    def __init__(self, name: str, scale: float, sum_scores: bool) -> None:
         super().__init__(name, scale, sum_scores)
-        angles = np.arange(_FOOTPRINT_VERTICES) * 2.0 * math.pi / _FOOTPRINT_VERTICES
-        vertices = np.c_[np.cos(angles), np.sin(angles)] * robot_radius
-        # (16, 2) in the robot's frame, padded as Nav2's padFootprint: by the sign of each coordinate, so
-        # cos(π/2)·r, 6e-17, counts as positive there too.
-        self.footprint = vertices + np.sign(vertices) * padding
+        self._made_for: tuple[float, float] | None = None
+        self.footprint = np.zeros((_FOOTPRINT_VERTICES, 2))
+
+    def prepare(self, ctx: Context) -> bool:
+        """The footprint is the controller's (the local costmap's robot_radius and footprint_padding)."""
+        radius, padding = ctx.settings.robot_radius, ctx.settings.footprint_padding
+        if self._made_for != (radius, padding):
+            angles = np.arange(_FOOTPRINT_VERTICES) * 2.0 * math.pi / _FOOTPRINT_VERTICES
+            vertices = np.c_[np.cos(angles), np.sin(angles)] * radius
+            # (16, 2) in the robot's frame, padded as Nav2's padFootprint: by the sign of each coordinate,
+            # so cos(π/2)·r, 6e-17, counts as positive there too.
+            self.footprint = vertices + np.sign(vertices) * padding
+            self._made_for = (radius, padding)
+        return super().prepare(ctx)
 
     def _pose_costs(self, traj: Trajectories, costmap: Costmap) -> tuple[np.ndarray, np.ndarray]:
         _, centre_on = traj.cells(costmap)
@@ -532,71 +539,3 @@ class PreferForward(TrajectoryCritic):
 class Twirling(TrajectoryCritic):
     def score(self, traj: Trajectories) -> Verdict:
         return np.abs(traj.velocity[:, 2]), np.zeros(len(traj), dtype=int)
-
-
-_FACTORIES: dict[str, Callable[[str, DWBSettings], TrajectoryCritic]] = {
-    "BaseObstacle": lambda n, s: BaseObstacle(n, s.base_obstacle_scale, s.base_obstacle_sum_scores),
-    "GoalAlign": lambda n, s: GoalAlign(n, s.goal_align_scale, s.goal_align_aggregation_type,
-                                        s.goal_align_forward_point_distance),
-    "GoalDist": lambda n, s: GoalDist(n, s.goal_dist_scale, s.goal_dist_aggregation_type),
-    "ObstacleFootprint": lambda n, s: ObstacleFootprint(n, s.obstacle_footprint_scale, s.obstacle_footprint_sum_scores,
-                                                        s.robot_radius, s.footprint_padding),
-    "Oscillation": lambda n, s: Oscillation(n, s.oscillation_scale, s.oscillation_reset_dist,
-                                            s.oscillation_reset_angle, s.oscillation_reset_time,
-                                            s.oscillation_x_only_threshold),
-    "PathAlign": lambda n, s: PathAlign(n, s.path_align_scale, s.path_align_aggregation_type,
-                                        s.path_align_forward_point_distance),
-    "PathDist": lambda n, s: PathDist(n, s.path_dist_scale, s.path_dist_aggregation_type),
-    "PreferForward": lambda n, s: PreferForward(n, s.prefer_forward_scale, s.prefer_forward_penalty,
-                                                s.prefer_forward_strafe_x, s.prefer_forward_strafe_theta,
-                                                s.prefer_forward_theta_scale),
-    "RotateToGoal": lambda n, s: RotateToGoal(n, s.rotate_to_goal_scale, s.xy_goal_tolerance,
-                                              s.trans_stopped_velocity, s.rotate_to_goal_slowing_factor,
-                                              s.rotate_to_goal_lookahead_time),
-    "Twirling": lambda n, s: Twirling(n, s.twirling_scale),
-}
-
-#: The critics this module implements, by the name a ``critics`` list gives them.
-KNOWN_CRITICS = tuple(sorted(_FACTORIES))
-
-
-def critic_class(name: str) -> str | None:
-    """The critic a ``critics`` entry names, resolved as Nav2's ``resolveCriticClassName`` does
-    (``PathDist``, ``PathDistCritic`` and ``dwb_critics::PathDistCritic`` are one), or None."""
-    base = name.removeprefix("dwb_critics::").removesuffix("Critic")
-    return base if base in _FACTORIES else None
-
-
-def plugin_critic_type(name: str) -> str | None:
-    """The installed critic plugin (entry-point group ``pppbot_nav.dwb_critics``) a ``critics`` entry
-    names, or None: its full type (``my_pkg::Clearance``), or, as Nav2's default critic namespaces
-    resolve a short name, a type whose class is the name with or without ``Critic``."""
-    group = plugins("DWB critic")
-    exact = group.name_of(name)
-    if exact is not None:
-        return exact
-    for type_name in group:
-        if canonical(type_name).rsplit("/", 1)[-1] in (name, f"{name}Critic"):
-            return type_name
-    return None
-
-
-def build_critics(settings: DWBSettings, plugin_critics: Mapping[str, TrajectoryCritic] | None = None
-                  ) -> list[TrajectoryCritic]:
-    """The critics of ``settings.critics``, in that order (names already checked by ``validate``):
-    DWB's own made from ``settings``, the others taken from ``plugin_critics`` by name.
-
-    Raises:
-        ControllerError: a critic that is neither DWB's nor in ``plugin_critics``.
-    """
-    critics = []
-    for name in settings.critics:
-        kind = critic_class(name)
-        if kind is not None:
-            critics.append(_FACTORIES[kind](name, settings))
-        elif plugin_critics is not None and name in plugin_critics:
-            critics.append(plugin_critics[name])
-        else:
-            raise ControllerError(f"critic {name!r} is not DWB's own, and no plugin critic of that name was made "
-                                  "(the controller server makes installed ones)", "critics")
-    return critics

@@ -99,9 +99,10 @@ class ProgressCheckerPlugin(Protocol):
 
 
 class CriticPlugin(Protocol):
-    """An entry point of ``pppbot_nav.dwb_critics``: a DWB critic named in ``critics`` that is not one
-    of DWB's own. Its parameters sit under ``<controller>.<critic name>.`` (Nav2's), ``scale``
-    among them; ``make(name)`` returns the critic (a :class:`pppbot_nav.controller.dwb_critics.TrajectoryCritic`)."""
+    """An entry point of ``pppbot_nav.dwb_critics``: a DWB critic named in ``critics`` (DWB's own are
+    registered so too). Its parameters sit under ``<controller>.<critic name>.`` (Nav2's), ``scale``
+    among them; ``make(name)`` returns the critic (a :class:`pppbot_nav.controller.dwb_critics.TrajectoryCritic`),
+    whose ``prepare(ctx)`` sees the controller's own settings in ``ctx.settings`` each period."""
 
     def validate(self) -> None: ...
 

@@ -44,7 +44,7 @@ from pppbot_common.transforms import TransformError, compose
 from pppbot_lockstep.ros.goals import GoalEnd, GoalServer, Stopped, check_running, send_feedback, stopped_end
 from pppbot_lockstep.ros.lifecycle import ManagedNode
 from pppbot_lockstep.ros.runner import Warnings, guarded, run_nodes
-from pppbot_nav.controller.dwb_critics import critic_class, plugin_critic_type
+from pppbot_nav.controller.dwb_critic_plugins import critic_type
 from pppbot_nav.controller.follow import FollowEnd, Follower
 from pppbot_nav.controller.plugin_settings import DEFAULT_CHECKER_TYPES, DEFAULT_CONTROLLER_TYPES
 from pppbot_nav.costmap.filters import NO_SPEED_LIMIT, SpeedLimit, limited
@@ -151,6 +151,7 @@ class ControllerServer(ManagedNode):
         self.costmap_node = CostmapNode("local_costmap", port=self.port)
         self.composed_nodes = [self.costmap_node]
         self.plugins: dict[str, Plugin] = {}
+        self.critic_plugins: dict[str, Plugin] = {}  # a DWB-like controller's critics, by <controller>.<critic>
         self.controllers = self._load(p.controller_plugins, plugins("controller"), DEFAULT_CONTROLLER_TYPES)
         self.goal_checkers = self._load(p.goal_checker_plugins, plugins("goal checker"), DEFAULT_CHECKER_TYPES)
         self.progress_checkers = self._load(p.progress_checkers(), plugins("progress checker"), DEFAULT_CHECKER_TYPES)
@@ -170,7 +171,8 @@ class ControllerServer(ManagedNode):
         self.timer = self.step_timer(1.0 / p.controller_frequency, self._control)
         self.timer.cancel()
         serve_live_parameters(self, [LiveParameters("", lambda: self.params, self._set_params, LIVE_SERVER),
-                                     *live_plugin_parameters(self.plugins, self._set_plugin_params)])
+                                     *live_plugin_parameters(self.plugins, self._set_plugin_params),
+                                     *live_plugin_parameters(self.critic_plugins, self._set_critic_params)])
         kinds = ", ".join(f"'{name}' ({self.plugins[name].type_name})" for name in self.controllers)
         self.get_logger().info(f"controllers {kinds} at {p.controller_frequency} Hz on local_costmap")
 
@@ -180,7 +182,7 @@ class ControllerServer(ManagedNode):
         for name in names:
             plugin = self.plugins[name] = load_plugin(self, name, types, defaults.get(name))
             given = self._from_costmap(plugin.params)
-            critics = self._plugin_critics(name, plugin.params)
+            critics = self._critics(name, plugin.params)
             made[name] = plugin.params.make(**given, **({"critics": critics} if critics else {}))
         return made
 
@@ -190,17 +192,18 @@ class ControllerServer(ManagedNode):
         costmap = {"robot_radius": cm.robot_radius, "footprint_padding": cm.footprint_padding}
         return {key: costmap[key] for key in getattr(type(params), "FROM_COSTMAP", ())}
 
-    def _plugin_critics(self, name: str, params: Any) -> dict[str, Any]:
-        """A DWB-like controller's critics that are installed plugins (not DWB's own), each made from its
-        parameters under ``<name>.<critic>.`` (Nav2's)."""
+    def _critics(self, name: str, params: Any) -> dict[str, Any]:
+        """A DWB-like controller's critics (its ``critics``), each an installed plugin (DWB's own are
+        too), made from its parameters under ``<name>.<critic>.`` (Nav2's)."""
         made = {}
         group = plugins("DWB critic")
         for critic in getattr(params, "critics", ()):
-            type_name = plugin_critic_type(critic)
-            if critic_class(critic) is not None or type_name is None:
-                continue
+            type_name = critic_type(critic)
+            if type_name is None:
+                continue  # the controller's own validate() names it
             prefix = f"{name}.{critic}"
             settings: Any = declare_parameters(self, plugin_class(prefix, group, type_name), prefix=f"{prefix}.")
+            self.critic_plugins[prefix] = Plugin(prefix, type_name, settings)
             made[critic] = settings.make(critic)
         return made
 
@@ -235,6 +238,14 @@ class ControllerServer(ManagedNode):
         running = self.goal_checkers.get(name) or self.progress_checkers[name]
         for field in dataclasses.fields(new):
             setattr(running, field.name, getattr(fresh, field.name))
+
+    def _set_critic_params(self, key: str, new: Any) -> None:
+        """A critic's live parameters (its class's ``LIVE_PARAMETERS``; DWB's own have none): the
+        critic is made again in its place."""
+        controller, critic = key.split(".", 1)
+        self.critic_plugins[key] = Plugin(key, self.critic_plugins[key].type_name, new)
+        planner = self.controllers[controller]
+        planner.critics = [new.make(critic) if c.name == critic else c for c in planner.critics]
 
     def destroy_node(self) -> None:
         self.server.destroy()
