@@ -278,7 +278,8 @@ class BasicNavigator(Node):
             self.debug(f"Getting {node_name} state...")
             future = client.call_async(GetState.Request())
             # Asked again when no answer comes: DDS drops the answer to a client the server has
-            # not matched yet (this process just started), and Nav2's own wait would hang for good.
+            # not matched yet (this process just started). pppbot's servers send it again, but a
+            # server that does not would leave Nav2's own wait hanging for good.
             rclpy.spin_until_future_complete(self, future, timeout_sec=GET_STATE_WAIT_S)
             if not future.done():
                 client.remove_pending_request(future)

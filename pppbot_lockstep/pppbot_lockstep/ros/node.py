@@ -10,8 +10,10 @@ itself goes through the port; rclpy is extended, never changed:
 * a subscription made with ``data_path=True`` counts what it receives (a step is handled only
   once every message published before it is here) and, in lockstep, is reliable; with
   ``at_step=True`` each message is handled at the next step;
-* clients are :class:`StepClient` and services :class:`StepService` (the instances rclpy makes,
-  given the subclass's class: rclpy's ``create_client`` and ``create_service`` take no class);
+* clients are :class:`StepClient` and services :class:`AnsweringService` or, counted in lockstep,
+  :class:`StepService` (the instances rclpy makes, given the subclass's class: rclpy's
+  ``create_client`` and ``create_service`` take no class); an answer Fast DDS could not deliver
+  yet (the client just started) is sent again until it goes (:func:`delivered`);
 * action servers are :class:`StepActionServer` (:class:`~pppbot_lockstep.ros.goals.GoalServer`
   makes them) and action clients :class:`~pppbot_lockstep.ros.action_client.ActionClient`;
 * :meth:`StepNode.step_timer` makes a timer on sim time, fired by steps in lockstep.
@@ -24,12 +26,15 @@ answers a step only once the work it set off has run.
 from __future__ import annotations
 
 import functools
+import threading
 import time
+import warnings
 from collections.abc import Callable
 from typing import Any
 
 from rclpy.action import ActionServer
 from rclpy.client import Client
+from rclpy.clock import Clock, ClockType
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -91,7 +96,44 @@ class StepClient(Client):
         return port.request(functools.partial(Client.call_async, self), self._step_key, request)
 
 
-class StepService(Service):
+#: rclpy's warning when Fast DDS dropped an answer: the server has not matched the client's reply
+#: reader yet (rmw_fastrtps waits 100 ms for it), most often for a client that just started.
+_UNDELIVERED = "failed to send response (timeout)"
+#: Wall seconds an undelivered answer is sent again, and how often.
+RESEND_WINDOW_S, RESEND_PERIOD_S = 10.0, 0.1
+_recording = threading.Lock()  # warnings.catch_warnings changes the process's warning filters
+
+
+def delivered(send: Callable[[], None]) -> bool:
+    """Run ``send`` (rclpy's ``send_response``); False when the answer was dropped undelivered
+    (rclpy only warns). Other warnings pass on as they came."""
+    with _recording, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        send()
+    undelivered = False
+    for warning in caught:
+        if issubclass(warning.category, RuntimeWarning) and _UNDELIVERED in str(warning.message):
+            undelivered = True
+        else:
+            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
+    return not undelivered
+
+
+class AnsweringService(Service):
+    """A service whose answer reaches a client it has not discovered yet: Fast DDS drops it and rclpy
+    only warns, and a client that does not ask again (Nav2's BasicNavigator waiting for a node's
+    ``get_state``, ``ros2 service call``) would wait for good. Here it is sent again (by the node,
+    every :data:`RESEND_PERIOD_S`) until it goes or :data:`RESEND_WINDOW_S` have passed."""
+
+    _resend: Callable[[str, Callable[[], bool]], None] | None = None
+
+    def send_response(self, response: Any, header: Any) -> None:
+        send = functools.partial(Service.send_response, self, response, header)
+        if not delivered(send) and self._resend is not None:
+            self._resend(self.srv_name, functools.partial(delivered, send))
+
+
+class StepService(AnsweringService):
     """A service whose requests, in lockstep, wait for the next step (the port's ``serve`` keeps them
     as :class:`~pppbot_lockstep.ros.requests.KeptRequest`, answered when handled) and whose
     replies count as a round's work."""
@@ -174,6 +216,9 @@ class StepNode(Node):
     runs freely). Takes rclpy Node's arguments after its name."""
 
     def __init__(self, node_name: str, *, port: StepPort | None = None, **kwargs: Any) -> None:
+        self._undelivered: list[tuple[str, Callable[[], bool], float]] = []  # service, send again, until
+        self._resend_timer: Any = None
+        self._resend_failures = Throttle(FAILED_REQUEST_PERIOD_S)
         super().__init__(node_name, **kwargs)
         #: what this node's endpoints send and time through (see the module's docstring)
         self.port: StepPort = port or FREE_RUNNING
@@ -234,7 +279,32 @@ class StepNode(Node):
             service._step_port = port
             service.callback = port.serve(self, key, callback,
                                           lambda request: KeptRequest(service, callback, request))
+        else:
+            service.__class__ = AnsweringService
+        assert isinstance(service, AnsweringService)
+        service._resend = self._send_again
+        if self._resend_timer is None:  # made before the executor takes the node; armed when needed
+            self._resend_timer = self.create_timer(RESEND_PERIOD_S, self._resend_undelivered,
+                                                   clock=Clock(clock_type=ClockType.STEADY_TIME), autostart=False)
         return service
+
+    def _send_again(self, service: str, attempt: Callable[[], bool]) -> None:
+        self._undelivered.append((service, attempt, time.monotonic() + RESEND_WINDOW_S))
+        self._resend_timer.reset()
+
+    def _resend_undelivered(self) -> None:
+        now, left = time.monotonic(), []
+        for service, attempt, until in self._undelivered:
+            if attempt():
+                continue
+            if now < until:
+                left.append((service, attempt, until))
+            elif self._resend_failures.allow(service, now):
+                self.get_logger().warning(f"{service}: an answer could not reach its client within "
+                                          f"{RESEND_WINDOW_S:g} s (the client gone before it was discovered?)")
+        self._undelivered = left
+        if not left:
+            self._resend_timer.cancel()
 
     def step_timer(self, period_s: float, callback: Callable[[], object], *, wakes: bool = True) -> Timer:
         """A periodic timer on sim time: fired by lockstep's steps in lockstep (``wakes=False``: at the
