@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from std_srvs.srv import SetBool
 
 from pppbot_lockstep.ros.node import StepNode, delivered
@@ -63,7 +64,7 @@ def test_delivered_tells_a_dropped_answer_and_passes_other_warnings_on() -> None
         assert delivered(lambda: warnings.warn("something else", UserWarning, stacklevel=1))
 
 
-def spin_until(executor: SingleThreadedExecutor, done: Any, timeout_s: float = 10.0) -> None:
+def spin_until(executor: Any, done: Any, timeout_s: float = 10.0) -> None:
     deadline = time.monotonic() + timeout_s
     while not done() and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.05)
@@ -72,8 +73,9 @@ def spin_until(executor: SingleThreadedExecutor, done: Any, timeout_s: float = 1
 def test_an_undelivered_answer_is_sent_again_until_it_goes_and_then_the_node_rests(ros_node: Any) -> None:
     node = StepNode("resend_test_node", context=ros_node.context)
     node.create_service(SetBool, "resend_test", lambda request, response: response)
-    assert node._resend_timer.is_canceled()  # nothing to send again: no wake-ups
-    executor = SingleThreadedExecutor(context=ros_node.context)
+    timers_before = list(node.timers)
+    assert timers_before == []  # nothing to send again: no timer
+    executor = EventsExecutor(context=ros_node.context)  # the node runner's
     executor.add_node(node)
     outcomes = iter([False, False, True])  # the client's reply reader matched at the third try
     tries: list[bool] = []
@@ -85,7 +87,8 @@ def test_an_undelivered_answer_is_sent_again_until_it_goes_and_then_the_node_res
     try:
         node._send_again("/resend_test", attempt)
         spin_until(executor, lambda: not node._undelivered)
-        assert len(tries) == 3 and node._resend_timer.is_canceled()
+        (timer,) = node.timers  # made for the answer sent again, canceled once it went
+        assert len(tries) == 3 and timer.is_canceled()
     finally:
         executor.shutdown()
         node.destroy_node()

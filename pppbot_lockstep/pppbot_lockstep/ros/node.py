@@ -283,14 +283,15 @@ class StepNode(Node):
             service.__class__ = AnsweringService
         assert isinstance(service, AnsweringService)
         service._resend = self._send_again
-        if self._resend_timer is None:  # made before the executor takes the node; armed when needed
-            self._resend_timer = self.create_timer(RESEND_PERIOD_S, self._resend_undelivered,
-                                                   clock=Clock(clock_type=ClockType.STEADY_TIME), autostart=False)
         return service
 
     def _send_again(self, service: str, attempt: Callable[[], bool]) -> None:
         self._undelivered.append((service, attempt, time.monotonic() + RESEND_WINDOW_S))
-        self._resend_timer.reset()
+        if self._resend_timer is None:  # made on the first answer to send again: a node never has one idle
+            self._resend_timer = self.create_timer(RESEND_PERIOD_S, self._resend_undelivered,
+                                                   clock=Clock(clock_type=ClockType.STEADY_TIME))
+        else:
+            self._resend_timer.reset()
 
     def _resend_undelivered(self) -> None:
         now, left = time.monotonic(), []
