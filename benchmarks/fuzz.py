@@ -58,6 +58,10 @@ def parse_arguments(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
+#: The environment variable naming the fuzzing child's scratch folder (made and removed by its parent).
+_SCRATCH = "PPPBOT_FUZZ_SCRATCH"
+
+
 def _fuzz_one(name: str, libfuzzer_args: list[str]) -> None:
     """In the child: fuzz one target under libFuzzer (never returns)."""
     import atheris
@@ -72,7 +76,7 @@ def _fuzz_one(name: str, libfuzzer_args: list[str]) -> None:
         import pppbot_sim.meshes  # noqa: F401
         import pppbot_sim.sdf_world  # noqa: F401
     target = TARGETS[name]
-    folder = Path(tempfile.mkdtemp(prefix=f"fuzz-{name}-"))
+    folder = Path(os.environ[_SCRATCH])  # the parent's: libFuzzer ends this process without cleaning up
     target.prepare(folder)
 
     def one_input(data: bytes) -> None:
@@ -111,14 +115,15 @@ def run_target(name: str, args: argparse.Namespace) -> dict[str, object]:
     """Fuzz ``name`` in a child process; its executions, time and findings."""
     args.artifacts.mkdir(parents=True, exist_ok=True)
     before = set(args.artifacts.iterdir())
-    with tempfile.TemporaryDirectory(prefix=f"fuzz-corpus-{name}-") as corpus:
+    with (tempfile.TemporaryDirectory(prefix=f"fuzz-corpus-{name}-") as corpus,
+          tempfile.TemporaryDirectory(prefix=f"fuzz-{name}-") as scratch):
         flags = [corpus, str(SEEDS / name), f"-seed={SEED}", f"-timeout={max(1, round(args.timeout))}",
                  f"-rss_limit_mb={args.rss_limit_mb}", f"-artifact_prefix={args.artifacts.resolve()}/{name}-",
                  "-max_len=65536", "-print_final_stats=1"]
         flags.append(f"-runs={args.runs}" if args.runs is not None else f"-max_total_time={round(args.seconds)}")
         started = time.monotonic()
         done = subprocess.run([sys.executable, __file__, "--one", name, "--", *flags], capture_output=True,
-                              text=True, env={**os.environ, "PYTHONHASHSEED": "0"}, check=False)
+                              text=True, env={**os.environ, "PYTHONHASHSEED": "0", _SCRATCH: scratch}, check=False)
         seconds = time.monotonic() - started
     log = "".join(line for line in (done.stdout + done.stderr).splitlines(keepends=True)
                   if not line.startswith(("INFO: Instrumenting", "WARNING: Failed to find function")))
@@ -140,9 +145,9 @@ def main(argv: list[str] | None = None) -> int:
         _fuzz_one(argv[1], argv[3:])
     if argv[:1] == ["--reproduce"]:
         target = TARGETS[argv[1]]
-        folder = Path(tempfile.mkdtemp(prefix=f"fuzz-{target.name}-"))
-        target.prepare(folder)
-        check_one(target, folder, Path(argv[2]).read_bytes())  # raises (exit 1) when it reproduces
+        with tempfile.TemporaryDirectory(prefix=f"fuzz-{target.name}-") as folder:
+            target.prepare(Path(folder))
+            check_one(target, Path(folder), Path(argv[2]).read_bytes())  # raises (exit 1) when it reproduces
         return 0
     args = parse_arguments(argv)
     reports = []

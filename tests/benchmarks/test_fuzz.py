@@ -5,6 +5,7 @@ parser's own message naming the file."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -40,13 +41,16 @@ def test_each_input_the_fuzzer_found_is_refused_naming_the_file(finding: str, ta
                                   "params", "bag_metadata", "mcap", "carmen"])
 def test_each_parser_survives_a_short_fuzz(name: str, tmp_path: Path) -> None:
     # An input slower than 10 s is a finding here (2 s in the benchmark: a loaded machine is slower).
+    scratch = tmp_path / "tmp"  # the run's temporary files: none is left behind
+    scratch.mkdir()
     done = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "fuzz.py"), name, "--runs", str(RUNS),
-                           "--timeout", "10", "--artifacts", str(tmp_path)], capture_output=True, text=True,
-                          timeout=600, check=False)
+                           "--timeout", "10", "--artifacts", str(tmp_path / "found")], capture_output=True, text=True,
+                          timeout=600, check=False, env={**os.environ, "TMPDIR": str(scratch)})
     report = json.loads(done.stdout.strip().splitlines()[-1])
     (result,) = report["targets"]
     assert result["findings"] == 0 and done.returncode == 0, result.get("output")
-    assert result["executions"] >= RUNS and list(tmp_path.iterdir()) == []
+    assert result["executions"] >= RUNS and list((tmp_path / "found").iterdir()) == []
+    assert list(scratch.iterdir()) == []
 
 
 def test_an_input_whose_plain_check_hangs_counts_as_reproduced(load_benchmark, monkeypatch) -> None:
