@@ -15,8 +15,6 @@ from __future__ import annotations
 
 import enum
 import math
-import os
-import tempfile
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
@@ -460,7 +458,7 @@ def plan(args: LaunchArgs, world_file: Path, urdf_file: Path, resolve: Resolver,
             "slam_toolbox", "a first /map",
             ReadyCheck("a first /map", probes.first_message("/map", "nav_msgs/msg/OccupancyGrid", True)))
         if args.respawn:  # a restarted slam maps on from its last autosave
-            autosave = Path(tempfile.gettempdir()) / f"pppbot-{os.getpid()}-{time.time_ns()}" / "slam_autosave"
+            autosave = urdf_file.parent / "slam_autosave"  # the run's log directory: kept with its logs
             slam_params_lockstep = {**slam_params_lockstep, "autosave_name": str(autosave),
                                     "autosave_period": AUTOSAVE_PERIOD_S}
             start_info.append(f"respawn: slam saves its pose graph every {AUTOSAVE_PERIOD_S:g} s to "

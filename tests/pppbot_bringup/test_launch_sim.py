@@ -586,6 +586,8 @@ def test_respawn_restarts_every_node_but_the_simulator_and_the_terminals_and_not
     assert [n.max_respawns for n in others if n.max_respawns != -1] == [3]  # the recorder's: a few times
     assert by_name["bag_record"].max_respawns == 3
     assert not any(n.respawn for n in fake_plan("localization:=true")[0].nodes)
+    slam = next(n for n in fake_plan("respawn:=true")[0].nodes if n.name == "slam_toolbox")
+    assert "autosave_name:=/tmp/slam_autosave" in " ".join(slam.cmd)  # in the run's directory, beside robot.urdf
     with pytest.raises(ArgumentError, match="respawn:=true needs lockstep:=false"):
         values("respawn:=true", "lockstep:=true").validate({})
     with pytest.raises(ArgumentError, match="respawn:=true needs use_composition:=true"):

@@ -44,9 +44,9 @@ def started_pids(output: str) -> list[int]:
 
 
 @pytest.fixture
-def supervise(spawn):
+def supervise(spawn, tmp_path):
     def start(children: list[dict], **options: float | str):
-        config = {"children": children, **options}
+        config = {"children": children, "marks": str(tmp_path / "marks"), **options}
         child = spawn([sys.executable, SCRIPT, json.dumps(config)], name="supervisor")
         child.wait_for_output("SUPERVISOR READY", 20)
         return child

@@ -10,9 +10,7 @@ Prints the supervisor's lines; "PIDS <pid> ..." at the end; exits with its code.
 from __future__ import annotations
 
 import json
-import shutil
 import sys
-import tempfile
 from pathlib import Path
 
 from pppbot_bringup.supervisor import NodeSpec, Output, ReadyCheck, Supervisor
@@ -28,7 +26,8 @@ def mark(name):
 
 def main() -> int:
     config = json.loads(sys.argv[1])
-    marks = Path(tempfile.mkdtemp(prefix="supervise-"))
+    marks = Path(config["marks"])  # the test's own folder: kept clean even when this process is killed
+    marks.mkdir(parents=True, exist_ok=True)
     specs = []
     for c in config["children"]:
         code = PRELUDE.format(ignore=c.get("ignore", []), marks=str(marks)) + c["code"]
@@ -45,10 +44,7 @@ def main() -> int:
                             sigterm_timeout_s=config.get("sigterm_timeout", 1.0))
     supervisor.install_signal_handlers()
     print("SUPERVISOR READY", flush=True)
-    try:
-        code = supervisor.run()
-    finally:
-        shutil.rmtree(marks, ignore_errors=True)
+    code = supervisor.run()
     print("PIDS", *supervisor.pids, flush=True)
     return code
 
