@@ -19,7 +19,6 @@ import gc
 import importlib.util
 import os
 import sys
-import tempfile
 import time
 from collections.abc import Callable, Generator, Iterator
 from contextlib import contextmanager
@@ -96,11 +95,17 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Files with a test marked ``heavy`` (whole stacks, a browser: minutes each) come first, each
-    file's tests in their order. ``make test`` runs files in parallel, one worker per core and in
-    this order (``--dist loadfile --no-loadscope-reorder``): the long files start at once and the
-    many short ones fill the cores at the end, instead of one long file running alone last."""
+    file's tests in their order, and files with a test that takes the machine whole (``exclusive``,
+    ``whole_machine``) last. ``make test`` runs files in parallel, one worker per core and in this
+    order (``--dist loadfile --no-loadscope-reorder``): the long files start at once and the many
+    short ones fill the cores at the end, instead of one long file running alone last; a test
+    that waits for the other worker to end its test waits for a short one, or for none once that
+    worker has run out of files (handed out among the rest, the busy-machine tests waited up to
+    three minutes for the other worker's autonomy suite)."""
     heavy = {item.path for item in items if item.get_closest_marker("heavy")}
-    items.sort(key=lambda item: item.path not in heavy)
+    whole = {item.path for item in items
+             if item.get_closest_marker("exclusive") or "whole_machine" in getattr(item, "fixturenames", ())}
+    items.sort(key=lambda item: 0 if item.path in heavy else 2 if item.path in whole else 1)
 
 
 class MachineLock:
@@ -117,7 +122,8 @@ class MachineLock:
 
 
 @pytest.fixture(autouse=True)
-def _machine_shared_or_whole(request: pytest.FixtureRequest) -> Iterator[MachineLock]:
+def _machine_shared_or_whole(request: pytest.FixtureRequest,
+                             tmp_path_factory: pytest.TempPathFactory) -> Iterator[MachineLock]:
     """In a parallel run (pytest-xdist), a test marked ``exclusive`` runs while no other worker runs a
     test, and waits for them: one that loads every core on purpose would leave another worker's
     stack a third of the machine, and one that times the machine by the wall clock would measure
@@ -127,7 +133,8 @@ def _machine_shared_or_whole(request: pytest.FixtureRequest) -> Iterator[Machine
     if not run:
         yield MachineLock()
         return
-    with open(Path(tempfile.gettempdir()) / f"pppbot-pytest-{run}.lock", "a") as lock:
+    # The run's folder, shared by its workers (pytest removes old ones), not the machine's /tmp.
+    with open(tmp_path_factory.getbasetemp().parent / f"pppbot-{run}.lock", "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX if request.node.get_closest_marker("exclusive") else fcntl.LOCK_SH)
         try:
             yield MachineLock(lock)

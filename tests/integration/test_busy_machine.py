@@ -1,9 +1,9 @@
 """Lockstep gives the same run to the bit on a machine as loaded as it gets: ``pppbot eval`` twice
 with one seed, once beside the suite and once with both cores taken by busy loops. The busy run
 has the machine to itself (``whole_machine``): no other test runs beside the busy loops (a stack
-another worker's module fixture keeps up may). Not
-``heavy``: handed out among the short tests, the busy run waits for a short test to end, not for
-the other worker's longest."""
+another worker's module fixture keeps up may). Not ``heavy``: as a file that takes the machine
+whole it is handed out last, and the busy run waits for a short test to end, not for the other
+worker's longest."""
 from __future__ import annotations
 
 from pathlib import Path
