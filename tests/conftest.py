@@ -95,16 +95,16 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Files with a test marked ``heavy`` (whole stacks, a browser: minutes each) come first, each
-    file's tests in their order, and files with a test that takes the machine whole (``exclusive``,
-    ``whole_machine``) last. ``make test`` runs files in parallel, one worker per core and in this
-    order (``--dist loadfile --no-loadscope-reorder``): the long files start at once and the many
-    short ones fill the cores at the end, instead of one long file running alone last; a test
-    that waits for the other worker to end its test waits for a short one, or for none once that
-    worker has run out of files (handed out among the rest, the busy-machine tests waited up to
-    three minutes for the other worker's autonomy suite)."""
+    file's tests in their order, and files with a test that takes the machine whole part way
+    (``whole_machine``: the busy-machine tests) last. ``make test`` runs files in parallel, one
+    worker per core and in this order (``--dist loadfile --no-loadscope-reorder``): the long files
+    start at once and the many short ones fill the cores at the end, instead of one long file
+    running alone last; the busy run waits for the other worker's short test to end, or for none
+    once that worker has run out of files (handed out among the rest, it waited up to three
+    minutes for the other worker's autonomy suite). Files with an ``exclusive`` test stay among
+    the rest: handed out last too (4b341bd), two of their tests failed (docs/development.md)."""
     heavy = {item.path for item in items if item.get_closest_marker("heavy")}
-    whole = {item.path for item in items
-             if item.get_closest_marker("exclusive") or "whole_machine" in getattr(item, "fixturenames", ())}
+    whole = {item.path for item in items if "whole_machine" in getattr(item, "fixturenames", ())}
     items.sort(key=lambda item: 0 if item.path in heavy else 2 if item.path in whole else 1)
 
 
