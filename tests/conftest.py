@@ -42,15 +42,25 @@ def pytest_configure(config: pytest.Config) -> None:
     os.environ["PYTHONUNBUFFERED"] = "1"
 
 
+def _own_participants() -> int:
+    return own_participants(int(os.environ.get("ROS_DOMAIN_ID", "0") or 0))
+
+
 @pytest.fixture(autouse=True, scope="module")
-def _domain_with_room() -> None:
+def _domain_with_room() -> Iterator[None]:
     """Before each module: if this process holds many DDS participants in the session's domain
     (rclpy keeps some contexts' participants after rclpy.shutdown(): a lifecycle node's, until it
     is collected), the module and its children move to a new domain: with LOCALHOST discovery, new
-    participants past ID 31 never find each other (the suite's late lockstep tests failed so)."""
+    participants past ID 31 never find each other (the suite's late lockstep tests failed so).
+    After it: what its module fixtures left is collected, as :func:`_participants_let_go` does
+    for a test's."""
     moved = fresh_domain_if_crowded()
     if moved is not None:
         print(f"\n[conftest] ROS_DOMAIN_ID -> {moved} (this process held many participants in the last one)")
+    before = _own_participants()
+    yield
+    if _own_participants() > before:
+        gc.collect()
 
 
 @pytest.fixture(autouse=True)
@@ -63,9 +73,9 @@ def _participants_let_go() -> Iterator[None]:
     Only when the test left more than it found: a participant a fixture keeps for the whole
     module would otherwise cost every later test a full collection (0.25 s each on a worker's
     grown heap, 400 s of a suite)."""
-    before = own_participants(int(os.environ.get("ROS_DOMAIN_ID", "0") or 0))
+    before = _own_participants()
     yield
-    if own_participants(int(os.environ.get("ROS_DOMAIN_ID", "0") or 0)) > before:
+    if _own_participants() > before:
         gc.collect()
 
 
