@@ -47,35 +47,37 @@ def _own_participants() -> int:
 
 
 @pytest.fixture(autouse=True, scope="module")
-def _domain_with_room() -> Iterator[None]:
-    """Before each module: if this process holds many DDS participants in the session's domain
-    (rclpy keeps some contexts' participants after rclpy.shutdown(): a lifecycle node's, until it
-    is collected), the module and its children move to a new domain: with LOCALHOST discovery, new
-    participants past ID 31 never find each other (the suite's late lockstep tests failed so).
-    After it: what its module fixtures left is collected, as :func:`_participants_let_go` does
-    for a test's."""
+def _domain_with_room() -> Iterator[int]:
+    """Before each module: what earlier modules left of DDS participants is collected (rclpy keeps
+    some contexts' participants after rclpy.shutdown(): a lifecycle node's, until the garbage
+    collector runs); if this process still holds many in the session's domain, the module and its
+    children move to a new domain: with LOCALHOST discovery, new participants past ID 31 never
+    find each other (the suite's late lockstep tests failed so). Gives how many the process holds
+    as the module starts (:func:`_participants_let_go` collects what a test leaves beyond it)."""
+    if _own_participants():
+        gc.collect()
     moved = fresh_domain_if_crowded()
     if moved is not None:
         print(f"\n[conftest] ROS_DOMAIN_ID -> {moved} (this process held many participants in the last one)")
     before = _own_participants()
-    yield
+    yield before
     if _own_participants() > before:
         gc.collect()
 
 
 @pytest.fixture(autouse=True)
-def _participants_let_go() -> Iterator[None]:
+def _participants_let_go(_domain_with_room: int) -> Iterator[None]:
     """After each test: contexts that rclpy keeps after ``rclpy.shutdown()`` (a lifecycle node's sits
     in a reference cycle until the garbage collector runs) are collected, so their DDS participants
     go with the test instead of piling up within a module (a module of lifecycle tests reached
     past participant ID 31, where nothing is discovered on localhost) or lingering in the graph
-    until the collector happens to run (the Foxglove test saw a kept /scan publisher vanish).
-    Only when the test left more than it found: a participant a fixture keeps for the whole
-    module would otherwise cost every later test a full collection (0.25 s each on a worker's
-    grown heap, 400 s of a suite)."""
-    before = _own_participants()
+    (the Foxglove test saw a kept /scan publisher vanish; a node of a fault test, still in the
+    graph, was taken for one of the stack's by the hostile-message test). Only when the process
+    holds more than it did as the module started: a participant kept for the whole session made
+    every later test run a full collection (0.25 s each on a worker's grown heap, 400 s of a
+    suite), the import-rule tests' included."""
     yield
-    if _own_participants() > before:
+    if _own_participants() > _domain_with_room:
         gc.collect()
 
 

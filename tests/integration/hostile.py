@@ -79,15 +79,22 @@ def messages(cls: Any) -> st.SearchStrategy[Any]:
     return st.fixed_dictionaries(slots).map(build)
 
 
-def servers(node: Any, own: str) -> tuple[dict[str, str], dict[str, str]]:
-    """Every action server and every service the other nodes in the graph offer, each with its type
-    (an action's own services are the action's, not counted as services)."""
+def of_the_stack(name: str) -> bool:
+    """Whether the node ``name`` is the stack's: not hidden, and not the test harness's (``ros_node``
+    names its nodes ``pytest_<test>``; a node another test of this process left may still be in
+    the graph until the garbage collector takes its participant)."""
+    return not name.startswith(("_", "pytest_"))
+
+
+def servers(node: Any) -> tuple[dict[str, str], dict[str, str]]:
+    """Every action server and every service the stack's nodes offer, each with its type (an
+    action's own services are the action's, not counted as services)."""
     from rclpy.action.graph import get_action_server_names_and_types_by_node
 
     actions: dict[str, str] = {}
     services: dict[str, str] = {}
     for name, namespace in node.get_node_names_and_namespaces():
-        if name == own or name.startswith("_"):
+        if not of_the_stack(name):
             continue
         for action, types in get_action_server_names_and_types_by_node(node, name, namespace):
             actions.setdefault(action, types[0])

@@ -35,7 +35,7 @@ from pppbot_common.errors import TimeoutExpired
 from pppbot_common.ros.messages import get_interface
 from pppbot_common.ros.wait import send_goal, wait_until
 
-from .hostile import messages, servers
+from .hostile import messages, of_the_stack, servers
 from .test_navigation import LAUNCH_STOP, PPPBOT, goal_pose
 
 pytestmark = [pytest.mark.ros, pytest.mark.heavy]
@@ -64,11 +64,11 @@ MAX_SPEED_M_S, MAX_TURN_RAD_S = 0.5 * 1.2, 2.0 * 1.2
 SERVED = {"/navigate_to_pose", "/follow_path", "/spin", "/compute_path_to_pose"}
 
 
-def subscribed_topics(node: Any, own: str) -> dict[str, str]:
+def subscribed_topics(node: Any) -> dict[str, str]:
     """Every topic a node of the stack subscribes to, with its type (the first one named)."""
     topics: dict[str, str] = {}
     for name, namespace in node.get_node_names_and_namespaces():
-        if name == own or name.startswith("_"):
+        if not of_the_stack(name):
             continue
         for topic, types in node.get_subscriber_names_and_types_by_node(name, namespace):
             if not topic.startswith("/_") and "/_action/" not in topic and topic != "/parameter_events":
@@ -185,15 +185,15 @@ def test_garbage_on_every_topic_and_server_kills_nothing_moves_nothing_and_the_s
     found: dict[str, str] = {}
 
     def all_subscribed() -> dict[str, str] | None:
-        found.update(subscribed_topics(ros_node, ros_node.get_name()))
+        found.update(subscribed_topics(ros_node))
         return found if found.keys() >= expected else None
 
     topics = wait_until(all_subscribed, 30, f"the stack's subscriptions to {sorted(expected)} in the graph",
                         node=ros_node)
-    nodes_before = {n for n, _ in ros_node.get_node_names_and_namespaces()}
+    nodes_before = {n for n, _ in ros_node.get_node_names_and_namespaces() if of_the_stack(n)}
 
     def all_served() -> tuple[dict[str, str], dict[str, str]] | None:  # discovery lags on a busy machine
-        actions, services = servers(ros_node, ros_node.get_name())
+        actions, services = servers(ros_node)
         return (actions, services) if actions.keys() >= SERVED else None
 
     actions, services = wait_until(all_served, 30, f"the stack's action servers {sorted(SERVED)}", node=ros_node)
