@@ -222,6 +222,7 @@ class Flow(Generic[T]):
                 self._check()
             except Exception as exc:  # noqa: BLE001 - see tick
                 error = exc
+                cancel_if_accepted(value)  # a goal's answer that came after its flow's goal stopped
         try:
             item = self._steps.throw(error) if error is not None else self._steps.send(value)
         except StopIteration as stop:
@@ -252,11 +253,15 @@ def cancel_once_accepted(sent: Future) -> None:
     the server accepts it, is canceled then. As a Nav2 BT action node halted while its goal is
     pending cancels it, so a goal canceled or preempted between a send and its answer leaves
     nothing running (a FollowPath driving the robot on, a navigation nobody follows)."""
-    def cancel(future: Future) -> None:
-        handle = None if future.cancelled() or future.exception() is not None else future.result()
-        if isinstance(handle, ClientGoalHandle) and handle.accepted:
-            handle.cancel_goal_async()
-    sent.add_done_callback(cancel)
+    sent.add_done_callback(
+        lambda future: cancel_if_accepted(None if future.cancelled() or future.exception() is not None
+                                          else future.result()))
+
+
+def cancel_if_accepted(answer: Any) -> None:
+    """Cancel ``answer`` if it is a goal the server accepted (a send's answer no flow goes on with)."""
+    if isinstance(answer, ClientGoalHandle) and answer.accepted:
+        answer.cancel_goal_async()
 
 
 #: the statuses of a goal that ended
