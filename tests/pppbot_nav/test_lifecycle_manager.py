@@ -7,6 +7,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
+import rclpy
 from nav2_msgs.srv import ManageLifecycleNodes
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
@@ -198,6 +199,22 @@ def test_a_manager_on_sim_time_does_not_follow_the_clock(ros_node, process):
     m = manager(use_sim_time=True)
     assert "/clock" not in [s.topic_name for s in m.subscriptions]
     assert "/clock" not in [s.topic_name for s in m._calls.subscriptions]
+
+
+def test_a_manager_in_a_process_on_sim_time_takes_no_clock():
+    """A launch gives the whole process use_sim_time (its arguments apply to every node, the
+    manager's service client too): neither of the manager's nodes takes /clock."""
+    context = rclpy.Context()
+    rclpy.init(args=["--ros-args", "-p", "use_sim_time:=true"], context=context)
+    try:
+        m = LifecycleManager("lifecycle_manager_test", NODES, context=context)
+        try:
+            assert "/clock" not in [s.topic_name for s in m.subscriptions]
+            assert "/clock" not in [s.topic_name for s in m._calls.subscriptions]
+        finally:
+            m.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
 
 
 class SlowFailure(ManagedNode):

@@ -108,7 +108,9 @@ class LifecycleManager(Node):
         self.state = "unconfigured"
         #: the last command's failure, as logged (empty after a success)
         self.last_error = ""
-        self._calls = unspun_node(f"{name}_service_client", context=self.context, enable_rosout=False)
+        # Nor is its service client's: on sim time it took every /clock message (in DDS, unspun).
+        self._calls = unspun_node(f"{name}_service_client", context=self.context, enable_rosout=False,
+                                  parameter_overrides=[Parameter("use_sim_time", value=False)])
         self._calls_executor = SingleThreadedExecutor(context=self.context)
         self._calls_executor.add_node(self._calls)
         wait = executor_wait(self._calls_executor)
