@@ -120,13 +120,22 @@ class Schedule:
         return min(due) if due else None
 
     def steps_to_next(self, time_s: float, dt: float, max_steps: int) -> int:
-        """Whole steps until the earliest event or the stop (at least 1, at most ``max_steps``)."""
+        """Whole steps until the earliest event or the stop (at least 1, at most ``max_steps``).
+
+        Counted in whole nanoseconds, as sim time goes out (/clock, lockstep): MuJoCo's time is a
+        sum of steps whose rounding error grows with time, and a stop counted in float steps
+        overshot by a step when that error fell the wrong way. A lockstep sync at 23.252 s
+        instead of 23.250 s put the timers restarted there (the controller's, at each new path)
+        2 ms off every other's, and sync times doubled from then on.
+        """
         deadlines = [e.next_due_s for e in self.events]
         if self.stop_at_s is not None:
             deadlines.append(self.stop_at_s)
         if not deadlines:
             return max_steps
-        return int(min(max_steps, max(1, math.ceil((min(deadlines) - time_s) / dt - 1e-9))))
+        gap_ns = round(min(deadlines) * 1e9) - round(time_s * 1e9)
+        step_ns = max(1, round(dt * 1e9))
+        return int(min(max_steps, max(1, -(-gap_ns // step_ns))))
 
     def due(self, time_s: float, dt: float) -> list[Event]:
         return [e.event for e in self.events if e.take_if_due(time_s, dt)]

@@ -225,6 +225,13 @@ def test_schedule_stops_at_a_sync_time():
     assert schedule.steps_to_next(0.0, 0.001, 1000) == 50
     schedule.stop_at_s = None
     assert schedule.steps_to_next(0.0, 0.001, 1000) == 100
+    # Sim time is a float sum of steps: a few picoseconds short of 23.2 s, the sync at 23.25 s is
+    # still 25 steps of 2 ms away, not 26 (a sync 2 ms late puts timers restarted there off the grid).
+    schedule = Schedule(stop_at_s=23.25)
+    for time_s in (23.2 - 3e-11, 23.2, 23.2 + 3e-11):
+        assert schedule.steps_to_next(time_s, 0.002, 1000) == 25
+    assert schedule.steps_to_next(23.2, 0.002, 10) == 10
+    assert schedule.steps_to_next(23.2491, 0.002, 1000) == 1  # less than a step: one, at or after it
 
 
 def test_sensor_pose_in_the_tag_moves_the_sensor():
