@@ -126,7 +126,7 @@ class Schedule:
         sum of steps whose rounding error grows with time, and a stop counted in float steps
         overshot by a step when that error fell the wrong way. A lockstep sync at 23.252 s
         instead of 23.250 s put the timers restarted there (the controller's, at each new path)
-        2 ms off every other's, and sync times doubled from then on.
+        2 ms off every other's, and a navigation made a fifth more sync times.
         """
         deadlines = [e.next_due_s for e in self.events]
         if self.stop_at_s is not None:

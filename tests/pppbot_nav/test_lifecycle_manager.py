@@ -201,6 +201,7 @@ def test_a_manager_on_sim_time_does_not_follow_the_clock(ros_node, process):
     assert "/clock" not in [s.topic_name for s in m._calls.subscriptions]
 
 
+@pytest.mark.ros
 def test_a_manager_in_a_process_on_sim_time_takes_no_clock():
     """A launch gives the whole process use_sim_time (its arguments apply to every node, the
     manager's service client too): neither of the manager's nodes takes /clock."""
