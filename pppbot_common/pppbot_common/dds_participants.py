@@ -39,6 +39,13 @@ def domain_ports(domain: int) -> dict[int, str] | None:
     return ports if found else None
 
 
+def participant_ids(domain: int) -> list[int]:
+    """The participant IDs in use in ``domain`` on this machine, ascending (empty where /proc cannot
+    tell): IDs past :data:`LOCALHOST_PEERS` are where discovery fails."""
+    base = 7400 + 250 * domain + 10
+    return sorted((port - base) // 2 for port in domain_ports(domain) or {})
+
+
 def socket_inodes(pid: int | str = "self") -> set[str]:
     """The inodes of process ``pid``'s sockets (empty when its descriptors cannot be read)."""
     inodes: set[str] = set()

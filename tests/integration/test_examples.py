@@ -9,6 +9,7 @@ and ``examples/robot_navigator.py`` (the same calls) here.
 """
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -19,6 +20,7 @@ from typing import Any
 import pytest
 from nav_msgs.msg import Odometry
 
+from pppbot_common.dds_participants import participant_ids
 from pppbot_common.ros.wait import wait_for_messages
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -39,8 +41,15 @@ def stack(module_spawn: Any) -> Iterator[Any]:
 
 def run_example(name: str, *args: str, timeout_s: float = 300.0) -> str:
     """Run ``examples/<name>.py``; its output, once it exited 0."""
-    done = subprocess.run([sys.executable, str(EXAMPLES / f"{name}.py"), *args], capture_output=True, text=True,
-                          timeout=timeout_s, check=False)
+    try:
+        done = subprocess.run([sys.executable, str(EXAMPLES / f"{name}.py"), *args], capture_output=True,
+                              text=True, timeout=timeout_s, check=False)
+    except subprocess.TimeoutExpired as exc:  # what it said, to see where it waited
+        said = "".join(part.decode() if isinstance(part, bytes) else part for part in (exc.stdout, exc.stderr) if part)
+        domain = int(os.environ.get("ROS_DOMAIN_ID", "0") or 0)
+        pytest.fail(f"{name} did not end within {timeout_s:.0f} s (participant IDs in domain {domain}: "
+                    f"{participant_ids(domain)}):\n"
+                    f"{said[-3000:]}")
     output = done.stdout + done.stderr
     assert done.returncode == 0, f"{name} exited {done.returncode}:\n{output[-3000:]}"
     return output

@@ -10,7 +10,12 @@ import pytest
 import rclpy
 
 from pppbot_common.dds_isolation import DOMAIN_IDS, domain_id_problem, fresh_domain_if_crowded
-from pppbot_common.dds_participants import discovery_stays_on_this_machine, others_on_this_machine, own_participants
+from pppbot_common.dds_participants import (
+    discovery_stays_on_this_machine,
+    others_on_this_machine,
+    own_participants,
+    participant_ids,
+)
 
 pytestmark = pytest.mark.ros
 
@@ -19,7 +24,7 @@ def test_each_context_is_a_participant_counted_until_it_is_let_go(monkeypatch: p
     """own_participants counts this process's DDS participants in a domain (one per rclpy context);
     fresh_domain_if_crowded moves the process to another domain once it holds ``limit`` of them."""
     domain = int(os.environ["ROS_DOMAIN_ID"])
-    before = own_participants(domain)
+    before, ids_before = own_participants(domain), participant_ids(domain)
     contexts = []
     try:
         for i in range(3):
@@ -27,6 +32,8 @@ def test_each_context_is_a_participant_counted_until_it_is_let_go(monkeypatch: p
             rclpy.init(context=context)
             contexts.append((context, rclpy.create_node(f"crowd_{i}", context=context)))
         assert own_participants(domain) == before + 3
+        ids = participant_ids(domain)  # Fast DDS takes the lowest free IDs
+        assert len(ids) == len(ids_before) + 3 and ids == sorted(ids) and set(ids_before) < set(ids)
         monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))  # restored after the test
         assert fresh_domain_if_crowded(limit=before + 4) is None  # room left: it stays
         moved = fresh_domain_if_crowded(limit=before + 3)
