@@ -26,6 +26,7 @@ answers a step only once the work it set off has run.
 from __future__ import annotations
 
 import functools
+import inspect
 import threading
 import time
 import warnings
@@ -101,7 +102,8 @@ class StepClient(Client):
 _UNDELIVERED = "failed to send response (timeout)"
 #: Wall seconds an undelivered answer is sent again, and how often.
 RESEND_WINDOW_S, RESEND_PERIOD_S = 10.0, 0.1
-_recording = threading.Lock()  # warnings.catch_warnings changes the process's warning filters
+_recording = threading.RLock()  # warnings.catch_warnings changes the process's warning filters (nested: a
+# goal's acceptance sent while the accepted callback answers a service)
 
 
 def delivered(send: Callable[[], None]) -> bool:
@@ -117,6 +119,31 @@ def delivered(send: Callable[[], None]) -> bool:
         else:
             warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
     return not undelivered
+
+
+def _delivered_or_gone(send: Callable[[], None]) -> bool:
+    """:func:`delivered` for an action server's answer; True too when rclpy could not send it at all
+    (``RCLError``: the client gone), as there is nothing to send again."""
+    try:
+        return delivered(send)
+    except _rclpy.RCLError:
+        return True
+
+
+def _awaits(callback: Any) -> bool:
+    """Whether an action server's callback may suspend (a coroutine function)."""
+    return inspect.iscoroutinefunction(callback) or inspect.iscoroutinefunction(type(callback).__call__)
+
+
+def _run_now(coroutine: Any) -> None:
+    """Run ``coroutine`` to its end now: rclpy's handling of a goal request, whose callbacks are
+    plain functions (it awaits nothing that is not already there)."""
+    try:
+        coroutine.send(None)
+    except StopIteration:
+        return
+    coroutine.close()
+    raise RuntimeError("a goal request's handling waited on something")
 
 
 class AnsweringService(Service):
@@ -152,6 +179,11 @@ class StepActionServer(ActionServer):
     """An action server whose goal, cancel and result requests, in lockstep, wait for the next step
     and whose replies count as a round's work.
 
+    A goal's acceptance or result that Fast DDS dropped (the client just started, its reply reader
+    not matched yet: rclpy only warns) is sent again until it goes, as :class:`AnsweringService`
+    sends a service's answer: a client that never hears its goal was accepted (Nav2's
+    BasicNavigator) would wait without end while the goal runs.
+
     rclpy keeps each goal and its result for ``result_timeout`` (900 s) after it ends, as
     Python messages: at 1 Hz replanning a path server's kept goals and paths made a
     navigation process grow by 50 MB over its first 15 minutes. Here an ended goal forgets
@@ -163,10 +195,21 @@ class StepActionServer(ActionServer):
         self._step_port = port_of(node)
         self._step_key = action_key(node, action_name)
         self._step_counted = self._step_port.count_requests(node, self._step_key)
+        self._name = action_name
 
     async def _execute_goal_request(self, request_header_and_message: Any) -> None:
-        await super()._execute_goal_request(request_header_and_message)
-        goal_uuid = bytes(request_header_and_message[1].goal_id.uuid)
+        header, request = request_header_and_message
+        goal_uuid = bytes(request.goal_id.uuid)
+        known = goal_uuid in self._goal_handles  # a goal ID taken before: rclpy refuses it
+        handle_it = ActionServer._execute_goal_request(self, request_header_and_message)
+        if _awaits(self._goal_callback) or _awaits(self._handle_accepted_callback):
+            await handle_it  # it may wait on others: its acceptance is not watched
+        elif not delivered(functools.partial(_run_now, handle_it)):
+            handle = None if known else self._goal_handles.get(goal_uuid)
+            response = self._action_type.Impl.SendGoalService.Response(accepted=handle is not None)
+            if handle is not None:
+                response.stamp = handle._goal_info.stamp  # rclpy's ServerGoalHandle: when it was accepted
+            self._send_again("send_goal", functools.partial(self._handle.send_goal_response, header, response))
         result = self._result_futures.get(goal_uuid)
         if result is not None and not result.done():  # accepted and running
             result.add_done_callback(functools.partial(self._keep_ended, goal_uuid))
@@ -188,9 +231,20 @@ class StepActionServer(ActionServer):
     def _send_result_response(self, request_header: Any, future: Future) -> None:
         response = future.result()
         if isinstance(response, bytes):  # kept serialized by _keep_ended
-            future = Future()
-            future.set_result(deserialize_message(response, self._action_type.Impl.GetResultService.Response))
-        super()._send_result_response(request_header, future)
+            response = deserialize_message(response, self._action_type.Impl.GetResultService.Response)
+        send = functools.partial(self._handle.send_result_response, request_header, response)
+        if not _delivered_or_gone(send):
+            self._send_again("get_result", send)
+
+    def _send_again(self, what: str, send: Callable[[], None]) -> None:
+        """Have the node send an answer Fast DDS dropped again until it goes (a plain rclpy node,
+        which cannot: named)."""
+        name = f"{self._node.resolve_topic_name(self._name, only_expand=True)}/_action/{what}"
+        resend = getattr(self._node, "_send_again", None)
+        if resend is None:
+            self._node.get_logger().warning(f"{name}: an answer could not reach its client")
+        else:
+            resend(name, functools.partial(_delivered_or_gone, send))
 
     async def execute(self, taken_data: Any) -> None:
         """rclpy's, with the requests in ``taken_data`` handled now or kept for the next step."""
