@@ -18,6 +18,10 @@ class AmclError(PppbotError, ValueError):
         self.parameter = parameter
 
 
+class OffTheMap(AmclError):
+    """An initial pose the map does not hold: its mean outside the map, or a spread wider than it."""
+
+
 class CostmapError(PppbotError, ValueError):
     """A costmap or layer cannot be built or updated as asked; the message names the value."""
 

@@ -157,6 +157,28 @@ def test_the_mode_goes_from_no_pose_to_tracking_or_through_global_localization()
     assert loc.mode is LocalizerMode.TRACKING
 
 
+@pytest.mark.parametrize(("mean", "covariance", "message"), [
+    ((1e6, 1e6, 0.0), NAV2_INITIAL_COVARIANCE, r"at \(1e\+06, 1e\+06\) lies outside the map \(x -4\.53 to 4\.53 m"),
+    ((0.0, -3.6, 0.0), NAV2_INITIAL_COVARIANCE, r"at \(0, -3\.6\) lies outside the map"),
+    (None, np.diag([1e300, 1e300, 1.0]), r"spread \(a standard deviation of 1e\+150 m\) is wider than the map "
+                                         r"\(11\.47 m across\).*reinitialize_global_localization"),
+    (None, np.diag([0.01, 12.0 ** 2, 1.0]), r"standard deviation of 12 m"),
+])
+def test_an_initial_pose_off_the_map_or_wider_than_it_is_refused_and_the_particles_stay(mean, covariance, message):
+    """A stranger's /initialpose (issue 55): Nav2 takes it and localizes nowhere; here it is named
+    and the filter goes on where it was."""
+    loc = localizer()
+    _, truth, odom = drive()[0]
+    loc.set_initial_pose(truth, NAV2_INITIAL_COVARIANCE / 100)
+    assert loc.update(odom, scan(truth)) is not None
+    before = loc.filter.particles.copy()
+    with pytest.raises(AmclError, match=message):
+        loc.set_initial_pose(np.array(truth if mean is None else mean), covariance)
+    assert np.array_equal(loc.filter.particles, before)
+    # A pose on the map's very edge, and the widest spread the map allows, are taken.
+    loc.set_initial_pose(np.array([4.5, -3.5, 0.0]), np.diag([11.0 ** 2, 0.01, 0.1]))
+
+
 def test_updates_wait_for_update_min_d_or_a_unless_forced():
     loc = localizer(update_min_d=0.25, update_min_a=0.2)
     _, truth, odom = drive()[0]

@@ -166,6 +166,9 @@ def test_services_and_bad_input_keep_the_node_running(ros_node, spawn):
                node=ros_node)
     robot.initial_pose((math.nan, 0.0, 0.0))
     amcl.wait_for_output(r"ignoring an initial pose: an initial pose must be finite", 20)
+    robot.initial_pose((50.0, 0.0, 0.0))  # off the map: named apart from the bad one before it, not taken
+    amcl.wait_for_output(r"ignoring an initial pose: an initial pose at \(50, 0\) lies outside the map", 20)
+    assert "initial pose (50.000" not in amcl.output
     _, truth, odom = drive()[0]
 
     def send_an_empty_scan() -> bool | None:

@@ -22,7 +22,7 @@ from pppbot_nav.amcl.filter import Cluster, FilterSettings, ParticleFilter, unif
 from pppbot_nav.amcl.laser import LaserModelType, LaserSettings, MapField, Scan, laser_model
 from pppbot_nav.amcl.motion import MotionNoise, RobotModel, motion_model
 from pppbot_nav.amcl.refine import ScanFitter
-from pppbot_nav.errors import AmclError
+from pppbot_nav.errors import AmclError, OffTheMap
 
 #: Global localization's search grid: position step (m) and headings over a turn, scored
 #: this many poses at a time.
@@ -133,11 +133,35 @@ class Localizer:
         """Particles around ``mean`` (x, y, yaw in the map) with the 3 × 3 ``covariance``; the next
         scan updates the filter whether or not the robot moved.
 
+        Beyond Nav2, which takes any pose: one whose mean lies outside the map, or whose spread
+        (the larger of x's and y's standard deviations) is wider than the map is across, is
+        refused, and the particles stay as they were. A stranger's message there would leave the
+        robot localized nowhere; the way to search the whole map is ``global_localization``.
+
         Raises:
-            AmclError: a non-finite pose or a covariance that is not positive semi-definite.
+            AmclError: a non-finite pose, a covariance that is not positive semi-definite, a pose
+                outside the map or a spread wider than it.
         """
+        self._check_on_map(np.asarray(mean, dtype=float), np.asarray(covariance, dtype=float))
         self.filter.init_gaussian(mean, covariance, self.rng)
         self._initialized()
+
+    def _check_on_map(self, mean: np.ndarray, covariance: np.ndarray) -> None:
+        """Raises OffTheMap: ``mean`` outside the map, or a spread wider than the map (only for a
+        finite pose and covariance: the filter names the others)."""
+        grid = self.field.grid
+        x0, y0 = float(grid.origin[0]), float(grid.origin[1])
+        x1, y1 = x0 + grid.width * grid.resolution, y0 + grid.height * grid.resolution
+        if mean.shape == (3,) and np.isfinite(mean).all() and not (x0 <= mean[0] <= x1 and y0 <= mean[1] <= y1):
+            raise OffTheMap(f"an initial pose at ({mean[0]:.6g}, {mean[1]:.6g}) lies outside the map "
+                            f"(x {x0:.2f} to {x1:.2f} m, y {y0:.2f} to {y1:.2f} m)")
+        if covariance.shape == (3, 3) and np.isfinite(covariance).all():
+            across = math.hypot(x1 - x0, y1 - y0)
+            spread = math.sqrt(max(covariance[0, 0], covariance[1, 1], 0.0))
+            if spread > across:
+                raise OffTheMap(f"an initial pose's spread (a standard deviation of {spread:.6g} m) is wider than "
+                                f"the map ({across:.2f} m across): to search the whole map, call "
+                                f"reinitialize_global_localization")
 
     def global_localization(self) -> None:
         """Particles spread uniformly over the map's free space (``reinitialize_global_localization``).

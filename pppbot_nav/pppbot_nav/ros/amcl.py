@@ -59,7 +59,7 @@ from pppbot_nav.amcl.localizer import (
     covariance_to_message,
 )
 from pppbot_nav.amcl.motion import MotionNoise, RobotModel
-from pppbot_nav.errors import AmclError
+from pppbot_nav.errors import AmclError, OffTheMap
 
 #: Seconds between "set the initial pose" reminders (Nav2's).
 NO_POSE_WARN_PERIOD_S = 2.0
@@ -242,9 +242,13 @@ class Amcl(ManagedNode):
                                f"{int(self.localizer.field.free.sum())} free")
         self._map_arrived()
         if self._pose is not None:
-            self._start_at(*self._pose)
+            try:
+                self._start_at(*self._pose)
+            except AmclError as exc:  # a pose the new map does not hold: the particles stay
+                self._warn("initial pose", f"not starting from the last pose on this map: {exc}")
 
     def _start_at(self, mean: np.ndarray, covariance: np.ndarray) -> None:
+        """Raises AmclError: a pose the localizer refuses (off the map, spread wider than it)."""
         assert self.localizer is not None
         self.localizer.set_initial_pose(mean, covariance)
         self.get_logger().info(f"initial pose ({mean[0]:.3f}, {mean[1]:.3f}, {mean[2]:.3f}); "
@@ -265,13 +269,15 @@ class Amcl(ManagedNode):
             covariance = covariance_from_message(list(msg.pose.covariance))
             if not np.isfinite(mean).all():
                 raise AmclError(f"an initial pose must be finite, not {mean.tolist()}")
-            self._pose = (mean, covariance)
             if self.localizer is None:
+                self._pose = (mean, covariance)
                 self.get_logger().info("initial pose received; waiting for a map")
                 return
             self._start_at(mean, covariance)
-        except AmclError as exc:
-            self._warn("initial pose", f"ignoring an initial pose: {exc}")
+            self._pose = (mean, covariance)
+        except AmclError as exc:  # each kind named apart: a pose off the map must not hide a bad one's reason
+            self._warn("initial pose off the map" if isinstance(exc, OffTheMap) else "initial pose",
+                       f"ignoring an initial pose: {exc}")
 
     def _set_initial_pose(self, request: SetInitialPose.Request,
                           response: SetInitialPose.Response) -> SetInitialPose.Response:
