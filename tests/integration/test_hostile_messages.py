@@ -56,8 +56,8 @@ WRITTEN_FILES = ("map_url", "filename")
 #: What the launch prints for a node it lost.
 DIED = re.compile(r"\[(ERROR|FATAL)\] \[launch\].*(died|exited|exit code)|process has died", re.I)
 #: Topics whose garbage changes time, place or the map for every node: fed last, survival asked
-#: only. (AMCL refuses a drawn /initialpose off the map or spread wider than it; one on the map moves
-#: it there, as a user's would. A drawn /map can still leave it without a pose.)
+#: only. (AMCL refuses a drawn /initialpose off the map or spread wider than it, and has no pose after
+#: a drawn /map that does not hold it; a pose on the map moves it there, as a user's would.)
 LAST = ("/clock", "/tf", "/tf_static", "/map", "/initialpose")
 #: The stack's speed limits (the velocity smoother's max_velocity), with room for the simulator.
 MAX_SPEED_M_S, MAX_TURN_RAD_S = 0.5 * 1.2, 2.0 * 1.2

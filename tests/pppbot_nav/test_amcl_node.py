@@ -19,6 +19,7 @@ from std_srvs.srv import Empty
 from tf2_msgs.msg import TFMessage
 
 from pppbot_bringup.run import find_executable
+from pppbot_common.maps import OccupancyGrid
 from pppbot_common.ros.maps import grid_message
 from pppbot_common.ros.planar import transform_message
 from pppbot_common.ros.qos import LATCHED, SENSOR
@@ -139,6 +140,23 @@ def test_localizes_from_an_initial_pose_and_publishes_pose_cloud_and_map_to_odom
     wait_until(lambda: robot.clouds or None, 20, "a particle cloud", node=ros_node)
     assert 500 <= len(robot.clouds[-1].particles) <= 2000
     assert sum(p.weight for p in robot.clouds[-1].particles) == pytest.approx(1.0)
+
+    # A new map that does not hold the robot's pose (the room 100 m away): no pose until one is
+    # given, and no map → odom meanwhile (Nav2 would start there from the pose it cannot hold).
+    room = grid()
+    robot.map_pub.publish(grid_message(OccupancyGrid(room.data, room.resolution, (room.origin[0] + 100.0,
+                                                                                   room.origin[1], 0.0)),
+                                       Time(seconds=2).to_msg()))
+    amcl.wait_for_output(r"no pose on the new map, set the initial pose: an initial pose at \(\S+, \S+\) lies "
+                         r"outside the map \(x 95\.47 to 104\.5\d m", 20)
+    for _, truth, odom in path[60:70]:
+        robot.step(truth, odom)
+    wait_until(lambda: "Please set the initial pose" in amcl.output.partition("no pose on the new map")[2] or None,
+               20, "AMCL asking for an initial pose again", node=ros_node)
+    seen = len(robot.map_to_odom)
+    for _, truth, odom in path[70:75]:
+        robot.step(truth, odom)
+    assert len(robot.map_to_odom) == seen
 
 
 def test_services_and_bad_input_keep_the_node_running(ros_node, spawn):

@@ -184,6 +184,13 @@ class Localizer:
         """Whether it has particles to update: a pose was given or global localization asked for."""
         return self.mode is not LocalizerMode.UNINITIALIZED
 
+    def forget_pose(self) -> None:
+        """No pose from now on, until one is given or global localization asked for (a new map
+        that does not hold the last one): scans are not used and nothing is published."""
+        self.mode = LocalizerMode.UNINITIALIZED
+        self.last = None
+        self._tracked = None
+
     def _initialized(self) -> None:
         self.mode = LocalizerMode.TRACKING
         self._force = True

@@ -244,8 +244,10 @@ class Amcl(ManagedNode):
         if self._pose is not None:
             try:
                 self._start_at(*self._pose)
-            except AmclError as exc:  # a pose the new map does not hold: the particles stay
-                self._warn("initial pose", f"not starting from the last pose on this map: {exc}")
+            except AmclError as exc:  # a map that does not hold the last pose: localized nowhere, Nav2 goes on
+                self._pose = None
+                self.localizer.forget_pose()
+                self._warn("initial pose off the map", f"no pose on the new map, set the initial pose: {exc}")
 
     def _start_at(self, mean: np.ndarray, covariance: np.ndarray) -> None:
         """Raises AmclError: a pose the localizer refuses (off the map, spread wider than it)."""
