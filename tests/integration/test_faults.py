@@ -12,6 +12,7 @@ import os
 import random
 import re
 import signal
+import urllib.request
 from pathlib import Path
 from typing import Any
 
@@ -76,6 +77,15 @@ def kill_after_a_drawn_moment(ros_node: Any, launch: Any, name: str, rng: random
     return pid, own
 
 
+def kill_and_see_respawned(ros_node: Any, launch: Any, victim: str, rng: random.Random,
+                           limit: str = "no limit") -> None:
+    """SIGKILL ``victim`` at a drawn moment and wait for the launch to start it again (respawn:=true,
+    ``limit`` as the launch says it: "no limit", or the recorder's "1 of 3")."""
+    kill_after_a_drawn_moment(ros_node, launch, victim, rng)
+    launch.wait_for_output(rf"\[INFO\] \[{victim}-1\]: respawning in 0.5 s \({limit}\)", 10)
+    launch.wait_for_output(rf"\[INFO\] \[{victim}-2\]: process started with pid", 20)
+
+
 @pytest.mark.parametrize("bringup, victim", [("localization:=true", "navigation"),
                                              ("localization:=false", "slam_toolbox"),
                                              ("localization:=true lockstep:=true", "localization")])
@@ -102,9 +112,7 @@ def test_respawn_starts_a_killed_node_again_and_the_stack_carries_on(ros_node: A
     launch.wait_for_output(r"ppp_bot is up in 'room'", 120)
     rng = random.Random(SEED)
     for victim in ("navigation", "localization"):
-        kill_after_a_drawn_moment(ros_node, launch, victim, rng)
-        launch.wait_for_output(rf"\[INFO\] \[{victim}-1\]: respawning in 0.5 s \(no limit\)", 10)
-        launch.wait_for_output(rf"\[INFO\] \[{victim}-2\]: process started with pid", 20)
+        kill_and_see_respawned(ros_node, launch, victim, rng)
     truths: list[Odometry] = []
     ros_node.create_subscription(Odometry, "/ground_truth/odom", truths.append, 10)
     client = ActionClient(ros_node, NavigateToPose, "navigate_to_pose")
@@ -202,6 +210,64 @@ def test_a_restarted_slam_maps_on_from_its_autosave(ros_node: Any, spawn: Any) -
           f"recall {quality.recall:.3f})")
     assert quality.f1 >= 0.95, quality
     assert launch.stop() == 0
+
+
+def test_the_live_view_and_the_recorder_respawn_and_go_on(ros_node: Any, spawn: Any, tmp_path: Path) -> None:
+    """The respawn matrix's last two: the live view's node (which serves the page) and the bag
+    recorder, each killed at a drawn moment, are started again; the page answers again on its
+    port, and the recorder records on into the same bag, which holds /clock from before the kill
+    and after it (read by rosbags, an independent reader)."""
+    bag = tmp_path / "bag"
+    launch = spawn([PPPBOT, "launch_sim", "world:=room", "localization:=true", "respawn:=true", "respawn_delay:=0.5",
+                    "record:=true", f"bag_path:={bag}", "use_viz:=true", "viz_viewer:=web", "viz_port:=0",
+                    "use_teleop:=false", "use_rviz:=false"], name="launch_sim", timeouts=LAUNCH_STOP)
+    launch.wait_for_output(r"ppp_bot is up in 'room'", 120)
+    page = re.search(r"live view: http://127\.0\.0\.1:(\d+)/", launch.output)
+    assert page is not None, launch.output[-2000:]
+    url = f"http://127.0.0.1:{page[1]}/"
+    wait_until(lambda: _page_answers(url), 30, "the live view's page", node=ros_node)
+    rng = random.Random(f"{SEED}view")
+    clock: list[float] = []
+    ros_node.create_subscription(Clock, "/clock", lambda m: clock.append(m.clock.sec + m.clock.nanosec * 1e-9), 10)
+    kill_and_see_respawned(ros_node, launch, "bag_record", rng, limit="1 of 3")
+    killed_at = clock[-1]  # the drawn moment: the clock as it was when the kill's wait ended
+    wait_until((bag / "bag_1.mcap").is_file, 60, "the respawned recorder's file", node=ros_node)
+    wait_until(lambda: clock[-1] > killed_at + 5.0, 60, "5 s more of recording", node=ros_node)
+    kill_and_see_respawned(ros_node, launch, "viz", rng)
+    wait_until(lambda: _page_answers(url), 60, "the respawned live view's page", node=ros_node)
+    assert launch.stop() == 0
+    assert not re.search(r"\[(bag_record|viz)-2\]: process has died", launch.output), launch.output[-3000:]
+    stamps = _recorded_clock(bag)
+    assert np.all(np.diff(stamps) > 0), "the bag's /clock goes back or repeats"  # one clock, in order
+    # One gap, the kill's: what the first recorder kept reaches to within its last second or two (a
+    # killed writer loses its open chunk), and the second recorded on from after the kill to the end.
+    gap = int(np.argmax(np.diff(stamps)))
+    end_first, start_second = stamps[gap], stamps[gap + 1]
+    said = (f"kill at {killed_at:.2f} s; the first recorder's last {end_first:.2f} s, the second's first "
+            f"{start_second:.2f} s")
+    print(said)
+    assert killed_at - 2.0 < end_first <= killed_at + 0.5 < start_second, said
+    assert stamps[-1] - start_second > 5.0, said
+
+
+def _page_answers(url: str) -> bool:
+    try:
+        with urllib.request.urlopen(url, timeout=5) as reply:
+            return reply.status == 200 and b"<html" in reply.read(4096).lower()
+    except OSError:
+        return False
+
+
+def _recorded_clock(bag: Path) -> np.ndarray:
+    """Every /clock time the bag holds, in the order recorded, by rosbags' reader."""
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with Reader(bag) as reader:
+        connections = [c for c in reader.connections if c.topic == "/clock"]
+        times = [store.deserialize_cdr(raw, c.msgtype).clock for c, _, raw in reader.messages(connections=connections)]
+    return np.array([t.sec + t.nanosec * 1e-9 for t in times])
 
 
 def _xyzw(t: TransformStamped) -> tuple[float, float, float, float]:
