@@ -266,8 +266,8 @@ def _recorded_clock(bag: Path) -> np.ndarray:
     store = get_typestore(Stores.ROS2_JAZZY)
     with Reader(bag) as reader:
         connections = [c for c in reader.connections if c.topic == "/clock"]
-        times = [store.deserialize_cdr(raw, c.msgtype).clock for c, _, raw in reader.messages(connections=connections)]
-    return np.array([t.sec + t.nanosec * 1e-9 for t in times])
+        clocks: list[Any] = [store.deserialize_cdr(raw, c.msgtype) for c, _, raw in reader.messages(connections)]
+    return np.array([m.clock.sec + m.clock.nanosec * 1e-9 for m in clocks])
 
 
 def _xyzw(t: TransformStamped) -> tuple[float, float, float, float]:
