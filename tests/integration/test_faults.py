@@ -61,9 +61,11 @@ def alive(pid: int) -> bool:
     return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
 
 
-def kill_after_a_drawn_moment(ros_node: Any, launch: Any, name: str, rng: random.Random) -> tuple[int, set[str]]:
-    """SIGKILL ``name``'s process once the simulation has run a drawn 1 to 6 s longer; its pid and
-    the DDS shared-memory segments it alone had (not the ports every participant shares)."""
+def kill_after_a_drawn_moment(ros_node: Any, launch: Any, name: str,
+                              rng: random.Random) -> tuple[int, set[str], float]:
+    """SIGKILL ``name``'s process once the simulation has run a drawn 1 to 6 s longer; its pid, the
+    DDS shared-memory segments it alone had (not the ports every participant shares) and the
+    simulation's time at the kill."""
     clock: list[float] = []
     subscription = ros_node.create_subscription(Clock, "/clock", lambda m: clock.append(
         m.clock.sec + m.clock.nanosec * 1e-9), 10)
@@ -74,16 +76,18 @@ def kill_after_a_drawn_moment(ros_node: Any, launch: Any, name: str, rng: random
     pid = max(p for label, p in pids(launch.output).items() if label.rsplit("-", 1)[0] == name)
     own = {s for s in segments_of(pid) if not s.startswith("fastrtps_port")}
     os.kill(pid, signal.SIGKILL)
-    return pid, own
+    return pid, own, clock[-1]
 
 
 def kill_and_see_respawned(ros_node: Any, launch: Any, victim: str, rng: random.Random,
-                           limit: str = "no limit") -> None:
+                           limit: str = "no limit") -> float:
     """SIGKILL ``victim`` at a drawn moment and wait for the launch to start it again (respawn:=true,
-    ``limit`` as the launch says it: "no limit", or the recorder's "1 of 3")."""
-    kill_after_a_drawn_moment(ros_node, launch, victim, rng)
+    ``limit`` as the launch says it: "no limit", or the recorder's "1 of 3"); the simulation's time
+    at the kill."""
+    *_, killed_at = kill_after_a_drawn_moment(ros_node, launch, victim, rng)
     launch.wait_for_output(rf"\[INFO\] \[{victim}-1\]: respawning in 0.5 s \({limit}\)", 10)
     launch.wait_for_output(rf"\[INFO\] \[{victim}-2\]: process started with pid", 20)
+    return killed_at
 
 
 @pytest.mark.parametrize("bringup, victim", [("localization:=true", "navigation"),
@@ -94,7 +98,7 @@ def test_a_killed_node_ends_the_launch_naming_it_and_leaves_nothing_behind(ros_n
     launch = spawn([PPPBOT, "launch_sim", "world:=room", *bringup.split(), "use_teleop:=false", "use_rviz:=false",
                     "use_viz:=false"], name="launch_sim")
     launch.wait_for_output(r"ppp_bot is up in 'room'", 120)
-    pid, segments = kill_after_a_drawn_moment(ros_node, launch, victim, random.Random(f"{SEED}{victim}"))
+    pid, segments, _ = kill_after_a_drawn_moment(ros_node, launch, victim, random.Random(f"{SEED}{victim}"))
     launch.wait_for_output(rf"\[ERROR\] \[{victim}-1\]: process has died \[pid {pid}, exit code -9", 10)
     launch.wait_for_output(rf"shutting down \(required node '{victim}' exited\)", 10)
     assert launch.wait(STOPPED_WITHIN_S) == 1
@@ -229,10 +233,11 @@ def test_the_live_view_and_the_recorder_respawn_and_go_on(ros_node: Any, spawn: 
     rng = random.Random(f"{SEED}view")
     clock: list[float] = []
     ros_node.create_subscription(Clock, "/clock", lambda m: clock.append(m.clock.sec + m.clock.nanosec * 1e-9), 10)
-    kill_and_see_respawned(ros_node, launch, "bag_record", rng, limit="1 of 3")
-    killed_at = clock[-1]  # the drawn moment: the clock as it was when the kill's wait ended
+    killed_at = kill_and_see_respawned(ros_node, launch, "bag_record", rng, limit="1 of 3")
     wait_until((bag / "bag_1.mcap").is_file, 60, "the respawned recorder's file", node=ros_node)
-    wait_until(lambda: clock[-1] > killed_at + 5.0, 60, "5 s more of recording", node=ros_node)
+    wait_until(lambda: clock, 20, "/clock", node=ros_node)
+    restarted_at = clock[-1]
+    wait_until(lambda: clock[-1] > restarted_at + 6.0, 60, "6 s more of recording", node=ros_node)
     kill_and_see_respawned(ros_node, launch, "viz", rng)
     wait_until(lambda: _page_answers(url), 60, "the respawned live view's page", node=ros_node)
     assert launch.stop() == 0

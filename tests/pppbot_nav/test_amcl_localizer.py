@@ -175,8 +175,17 @@ def test_an_initial_pose_off_the_map_or_wider_than_it_is_refused_and_the_particl
     with pytest.raises(AmclError, match=message):
         loc.set_initial_pose(np.array(truth if mean is None else mean), covariance)
     assert np.array_equal(loc.filter.particles, before)
-    # A pose on the map's very edge, and the widest spread the map allows, are taken.
-    loc.set_initial_pose(np.array([4.5, -3.5, 0.0]), np.diag([11.0 ** 2, 0.01, 0.1]))
+    # A pose on the map's very corner, with the widest spread the map allows, is taken; half a cell
+    # beyond the corner, or a spread a centimetre wider, is not.
+    g = loc.field.grid
+    x1, y0 = g.origin[0] + g.width * g.resolution, g.origin[1]
+    across = math.hypot(g.width * g.resolution, g.height * g.resolution)
+    loc.set_initial_pose(np.array([x1, y0, 0.0]), np.diag([across ** 2, 0.01, 0.1]))
+    assert np.abs(loc.filter.particles[:, 0].std() - across) < 0.1 * across
+    with pytest.raises(AmclError, match="outside the map"):
+        loc.set_initial_pose(np.array([x1 + 0.51 * g.resolution, y0, 0.0]), NAV2_INITIAL_COVARIANCE)
+    with pytest.raises(AmclError, match="wider than the map"):
+        loc.set_initial_pose(np.array([x1, y0, 0.0]), np.diag([(across + 0.01) ** 2, 0.01, 0.1]))
 
 
 def test_updates_wait_for_update_min_d_or_a_unless_forced():

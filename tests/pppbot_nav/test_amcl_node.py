@@ -147,11 +147,11 @@ def test_localizes_from_an_initial_pose_and_publishes_pose_cloud_and_map_to_odom
     robot.map_pub.publish(grid_message(OccupancyGrid(room.data, room.resolution, (room.origin[0] + 100.0,
                                                                                    room.origin[1], 0.0)),
                                        Time(seconds=2).to_msg()))
-    amcl.wait_for_output(r"no pose on the new map, set the initial pose: an initial pose at \(\S+, \S+\) lies "
+    amcl.wait_for_output(r"no pose on this map, set the initial pose: an initial pose at \(\S+, \S+\) lies "
                          r"outside the map \(x 95\.47 to 104\.5\d m", 20)
     for _, truth, odom in path[60:70]:
         robot.step(truth, odom)
-    wait_until(lambda: "Please set the initial pose" in amcl.output.partition("no pose on the new map")[2] or None,
+    wait_until(lambda: "Please set the initial pose" in amcl.output.partition("no pose on this map")[2] or None,
                20, "AMCL asking for an initial pose again", node=ros_node)
     seen = len(robot.map_to_odom)
     for _, truth, odom in path[70:75]:

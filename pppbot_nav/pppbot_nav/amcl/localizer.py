@@ -152,7 +152,9 @@ class Localizer:
         grid = self.field.grid
         x0, y0 = float(grid.origin[0]), float(grid.origin[1])
         x1, y1 = x0 + grid.width * grid.resolution, y0 + grid.height * grid.resolution
-        if mean.shape == (3,) and np.isfinite(mean).all() and not (x0 <= mean[0] <= x1 and y0 <= mean[1] <= y1):
+        edge = 0.5 * grid.resolution  # a pose typed on the map's edge is on it, whatever the rounding of x1, y1
+        if mean.shape == (3,) and np.isfinite(mean).all() and not (x0 - edge <= mean[0] <= x1 + edge
+                                                                    and y0 - edge <= mean[1] <= y1 + edge):
             raise OffTheMap(f"an initial pose at ({mean[0]:.6g}, {mean[1]:.6g}) lies outside the map "
                             f"(x {x0:.2f} to {x1:.2f} m, y {y0:.2f} to {y1:.2f} m)")
         if covariance.shape == (3, 3) and np.isfinite(covariance).all():

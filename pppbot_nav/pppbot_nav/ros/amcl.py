@@ -245,9 +245,10 @@ class Amcl(ManagedNode):
             try:
                 self._start_at(*self._pose)
             except AmclError as exc:  # a map that does not hold the last pose: localized nowhere, Nav2 goes on
-                self._pose = None
+                self._pose, self._map_to_odom = None, None
                 self.localizer.forget_pose()
-                self._warn("initial pose off the map", f"no pose on the new map, set the initial pose: {exc}")
+                # Not throttled with refused poses: said once, as the pose is gone until one is given.
+                self.get_logger().warning(f"no pose on this map, set the initial pose: {exc}")
 
     def _start_at(self, mean: np.ndarray, covariance: np.ndarray) -> None:
         """Raises AmclError: a pose the localizer refuses (off the map, spread wider than it)."""
@@ -292,6 +293,7 @@ class Amcl(ManagedNode):
             self.get_logger().warning("reinitialize_global_localization: no map yet")
             return response
         self.localizer.global_localization()
+        self._pose = None  # a map that comes later restarts from the search's estimate, not an older pose
         self.get_logger().info(f"global localization: {len(self.localizer.filter)} particles over the free space")
         return response
 
