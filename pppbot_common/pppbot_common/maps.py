@@ -82,6 +82,12 @@ class OccupancyGrid:
     def width(self) -> int:
         return int(self.data.shape[1])
 
+    @property
+    def extent(self) -> tuple[float, float, float, float]:
+        """The map's rectangle in its frame: x0, x1, y0, y1 (origin yaw 0; matplotlib's ``extent``)."""
+        x0, y0 = float(self.origin[0]), float(self.origin[1])
+        return x0, x0 + self.width * self.resolution, y0, y0 + self.height * self.resolution
+
     def cell_of(self, x: np.ndarray | float, y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         """(row, col) indices of world points (origin yaw must be 0); may be out of range."""
         col = np.floor((np.asarray(x) - self.origin[0]) / self.resolution).astype(int)

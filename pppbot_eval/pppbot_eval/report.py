@@ -52,11 +52,6 @@ def write_json(path: Path, report: dict[str, Any]) -> str:
     return json.dumps(safe, separators=(",", ":"))
 
 
-def _extent(grid: OccupancyGrid) -> tuple[float, float, float, float]:
-    x0, y0 = grid.origin[0], grid.origin[1]
-    return x0, x0 + grid.width * grid.resolution, y0, y0 + grid.height * grid.resolution
-
-
 def _figure_size(grid: OccupancyGrid) -> tuple[float, float]:
     aspect = grid.height / max(grid.width, 1)
     return 8.0, max(3.0, min(14.0, 8.0 * aspect)) + 0.6
@@ -64,7 +59,7 @@ def _figure_size(grid: OccupancyGrid) -> tuple[float, float]:
 
 def _draw_truth(ax: Any, truth_map: OccupancyGrid) -> None:
     walls = np.where(truth_map.data == OCCUPIED, 0.35, 1.0)
-    ax.imshow(walls, origin="lower", extent=_extent(truth_map), cmap="gray", vmin=0.0, vmax=1.0,
+    ax.imshow(walls, origin="lower", extent=truth_map.extent, cmap="gray", vmin=0.0, vmax=1.0,
               interpolation="nearest")
 
 
@@ -130,7 +125,7 @@ def plot_map_overlay(path: Path, truth_map: OccupancyGrid, true_walls: np.ndarra
                      false_walls: np.ndarray, title: str = "") -> None:
     fig, ax = plt.subplots(figsize=_figure_size(truth_map))
     ax.imshow(map_overlay_image(truth_map, true_walls, matched_walls, false_walls), origin="lower",
-              extent=_extent(truth_map), interpolation="nearest")
+              extent=truth_map.extent, interpolation="nearest")
     ax.legend(handles=[Patch(color=TRUE_WALL, label="true walls"), Patch(color=MAPPED_WALL, label="mapped walls"),
                        Patch(color=FALSE_WALL, label="false walls")], loc="upper right", fontsize=8)
     ax.set_xlabel("x (m, world)")

@@ -178,8 +178,8 @@ def test_an_initial_pose_off_the_map_or_wider_than_it_is_refused_and_the_particl
     # A pose on the map's very corner, with the widest spread the map allows, is taken; half a cell
     # beyond the corner, or a spread a centimetre wider, is not.
     g = loc.field.grid
-    x1, y0 = g.origin[0] + g.width * g.resolution, g.origin[1]
-    across = math.hypot(g.width * g.resolution, g.height * g.resolution)
+    x0, x1, y0, y1 = g.extent
+    across = math.hypot(x1 - x0, y1 - y0)
     loc.set_initial_pose(np.array([x1, y0, 0.0]), np.diag([across ** 2, 0.01, 0.1]))
     assert np.abs(loc.filter.particles[:, 0].std() - across) < 0.1 * across
     with pytest.raises(AmclError, match="outside the map"):

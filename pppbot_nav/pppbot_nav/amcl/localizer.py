@@ -150,8 +150,7 @@ class Localizer:
         """Raises OffTheMap: ``mean`` outside the map, or a spread wider than the map (only for a
         finite pose and covariance: the filter names the others)."""
         grid = self.field.grid
-        x0, y0 = float(grid.origin[0]), float(grid.origin[1])
-        x1, y1 = x0 + grid.width * grid.resolution, y0 + grid.height * grid.resolution
+        x0, x1, y0, y1 = grid.extent
         edge = 0.5 * grid.resolution  # a pose typed on the map's edge is on it, whatever the rounding of x1, y1
         if mean.shape == (3,) and np.isfinite(mean).all() and not (x0 - edge <= mean[0] <= x1 + edge
                                                                     and y0 - edge <= mean[1] <= y1 + edge):
