@@ -118,6 +118,30 @@ def set_pose(page: Any, button: str, position: tuple[float, float], heading: tup
     return clicked
 
 
+def wait_for_view_time(page: Any, target_s: float, stall_s: float, timeout_s: float, what: str) -> float:
+    """Wait until the page's viewer shows sim time ``target_s`` while its time keeps moving: a
+    viewer without a GPU has frames of many seconds now and then (its first ones, a new kind of
+    display) and catches up at its own pace after them. Returns the time it shows.
+
+    Raises:
+        TimeoutError: its time stood still for ``stall_s`` (or it showed nothing for as long),
+            or ``timeout_s`` passed.
+    """
+    start = moved = time.monotonic()
+    last = view_time_s(page)
+    while last is None or last < target_s:
+        now = time.monotonic()
+        if now - moved > stall_s or now - start > timeout_s:
+            shown = "nothing" if last is None else f"{last:.1f} s"
+            raise TimeoutError(f"{what}: the view shows {shown} of sim time, not {target_s:.1f} s, after "
+                               f"{now - start:.0f} s (standing still for {now - moved:.0f} s)")
+        time.sleep(0.25)
+        shown_now = view_time_s(page)
+        if shown_now is not None and (last is None or shown_now > last):
+            last, moved = shown_now, time.monotonic()
+    return last
+
+
 def view_time_s(page: Any) -> float | None:
     """The time the page's viewer shows (sim seconds; it follows the newest data), None before any."""
     value = page.evaluate("window.pppbot.time")

@@ -18,7 +18,7 @@ import pytest
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
 from nav_msgs.msg import Odometry
 from PIL import Image
-from pppbot_viz.headless import chromium_page, wait_for
+from pppbot_viz.headless import chromium_page, wait_for, wait_for_view_time
 
 from pppbot_common.ros.wait import wait_until
 from pppbot_common.se2 import yaw_from_quaternion
@@ -120,7 +120,7 @@ def test_live_view_in_a_browser(ros_node, spawn, tmp_path):
         page.goto(url)
         wait_for(page, "window.pppbot && window.pppbot.started", 90, "the viewer to start")
         # Live: the view's time follows the simulation's (time_update events from the viewer).
-        wait_for(page, "window.pppbot.time !== null", 60, "the view's first data")
+        wait_for_view_time(page, 0.0, 120, 240, "the view's first data")
         time.sleep(3.0)
         before = free_pixels(page)
 
@@ -134,7 +134,8 @@ def test_live_view_in_a_browser(ros_node, spawn, tmp_path):
         drive.publish(Twist())
         driven_until = odometry[-1].header.stamp.sec + 6  # SLAM publishes its map every 5 s
         wait_until(lambda: odometry[-1].header.stamp.sec >= driven_until, 60, "the next map", node=ros_node)
-        wait_for(page, f"window.pppbot.time >= {driven_until * 1e9}", 90, "the view to show the new map")
+        # The view follows at its own pace: without a GPU, it has frames of many seconds now and then.
+        wait_for_view_time(page, driven_until, 60, 400, "the view to show the new map")
         time.sleep(2.0)
         after = free_pixels(page)
         assert after > 1.5 * before + 2000, f"free cells on screen: {before} before driving, {after} after"
@@ -144,6 +145,8 @@ def test_live_view_in_a_browser(ros_node, spawn, tmp_path):
         assert_map_under_scan(page, tmp_path)
         # What the robot sees: the simulator renders ppp_bot's camera for the view, in its camera panel.
         assert "showing camera images of /camera/image_raw" in launch.output  # once the page's viewer is here
+        # and all along: the page says it is open even while its viewer is busy with a long frame
+        assert "no viewer open" not in launch.output
         sky, ground = camera_view(page)
         assert sky > 0.1 and ground > 0.1, f"camera view: {sky:.0%} sky, {ground:.0%} ground"
         # The SLAM node's health (/diagnostics) in its panel: text, not an empty panel.
@@ -151,8 +154,9 @@ def test_live_view_in_a_browser(ros_node, spawn, tmp_path):
 
         # RViz's tools: a button, then the position and a point in the heading.
         assert_pose_tools(page, ros_node)
-        # Nothing beyond this machine: the viewer's update check and usage reports are blocked.
-        assert browser.requests and all(re.match(r"http://127\.0\.0\.1:\d+/", u) for u in browser.requests), \
+        # Nothing beyond this machine: the viewer's update check and usage reports are blocked (a
+        # blob: URL is the page's own worker).
+        assert browser.requests and all(re.match(r"(blob:)?http://127\.0\.0\.1:\d+/", u) for u in browser.requests), \
             sorted({u for u in browser.requests if "127.0.0.1" not in u})
 
     os.kill(launch.pid, signal.SIGINT)
