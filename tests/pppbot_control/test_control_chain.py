@@ -115,12 +115,15 @@ def test_one_metre_through_the_whole_chain(ros_node, chain):
     stop_at = 1.0 - v * v / (2 * decel)
     wait_until(lambda: (tele.publish(twist(v)), distance(odoms[-1], odom0) >= stop_at)[1], 30,
                "0.95 m of odometry", node=ros_node)
+    seen = distance(odoms[-1], odom0)  # where the test saw the robot when it sent the stop
     odom1, truth1 = standstill(ros_node, tele, odoms, truths)
     travelled = distance(truth1, truth0)
     measured = distance(odom1, odom0)
-    # Free running, the stop goes out when this test sees 0.955 m: on a busy machine it can see
-    # that late (a clean-clone run on a loaded machine stopped at 1.030 m), each 0.1 s 3 cm more.
-    assert 0.97 <= travelled <= 1.1
+    # Free running, the stop goes out when this test sees 0.955 m: on a busy machine it sees that
+    # late (clean-clone runs on loaded machines stopped at 1.030 and 1.107 m), each 0.1 s 3 cm
+    # more. The robot drove its metre and stopped within 0.2 m of where the stop went out (0.045 m
+    # of braking, the rest the commands and odometry on their way).
+    assert 0.97 <= travelled <= seen + 0.2
     assert measured == pytest.approx(travelled, rel=0.01)  # what the chain must get right: odometry
 
 
