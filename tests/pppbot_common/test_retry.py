@@ -14,6 +14,8 @@ from pppbot_common.ros.retry import (
     Retry,
     Unanswered,
     Verdict,
+    cancel_when_accepted,
+    send_goal,
     transition_verdict,
     wait_for_answer,
 )
@@ -148,3 +150,63 @@ def test_a_lifecycle_transition_is_sent_again_only_when_lost(now_id, began, verd
 def test_a_bad_retry_names_the_field_and_its_value(kwargs, message):
     with pytest.raises(ValueError, match=message):
         Retry(**kwargs)
+
+
+@dataclass
+class GoalHandle:
+    accepted: bool
+    canceled: bool = False
+
+    def cancel_goal_async(self) -> None:
+        self.canceled = True
+
+
+@dataclass
+class GoalSent(Sent):
+    """A goal's send future, as rclpy's: callbacks run once its acceptance arrives."""
+
+    handle: GoalHandle | None = None
+    callbacks: list[Callable[[GoalSent], None]] = field(default_factory=list)
+
+    def result(self) -> GoalHandle | None:  # type: ignore[override]
+        return self.handle
+
+    def arrive(self, accepted: bool) -> None:
+        self.handle, self.answer = GoalHandle(accepted), "answered"
+        for callback in self.callbacks:
+            callback(self)
+
+    def add_done_callback(self, callback: Callable[[GoalSent], None]) -> None:
+        if self.done():
+            callback(self)
+        else:
+            self.callbacks.append(callback)
+
+
+def test_a_goal_given_up_on_and_accepted_late_is_canceled_and_the_one_answered_is_kept():
+    sent: list[GoalSent] = []
+
+    class Client:
+        _action_name = "/navigate_to_pose"
+
+        def send_goal_async(self, goal: object, feedback_callback: object = None) -> GoalSent:
+            sent.append(GoalSent(len(sent) + 1))
+            return sent[-1]
+
+    def wait(pending: GoalSent, timeout_s: float) -> None:
+        if pending.number == 2:  # the second goal's acceptance comes in time, the first's after it
+            pending.arrive(accepted=True)
+            sent[0].arrive(accepted=True)
+
+    handle = send_goal(Client(), object(), Retry(0.01, attempts=2, deadline_s=60.0), wait)
+    assert handle is sent[1].handle
+    assert handle is not None and not handle.canceled
+    first = sent[0].handle
+    assert first is not None and first.canceled
+
+
+def test_a_goal_given_up_on_and_refused_late_is_left_alone():
+    late = GoalSent(1)
+    cancel_when_accepted(late)
+    late.arrive(accepted=False)
+    assert late.handle is not None and not late.handle.canceled

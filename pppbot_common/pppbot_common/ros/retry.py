@@ -214,14 +214,26 @@ def send_goal(client: Any, goal: Any, retry: Retry, wait: Wait, *, node: Any = N
               feedback_callback: Callable[[Any], None] | None = None) -> Any:
     """Send an action goal; its goal handle once the server answered (accepted or not). A goal
     sent again after its answer was lost is a new goal to a server that took the first (it
-    preempts it), so every lost answer is taken for a lost goal.
+    preempts it), so every lost answer is taken for a lost goal; a goal given up on whose acceptance
+    comes after all is canceled then, so the server runs only the goal the caller holds.
 
     Raises:
         Unanswered: naming the action.
     """
     sent: Request[Any] = Request(lambda: client.send_goal_async(goal, feedback_callback=feedback_callback), retry,
-                                 f"a goal on action {client._action_name}{asker(node)}")
+                                 f"a goal on action {client._action_name}{asker(node)}", forget=cancel_when_accepted)
     return wait_for_answer(sent, wait)
+
+
+def cancel_when_accepted(pending: Any) -> None:
+    """A goal given up on (``pending``: its ``send_goal_async`` future): if the server accepts it
+    later, cancel it then."""
+    def cancel(future: Any) -> None:
+        handle = future.result()
+        if handle is not None and handle.accepted:
+            handle.cancel_goal_async()
+
+    pending.add_done_callback(cancel)
 
 
 class LifecycleCalls:
