@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 from controller_manager_msgs.srv import (
+    CleanupController,
     ConfigureController,
     ListControllers,
     ListControllerTypes,
@@ -76,6 +77,12 @@ def test_list_controllers_shows_both_active_with_their_types(ros_node, simulator
                     ConfigureController.Request(name="no_such_controller")).ok
     assert not call(ros_node, UnloadController, f"{CM}/unload_controller",
                     UnloadController.Request(name="joint_broad")).ok
+    # Jazzy's cleanup_controller: an active controller is refused (as ros2_control does), and the
+    # controllers stay as they were.
+    assert not call(ros_node, CleanupController, f"{CM}/cleanup_controller",
+                    CleanupController.Request(name="diff_drive_base_controller")).ok
+    assert states(ros_node) == {"diff_drive_base_controller": "active", "joint_broad": "active"}
+    simulator.wait_for_output("cleanup_controller diff_drive_base_controller: it is active", 10)
 
 
 def test_deactivating_the_diff_drive_stops_the_robot_and_reactivating_resumes(ros_node, simulator):

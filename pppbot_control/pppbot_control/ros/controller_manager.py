@@ -16,7 +16,9 @@ Node name ``controller_manager``; services with controller_manager_msgs' types, 
 * ``~/list_controller_types``: the types pppbot hosts;
 * ``~/configure_controller``: ``ok`` for a loaded controller (hosted ones are configured at start),
   so the spawner's load-configure-activate sequence goes through on them; ``~/unload_controller``
-  is refused (they stay loaded).
+  and ``~/cleanup_controller`` (Jazzy's, from ros2_control 4.42: an inactive controller back to
+  unconfigured) are refused, saying why (hosted controllers stay loaded and configured; an active
+  one must be deactivated first, as ros2_control has it).
 
 Its parameters are the ``controller_manager`` section of the controllers file (``update_rate``,
 ``<controller>.type``), read as given.
@@ -29,6 +31,7 @@ from typing import Any, Protocol
 
 from controller_manager_msgs.msg import ControllerState, HardwareInterface
 from controller_manager_msgs.srv import (
+    CleanupController,
     ConfigureController,
     ListControllers,
     ListControllerTypes,
@@ -95,6 +98,7 @@ class ControllerManager(StepNode):
         self.create_service(ListControllerTypes, "~/list_controller_types", self._list_controller_types)
         self.create_service(ConfigureController, "~/configure_controller", self._configure_controller)
         self.create_service(UnloadController, "~/unload_controller", self._unload_controller)
+        self.create_service(CleanupController, "~/cleanup_controller", self._cleanup_controller)
         self.get_logger().info(
             "controllers: " + (", ".join(f"{c.name} ({c.type}, {c.status.value})" for c in controllers) or "none"))
 
@@ -182,6 +186,21 @@ class ControllerManager(StepNode):
         """Hosted controllers stay loaded (the simulator's process owns them): refused, saying so."""
         self.get_logger().warning(f"unload_controller {request.name}: pppbot's hosted controllers stay loaded "
                                   "(deactivate one with switch_controller)")
+        response.ok = False
+        return response
+
+    def _cleanup_controller(self, request: CleanupController.Request,
+                            response: CleanupController.Response) -> CleanupController.Response:
+        """Refused, naming why: no such controller, an active one (deactivate it first, as ros2_control
+        asks), or a hosted one, which stays configured while the simulator's process runs."""
+        controller = self.controllers.get(request.name)
+        if controller is None:
+            reason = "no controller of that name is loaded"
+        elif controller.status is ControllerStatus.ACTIVE:
+            reason = "it is active: deactivate it with switch_controller first"
+        else:
+            reason = "pppbot's hosted controllers stay configured (it is inactive: activate it with switch_controller)"
+        self.get_logger().warning(f"cleanup_controller {request.name}: {reason}")
         response.ok = False
         return response
 
