@@ -5,14 +5,12 @@ talks to pppbot's controller_manager."""
 from __future__ import annotations
 
 import importlib
-import json
 from pathlib import Path
 from typing import Any
 
 import pytest
-from ament_index_python.packages import get_package_share_directory
 
-from pppbot_common.ros.wait import wait_until
+from .interface_hashes import announced_hash, built_hashes
 
 INTERFACES = Path(__file__).resolve().parent.parent / "interfaces" / "controller_manager_msgs"
 #: RIHS01 hashes of Jazzy's controller_manager_msgs (ros2_control 4.42 and later), by type under
@@ -78,14 +76,6 @@ def definitions() -> list[tuple[str, str]]:
     return [(kind, path.stem) for kind in ("msg", "srv") for path in sorted((INTERFACES / kind).glob(f"*.{kind}"))]
 
 
-def built_hashes() -> dict[str, str]:
-    share = Path(get_package_share_directory("controller_manager_msgs"))
-    return {entry["type_name"].removeprefix("controller_manager_msgs/"): entry["hash_string"]
-            for path in sorted([*share.glob("msg/*.json"), *share.glob("srv/*.json")])
-            for entry in json.loads(path.read_text())["type_hashes"]
-            if entry["type_name"].startswith("controller_manager_msgs/")}
-
-
 @pytest.mark.parametrize(("kind", "name"), definitions(), ids=[f"{k}/{n}" for k, n in definitions()])
 def test_every_definition_imports(kind: str, name: str):
     assert hasattr(importlib.import_module(f"controller_manager_msgs.{kind}"), name)
@@ -98,7 +88,7 @@ def test_every_type_of_the_release_is_there():
 
 
 def test_every_type_hash_is_jazzys():
-    built = built_hashes()
+    built = built_hashes("controller_manager_msgs")
     assert {name: built.get(name) for name in JAZZY} == JAZZY
 
 
@@ -137,11 +127,5 @@ def test_the_shapes_are_jazzys():
 def test_a_publisher_announces_jazzys_hash_on_dds(ros_node: Any) -> None:
     from controller_manager_msgs.msg import HardwareComponentState
 
-    publisher = ros_node.create_publisher(HardwareComponentState, "controller_manager_interfaces_test", 1)
-    try:
-        wait_until(lambda: ros_node.get_publishers_info_by_topic("/controller_manager_interfaces_test"), 10,
-                   "the publisher in the graph", node=None)
-        (info,) = ros_node.get_publishers_info_by_topic("/controller_manager_interfaces_test")
-        assert str(info.topic_type_hash) == JAZZY["msg/HardwareComponentState"]
-    finally:
-        ros_node.destroy_publisher(publisher)
+    assert (announced_hash(ros_node, HardwareComponentState, "/controller_manager_interfaces_test")
+            == JAZZY["msg/HardwareComponentState"])

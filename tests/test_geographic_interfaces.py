@@ -4,14 +4,12 @@ has the type hash of the released package, in the built type descriptions and on
 from __future__ import annotations
 
 import importlib
-import json
 from pathlib import Path
 from typing import Any
 
 import pytest
-from ament_index_python.packages import get_package_share_directory
 
-from pppbot_common.ros.wait import wait_until
+from .interface_hashes import announced_hash, built_hashes
 
 INTERFACES = Path(__file__).resolve().parent.parent / "interfaces" / "geographic_msgs"
 #: RIHS01 hashes of the released geographic_msgs 1.0.x, by type under ``geographic_msgs/``
@@ -56,14 +54,6 @@ def definitions() -> list[tuple[str, str]]:
     return [(kind, path.stem) for kind in ("msg", "srv") for path in sorted((INTERFACES / kind).glob(f"*.{kind}"))]
 
 
-def built_hashes() -> dict[str, str]:
-    share = Path(get_package_share_directory("geographic_msgs"))
-    return {entry["type_name"]: entry["hash_string"]
-            for path in sorted([*share.glob("msg/*.json"), *share.glob("srv/*.json")])
-            for entry in json.loads(path.read_text())["type_hashes"]
-            if entry["type_name"].startswith("geographic_msgs/")}
-
-
 def test_every_type_of_the_release_is_there_and_imports() -> None:
     assert len(definitions()) == 20  # 16 messages, 4 services
     for kind, name in definitions():
@@ -71,9 +61,9 @@ def test_every_type_of_the_release_is_there_and_imports() -> None:
 
 
 def test_every_type_hash_is_the_releases() -> None:
-    built = built_hashes()
+    built = built_hashes("geographic_msgs")
     assert len(RELEASED) == 16 + 4 * 4  # a service: itself, its request, response and event
-    assert {name: built.get(f"geographic_msgs/{name}") for name in RELEASED} == RELEASED
+    assert {name: built.get(name) for name in RELEASED} == RELEASED
 
 
 @pytest.mark.ros
@@ -81,14 +71,7 @@ def test_a_publisher_announces_the_releases_hash_on_dds(ros_node: Any) -> None:
     from geographic_msgs.msg import GeoPoseStamped
     from nav2_msgs.action import FollowGPSWaypoints
 
-    publisher = ros_node.create_publisher(GeoPoseStamped, "geographic_interfaces_test", 1)
-    try:
-        wait_until(lambda: ros_node.get_publishers_info_by_topic("/geographic_interfaces_test"), 10,
-                   "the publisher in the graph", node=None)
-        (info,) = ros_node.get_publishers_info_by_topic("/geographic_interfaces_test")
-        assert str(info.topic_type_hash) == RELEASED["msg/GeoPoseStamped"]
-    finally:
-        ros_node.destroy_publisher(publisher)
+    assert announced_hash(ros_node, GeoPoseStamped, "/geographic_interfaces_test") == RELEASED["msg/GeoPoseStamped"]
     # What BasicNavigator.followGpsWaypoints() sends: geographic_msgs/GeoPose goals.
     goal = FollowGPSWaypoints.Goal()
     assert goal.get_fields_and_field_types()["gps_poses"] == "sequence<geographic_msgs/GeoPose>"
